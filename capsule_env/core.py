@@ -1,0 +1,669 @@
+"""The batched simulation behind every environment flavour (no Gym import).
+
+:class:`EnvConfig` holds and validates every environment option; :class:`CapsuleBatch` runs
+``N`` vehicles with one compiled step kernel that maps actions to coil currents (through an
+inverse model in force mode), applies the control delay, advances the plant
+(:func:`capsule_env.dynamics._advance`), measures the sensors with noise and computes the reward.
+The single Gymnasium env is a batch of one; the native vector env and the SB3 ``VecEnv`` are
+batches of ``N``: same kernel, same numbers.
+
+Randomness is per vehicle: vehicle ``n`` owns a ``numpy.random.Generator`` (seeded ``seed + n``)
+used only at reset (guideway window, domain randomisation, the noise key), and sensor noise is a
+counter-based hash of ``(noise key, step, channel)``. So a trajectory depends only on the seed
+and the actions, never on the batch size, the batch position or threading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from capsule_env._validation import (
+    check_choice,
+    check_in_range,
+    check_nonnegative,
+    check_positive,
+)
+from capsule_env.dampers import (
+    BOUC_WEN,
+    PASSIVE,
+    BiExponentialDamper,
+    BoucWenDamper,
+    DamperParams,
+    TanhDamper,
+    make_damper,
+)
+from capsule_env.dynamics import (
+    BODY_DISP,
+    BODY_VEL,
+    BOGIE_DISP,
+    BOGIE_VEL,
+    COIL_CURRENT,
+    N_OUTPUTS,
+    STATE_SIZE,
+    _advance,
+    default_substeps,
+)
+from capsule_env.guideway import GuidewayParams, make_profile, random_profile
+from capsule_env.hysteresis import hysteresis_update
+from capsule_env.inverse import INVERSE_NAMES, affine_in_current, invert_affine
+from capsule_env.vehicle import VehicleParams
+
+__all__ = [
+    "ACTION_MODES",
+    "SETTINGS",
+    "OBSERVATION_SETS",
+    "PLANT_DAMPERS",
+    "SENSOR_NAMES",
+    "FULL_STATE_NAMES",
+    "SIGNAL_NAMES",
+    "SENSOR_NOISE_STD",
+    "observation_bounds",
+    "EnvConfig",
+    "CapsuleBatch",
+]
+
+ACTION_MODES = ("force", "current")
+SETTINGS = ("sim", "hils")
+OBSERVATION_SETS = ("sensors", "full_state")
+PLANT_DAMPERS = ("reference", "bouc_wen", "bi_exponential", "tanh", "passive")
+#: The plant damper of the ``sim`` setting: the model the controller inverts (MODEL.md 9).
+SIM_PLANT_FOR_INVERSE = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}
+
+SENSOR_NAMES = (
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "last_current_command_a",
+)
+FULL_STATE_NAMES = (
+    "car_body_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_displacement_m",
+    "bogie_velocity_m_s",
+    "guideway_elevation_m",
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "coil_current_a",
+)
+#: Per-step physical signals and reward terms (``info`` keys), in kernel column order.
+SIGNAL_NAMES = (
+    "car_body_displacement_m",
+    "bogie_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_velocity_m_s",
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "damper_force_n",
+    "desired_force_n",
+    "current_command_a",
+    "coil_current_a",
+    "guideway_elevation_m",
+    "cost_acceleration",
+    "cost_stroke",
+    "cost_energy",
+)
+N_SIGNALS = len(SIGNAL_NAMES)
+#: Standard deviation of each sensor channel's noise at ``sensor_noise=1`` [reconstructed: a few
+#: per cent of the channel's typical level on the default guideway; HILS default].
+SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 0.0])
+_INVERSE_CODE = {"bi_exponential": 4, "tanh": 3, "csdc": BOUC_WEN}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Every option of ``CapsuleSuspension-v0`` (see the env docstring for the full story).
+
+    Options left as ``None`` take the value of the chosen ``setting``: ``sim`` (the plant's
+    damper is the model the controller inverts, ideal coil, no noise, no delay: the paper's
+    simulation) or ``hils`` (the reference Spencer damper with its coil lag, sensor noise and a
+    one-step control delay: the paper's HILS test emulated).
+    """
+
+    action_mode: str = "force"
+    inverse_model: str = "bi_exponential"
+    setting: str = "sim"
+    damper: str | None = None
+    coil_time_constant_s: float | None = None
+    sensor_noise: float | None = None
+    control_delay_steps: int | None = None
+    guideway: str = "random"
+    guideway_params: dict = field(default_factory=dict)
+    speed_kmh: float = 810.0
+    guideway_seed: int = 0
+    guideway_bank_size: int = 16
+    control_rate_hz: float = 200.0
+    episode_length_s: float = 10.0
+    substeps: int | None = None
+    observation: str = "sensors"
+    max_force_n: float = 8000.0
+    reward_acceleration_weight: float = 1.0
+    reward_stroke_weight: float = 0.1
+    reward_energy_weight: float = 0.01
+    acceleration_scale_m_s2: float = 0.5
+    stroke_scale_m: float = 0.02
+    stroke_limit_m: float = 0.06
+    bump_stop_penalty: float = 100.0
+    vehicle_params: dict = field(default_factory=dict)
+    damper_params: dict = field(default_factory=dict)
+    inverse_params: dict = field(default_factory=dict)
+    vehicle_randomization: float = 0.0
+    speed_range_kmh: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        check_choice("action_mode", self.action_mode, ACTION_MODES)
+        check_choice("inverse_model", self.inverse_model, INVERSE_NAMES)
+        check_choice("setting", self.setting, SETTINGS)
+        if self.damper is not None:
+            check_choice("damper", self.damper, PLANT_DAMPERS)
+        if self.coil_time_constant_s is not None:
+            check_nonnegative("coil_time_constant_s", self.coil_time_constant_s)
+        if self.sensor_noise is not None:
+            check_nonnegative("sensor_noise", self.sensor_noise)
+        if self.control_delay_steps is not None:
+            if int(self.control_delay_steps) != self.control_delay_steps:
+                raise ValueError("control_delay_steps must be an integer >= 0")
+            check_in_range("control_delay_steps", self.control_delay_steps, 0, 100)
+        check_positive("speed_kmh", self.speed_kmh)
+        check_in_range("guideway_bank_size", self.guideway_bank_size, 1, 4096)
+        check_in_range("control_rate_hz", self.control_rate_hz, 1.0, 10_000.0)
+        check_positive("episode_length_s", self.episode_length_s)
+        if self.substeps is not None:
+            check_in_range("substeps", self.substeps, 1, 10_000)
+        check_choice("observation", self.observation, OBSERVATION_SETS)
+        check_positive("max_force_n", self.max_force_n)
+        for name in (
+            "reward_acceleration_weight",
+            "reward_stroke_weight",
+            "reward_energy_weight",
+            "bump_stop_penalty",
+        ):
+            check_nonnegative(name, getattr(self, name))
+        check_positive("acceleration_scale_m_s2", self.acceleration_scale_m_s2)
+        check_positive("stroke_scale_m", self.stroke_scale_m)
+        check_positive("stroke_limit_m", self.stroke_limit_m)
+        check_in_range("vehicle_randomization", self.vehicle_randomization, 0.0, 0.9)
+        if self.speed_range_kmh is not None:
+            lo, hi = self.speed_range_kmh
+            check_positive("speed_range_kmh[0]", lo)
+            if not hi >= lo:
+                raise ValueError(
+                    f"speed_range_kmh must be (low, high) with high >= low, got {self.speed_range_kmh!r}"
+                )
+        for name in ("guideway_params", "vehicle_params", "damper_params", "inverse_params"):
+            if not isinstance(getattr(self, name), dict):
+                raise ValueError(f"{name} must be a dict of parameter overrides")
+        # Build everything once so that bad overrides fail here, with the parameter named.
+        _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
+        """Build from keyword arguments, rejecting unknown names with the accepted list."""
+        known = {f.name for f in fields(cls)}
+        for key in kwargs:
+            if key not in known:
+                raise ValueError(
+                    f"unknown environment argument {key!r}; accepted: {', '.join(sorted(known))}"
+                )
+        if kwargs.get("speed_range_kmh") is not None:
+            kwargs["speed_range_kmh"] = tuple(float(v) for v in kwargs["speed_range_kmh"])
+        return cls(**kwargs)
+
+    def replace(self, **changes: Any) -> EnvConfig:
+        return replace(self, **changes)
+
+    # ---- derived values (properties, not stored copies) ----
+    @property
+    def hils(self) -> bool:
+        return self.setting == "hils"
+
+    @property
+    def plant_damper_name(self) -> str:
+        if self.damper is not None:
+            return self.damper
+        return "reference" if self.hils else SIM_PLANT_FOR_INVERSE[self.inverse_model]
+
+    @property
+    def vehicle(self) -> VehicleParams:
+        return _build("vehicle_params", VehicleParams, self.vehicle_params)
+
+    @property
+    def plant_damper(self) -> DamperParams:
+        name = self.plant_damper_name
+        try:
+            damper = make_damper(name, **self.damper_params)
+        except TypeError as err:  # pragma: no cover - make_damper names keys itself
+            raise ValueError(f"damper_params: {err}") from None
+        tau = self.effective_coil_time_constant_s
+        if name != "passive":
+            damper = replace(damper, coil_time_constant_s=tau)
+        return damper
+
+    @property
+    def effective_coil_time_constant_s(self) -> float:
+        if self.coil_time_constant_s is not None:
+            return float(self.coil_time_constant_s)
+        return 1.0 / 190.0 if self.hils else 0.0
+
+    @property
+    def effective_sensor_noise(self) -> float:
+        if self.sensor_noise is not None:
+            return float(self.sensor_noise)
+        return 1.0 if self.hils else 0.0
+
+    @property
+    def effective_control_delay_steps(self) -> int:
+        if self.control_delay_steps is not None:
+            return int(self.control_delay_steps)
+        return 1 if self.hils else 0
+
+    @property
+    def inverse_damper(self) -> BiExponentialDamper | BoucWenDamper | TanhDamper:
+        name = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}[
+            self.inverse_model
+        ]
+        return make_damper(name, **self.inverse_params)
+
+    @property
+    def guideway_spec(self) -> GuidewayParams:
+        params = {"kind": self.guideway, "speed_kmh": self.speed_kmh, **self.guideway_params}
+        return _build("guideway_params", GuidewayParams, params)
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.control_rate_hz
+
+    @property
+    def max_episode_steps(self) -> int:
+        return int(round(self.episode_length_s * self.control_rate_hz))
+
+    @property
+    def max_current_a(self) -> float:
+        damper = self.plant_damper
+        return float(getattr(damper, "max_current_a", self.inverse_damper.max_current_a))
+
+    @property
+    def n_substeps(self) -> int:
+        if self.substeps is not None:
+            return int(self.substeps)
+        return default_substeps(self.plant_damper, self.dt_s, self.vehicle)
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        return SENSOR_NAMES if self.observation == "sensors" else FULL_STATE_NAMES
+
+
+def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(low, high)`` of the observation space: generous physical limits at which the sensors
+    saturate (accelerations 100 m/s^2, stroke 2 x the bump stop, rates 10 m/s, displacements
+    1 m, current [0, i_max])."""
+    x_lim = 2.0 * config.stroke_limit_m
+    if config.observation == "sensors":
+        high = [100.0, 100.0, x_lim, 10.0, i_max]
+        low = [-100.0, -100.0, -x_lim, -10.0, 0.0]
+    else:
+        high = [1.0, 10.0, 1.0, 10.0, 1.0, 100.0, 100.0, x_lim, 10.0, i_max]
+        low = [-1.0, -10.0, -1.0, -10.0, -1.0, -100.0, -100.0, -x_lim, -10.0, 0.0]
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+def _build(name: str, cls: type, overrides: dict) -> Any:
+    known = {f.name for f in fields(cls)}
+    for key in overrides:
+        if key not in known:
+            raise ValueError(f"unknown key {key!r} in {name}; accepted: {', '.join(sorted(known))}")
+    return cls(**overrides)
+
+
+# ----------------------------------------------------------------------------- kernel
+
+_MASK64 = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+@njit(cache=True, inline="always")
+def _mix(x):
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+@njit(cache=True, inline="always")
+def _gaussian(key, step, channel):
+    """Standard normal from a counter-based hash (splitmix64 + Box-Muller)."""
+    base = (
+        key
+        + np.uint64(step) * np.uint64(0x9E3779B97F4A7C15)
+        + np.uint64(channel) * np.uint64(0xD1B54A32D192ED03)
+    )
+    u1 = ((_mix(base) >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
+    u2 = (_mix(base + np.uint64(0x632BE59BD9B4E019)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+# Packed kernel arguments (fewer arguments = less dispatch overhead per call).
+# cfg_f: scalars (float64)
+(F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
+ F_STROKE_LIMIT, F_PENALTY, F_SPACING) = range(11)  # fmt: skip
+# cfg_i: scalars (int64)
+I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, I_N_SUB, I_FULL_OBS, I_DELAY_POS = range(6)
+# env_f: per-vehicle floats; env_i: per-vehicle ints
+E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
+E_PROFILE, E_STEP = range(2)
+
+
+@njit(cache=True)
+def _env_step_one(
+    n, action, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+):  # fmt: skip
+    i_max = cfg_f[F_I_MAX]
+    inv_code = cfg_i[I_INV_CODE]
+    # 1. action -> current command (through the inverse model in force mode)
+    if cfg_i[I_ACTION_MODE] == 1:
+        i_cmd = 0.5 * (action + 1.0) * i_max
+        f_d = 0.0  # no force request in current mode
+    else:
+        f_d = action * cfg_f[F_MAX_FORCE]
+        x_m = meas[n, 2]
+        v_m = meas[n, 3]
+        z_est = 0.0
+        if inv_code == BOUC_WEN:
+            z_est = hysteresis_update(
+                env_f[n, E_CSDC_Z], x_m - env_f[n, E_CSDC_X], inv_p[8], inv_p[6], inv_p[7]
+            )
+            env_f[n, E_CSDC_Z] = z_est
+            env_f[n, E_CSDC_X] = x_m
+        f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
+        i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
+    # 2. control delay: a ring buffer of delay + 1 commands
+    n_buf = delay_buf.shape[1]
+    delay_pos = cfg_i[I_DELAY_POS]
+    delay_buf[n, delay_pos % n_buf] = i_cmd
+    applied = delay_buf[n, (delay_pos + 1) % n_buf]
+    # 3. plant
+    _advance(
+        cfg_i[I_PLANT_CODE], dp[n], vp[n], state[n], applied, profiles, env_i[n, E_PROFILE],
+        cfg_f[F_SPACING], env_f[n, E_START], env_f[n, E_SPEED], env_f[n, E_GAIN], cfg_f[F_DT],
+        cfg_i[I_N_SUB], out[n],
+    )  # fmt: skip
+    s = state[n]
+    stroke = s[BODY_DISP] - s[BOGIE_DISP]
+    rate = s[BODY_VEL] - s[BOGIE_VEL]
+    force, acc_c, acc_b, zg = out[n, 0], out[n, 1], out[n, 2], out[n, 3]
+    env_i[n, E_STEP] += 1
+    k = env_i[n, E_STEP]
+    # 4. sensors (with counter-based noise)
+    key = noise_key[n]
+    meas[n, 0] = acc_c + noise_std[0] * _gaussian(key, k, 0)
+    meas[n, 1] = acc_b + noise_std[1] * _gaussian(key, k, 1)
+    meas[n, 2] = stroke + noise_std[2] * _gaussian(key, k, 2)
+    meas[n, 3] = rate + noise_std[3] * _gaussian(key, k, 3)
+    meas[n, 4] = i_cmd
+    if cfg_i[I_FULL_OBS]:
+        obs[n, 0] = s[BODY_DISP]
+        obs[n, 1] = s[BODY_VEL]
+        obs[n, 2] = s[BOGIE_DISP]
+        obs[n, 3] = s[BOGIE_VEL]
+        obs[n, 4] = zg
+        obs[n, 5] = acc_c
+        obs[n, 6] = acc_b
+        obs[n, 7] = stroke
+        obs[n, 8] = rate
+        obs[n, 9] = s[COIL_CURRENT]
+    else:
+        for j in range(5):
+            obs[n, j] = meas[n, j]
+    for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
+        obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
+    # 5. reward
+    c_acc = cfg_f[F_W_ACC] * (acc_c / cfg_f[F_ACC_REF]) ** 2
+    c_stroke = cfg_f[F_W_STROKE] * (stroke / cfg_f[F_STROKE_REF]) ** 2
+    c_energy = cfg_f[F_W_ENERGY] * (applied / i_max) ** 2 if i_max > 0.0 else 0.0
+    hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
+    terminated[n] = hit
+    reward[n] = -(c_acc + c_stroke + c_energy) - (cfg_f[F_PENALTY] if hit else 0.0)
+    sig[n, 0] = s[BODY_DISP]
+    sig[n, 1] = s[BOGIE_DISP]
+    sig[n, 2] = s[BODY_VEL]
+    sig[n, 3] = s[BOGIE_VEL]
+    sig[n, 4] = acc_c
+    sig[n, 5] = acc_b
+    sig[n, 6] = stroke
+    sig[n, 7] = rate
+    sig[n, 8] = force
+    sig[n, 9] = f_d
+    sig[n, 10] = i_cmd
+    sig[n, 11] = s[COIL_CURRENT]
+    sig[n, 12] = zg
+    sig[n, 13] = c_acc
+    sig[n, 14] = c_stroke
+    sig[n, 15] = c_energy
+
+
+@njit(cache=True)
+def _env_step_serial(
+    actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+):  # fmt: skip
+    for n in range(actions.shape[0]):
+        _env_step_one(
+            n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
+            meas, delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+        )  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def _env_step_parallel(
+    actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+):  # fmt: skip
+    for n in prange(actions.shape[0]):
+        _env_step_one(
+            n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
+            meas, delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+        )  # fmt: skip
+
+
+PARALLEL_THRESHOLD = 64
+
+
+class CapsuleBatch:
+    """``N`` capsule vehicles stepped together by one compiled kernel.
+
+    Parameters
+    ----------
+    config : the environment options.
+    num_envs : batch size N.
+    """
+
+    def __init__(self, config: EnvConfig, num_envs: int = 1) -> None:
+        if int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.config = config
+        self.num_envs = n = int(num_envs)
+        self.vehicle = config.vehicle
+        self.plant = config.plant_damper
+        self.inverse = config.inverse_damper
+        self.i_max = config.max_current_a
+        self.dt = config.dt_s
+        self.n_sub = config.n_substeps
+        self.max_steps = config.max_episode_steps
+        self.full_obs = config.observation == "full_state"
+        self.obs_dim = len(config.observation_names)
+        gw = config.guideway_spec
+        self.guideway = gw
+        speeds = config.speed_range_kmh or (config.speed_kmh, config.speed_kmh)
+        self._speed_range_mps = (speeds[0] / 3.6, speeds[1] / 3.6)
+        self._window_m = self._speed_range_mps[1] * config.episode_length_s + 4 * gw.spacing_m
+        self.profiles = self._build_bank()
+        self.spacing = gw.spacing_m
+        self.max_steps = config.max_episode_steps
+        # per-vehicle state (packed arrays; the named attributes are views into them)
+        self.state = np.zeros((n, STATE_SIZE))
+        self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
+        self.vehicle_params = np.ascontiguousarray(np.tile(self.vehicle.as_array(), (n, 1)))
+        self.env_f = np.zeros((n, 5))
+        self.env_i = np.zeros((n, 2), dtype=np.int64)
+        self.csdc_z = self.env_f[:, E_CSDC_Z]
+        self.csdc_x = self.env_f[:, E_CSDC_X]
+        self.start_position = self.env_f[:, E_START]
+        self.speed = self.env_f[:, E_SPEED]
+        self.gain = self.env_f[:, E_GAIN]
+        self.profile_index = self.env_i[:, E_PROFILE]
+        self.step_count = self.env_i[:, E_STEP]
+        self.speed[:] = config.speed_kmh / 3.6
+        self.gain[:] = 1.0
+        self.noise_key = np.zeros(n, dtype=np.uint64)
+        self.measured = np.zeros((n, 5))
+        self.delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
+        self.obs = np.zeros((n, self.obs_dim), dtype=np.float32)
+        self.reward = np.zeros(n)
+        self.terminated = np.zeros(n, dtype=bool)
+        self.signals = np.zeros((n, N_SIGNALS))
+        self._out = np.zeros((n, N_OUTPUTS))
+        self.noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
+        self.obs_bounds = np.array(observation_bounds(config, self.i_max))
+        self.rngs = [np.random.default_rng(None) for _ in range(n)]
+        self._inv_params = self.inverse.as_array()
+        self.cfg_f = np.array(
+            [
+                config.max_force_n, self.i_max, self.dt, config.reward_acceleration_weight,
+                config.acceleration_scale_m_s2, config.reward_stroke_weight,
+                config.stroke_scale_m, config.reward_energy_weight, config.stroke_limit_m,
+                config.bump_stop_penalty, gw.spacing_m,
+            ]
+        )  # fmt: skip
+        self.cfg_i = np.array(
+            [
+                0 if config.action_mode == "force" else 1,
+                _INVERSE_CODE[config.inverse_model],
+                self.plant.code,
+                self.n_sub,
+                int(self.full_obs),
+                0,
+            ],
+            dtype=np.int64,
+        )
+        self._kernel = _env_step_parallel if n >= PARALLEL_THRESHOLD else _env_step_serial
+        self._nominal_vehicle = self.vehicle.as_array()
+        self._action_buf = np.zeros(n)
+
+    # ---------------------------------------------------------------- guideway bank
+    def _build_bank(self) -> np.ndarray:
+        cfg, gw = self.config, self.guideway
+        if gw.kind == "random":
+            length = 4.0 * self._window_m
+            seeds = np.random.SeedSequence(cfg.guideway_seed).generate_state(cfg.guideway_bank_size)
+            bank = [
+                random_profile(
+                    length,
+                    gw.spacing_m,
+                    int(s),
+                    peak_m=None,
+                    min_wavelength_m=gw.min_wavelength_m,
+                    max_wavelength_m=gw.max_wavelength_m,
+                    psd=gw.psd,
+                )  # fmt: skip
+                for s in seeds
+            ]
+            return np.ascontiguousarray(np.stack(bank))
+        duration = self._window_m / (cfg.speed_kmh / 3.6)
+        return np.ascontiguousarray(make_profile(gw, duration)[None, :])
+
+    # ---------------------------------------------------------------- seeding / reset
+    def seed(self, seed: int | None) -> None:
+        """Re-seed every vehicle's generator: vehicle n gets ``seed + n`` (None: fresh entropy)."""
+        if seed is None:
+            self.rngs = [np.random.default_rng(None) for _ in range(self.num_envs)]
+        else:
+            self.rngs = [np.random.default_rng(int(seed) + k) for k in range(self.num_envs)]
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Start new episodes for the vehicles in ``mask`` (all if None)."""
+        ids = range(self.num_envs) if mask is None else np.flatnonzero(mask)
+        cfg, gw = self.config, self.guideway
+        n_samples = self.profiles.shape[1]
+        window_samples = int(math.ceil(self._window_m / self.spacing)) + 1
+        for n in ids:
+            rng = self.rngs[n]
+            k = int(rng.integers(self.profiles.shape[0]))
+            u_offset, u_speed = rng.random(2)
+            factors = 1.0 + cfg.vehicle_randomization * rng.uniform(-1.0, 1.0, 4)
+            self.noise_key[n] = np.uint64(rng.integers(0, 2**63 - 1))
+            lo, hi = self._speed_range_mps
+            self.speed[n] = lo + (hi - lo) * u_speed
+            self.vehicle_params[n] = self._nominal_vehicle * factors
+            self.profile_index[n] = k
+            if gw.kind == "random":
+                j0 = int(u_offset * (n_samples - window_samples))
+                self.start_position[n] = j0 * self.spacing
+                window = self.profiles[k, j0 : j0 + window_samples]
+                self.gain[n] = 1.0 if gw.peak_m is None else gw.peak_m / np.max(np.abs(window))
+                zg0 = self.gain[n] * self.profiles[k, j0]
+            else:
+                self.start_position[n] = 0.0
+                self.gain[n] = 1.0
+                zg0 = self.profiles[k, 0]
+            self.state[n] = 0.0
+            self.state[n, BODY_DISP] = zg0  # static equilibrium over the start elevation
+            self.state[n, BOGIE_DISP] = zg0
+            self.step_count[n] = 0
+            self.csdc_z[n] = 0.0
+            self.csdc_x[n] = 0.0
+            self.measured[n] = 0.0
+            self.delay_buf[n] = 0.0
+            self.terminated[n] = False
+            self.signals[n] = 0.0
+            self.signals[n, 0] = self.signals[n, 1] = self.signals[n, 12] = zg0
+            if self.full_obs:
+                self.obs[n] = 0.0
+                self.obs[n, 0] = self.obs[n, 2] = self.obs[n, 4] = zg0
+            else:
+                self.obs[n] = 0.0
+
+    # ---------------------------------------------------------------- step
+    def step(self, actions: np.ndarray) -> None:
+        """Advance every vehicle by one control interval; results in ``obs``, ``reward``,
+        ``terminated``, ``signals``. ``actions`` are (N,) in [-1, 1] (clipped here); NaN or
+        infinite actions raise ``ValueError``."""
+        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs)
+        if not np.isfinite(a).all():
+            raise ValueError(
+                "action must be finite numbers in [-1, 1]; got NaN or inf at index "
+                f"{np.flatnonzero(~np.isfinite(a)).tolist()}"
+            )
+        np.clip(a, -1.0, 1.0, out=self._action_buf)
+        self._run()
+
+    def step_one(self, action: float) -> None:
+        """Fast path of :meth:`step` for a batch of one (a Python float action)."""
+        if not math.isfinite(action):
+            raise ValueError(f"action must be a finite number in [-1, 1]; got {action!r}")
+        self._action_buf[0] = min(max(action, -1.0), 1.0)
+        self._run()
+
+    def _run(self) -> None:
+        self.cfg_i[I_DELAY_POS] += 1
+        self._kernel(
+            self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
+            self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
+            self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
+            self.obs, self.reward, self.terminated, self.signals, self._out,
+        )  # fmt: skip
+
+    @property
+    def truncated(self) -> np.ndarray:
+        """Vehicles whose episode reached its time limit (``max_episode_steps``)."""
+        return self.step_count >= self.max_steps
+
+    def passive_plant(self) -> bool:
+        return self.plant.code == PASSIVE

@@ -1,0 +1,404 @@
+"""MR damper forward models and the linear passive damper (MODEL.md section 4).
+
+Every model shares one interface: ``(stroke x, stroke rate v, current i, internal state) ->
+(force F, state derivative)``. Sign convention (MODEL.md 1): ``x = z_c - z_b``, ``F > 0`` resists
+``v > 0``; the force acts as ``-F`` on the car body and ``+F`` on the bogie.
+
+Each model is a frozen dataclass of parameters that packs into a fixed-length float vector
+(:meth:`as_array`) read by the compiled kernels, so a batch of parameter sets (one row per
+vehicle) gives domain randomisation for free. The internal state is ``[z, y]``: the Bouc-Wen
+hysteretic variable ``z`` (m) and Spencer's internal displacement ``y`` (m); models without them
+ignore them. The coil current the model sees is the *actual* current; the coil/driver lag
+``i' = (i_cmd - i) / tau`` is integrated by the plant (``coil_time_constant_s``, 0 = none).
+
+| model | name | provenance of the default values |
+| --- | --- | --- |
+| :class:`LinearDamper` | ``"passive"`` | c_s of MODEL.md 2 [reconstructed] |
+| :class:`ReferenceDamper` | ``"reference"`` | Spencer et al. 1997 x 5 in force [standard, scaled] |
+| :class:`BoucWenDamper` | ``"bouc_wen"`` | identified from reference loops (MODEL.md 6) |
+| :class:`TanhDamper` | ``"tanh"`` | identified from reference loops (MODEL.md 6) |
+| :class:`BiExponentialDamper` | ``"bi_exponential"`` | identified from reference loops (MODEL.md 6) |
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+import numpy as np
+from numba import njit
+
+from capsule_env._validation import (
+    check_array_in_range,
+    check_choice,
+    check_finite,
+    check_nonnegative,
+    check_positive,
+)
+from capsule_env.hysteresis import hysteresis_rate
+
+__all__ = [
+    "PASSIVE",
+    "REFERENCE",
+    "BOUC_WEN",
+    "TANH",
+    "BI_EXPONENTIAL",
+    "DAMPER_NAMES",
+    "N_DAMPER_PARAMS",
+    "LinearDamper",
+    "ReferenceDamper",
+    "BoucWenDamper",
+    "TanhDamper",
+    "BiExponentialDamper",
+    "DamperParams",
+    "make_damper",
+    "damper_force",
+]
+
+# Integer codes used by the compiled kernels.
+PASSIVE, REFERENCE, BOUC_WEN, TANH, BI_EXPONENTIAL = 0, 1, 2, 3, 4
+DAMPER_NAMES = ("passive", "reference", "bouc_wen", "tanh", "bi_exponential")
+#: Length of the packed parameter vector; the last two slots are i_max and the coil time constant.
+N_DAMPER_PARAMS = 16
+_I_MAX, _COIL_TAU = 14, 15
+
+
+class _DamperBase:
+    """Shared packing/validation for the damper dataclasses."""
+
+    code: ClassVar[int]
+    name: ClassVar[str]
+
+    def _packed_fields(self) -> list[float]:
+        return [
+            getattr(self, f.name)
+            for f in fields(self)  # type: ignore[arg-type]
+            if f.name not in ("max_current_a", "coil_time_constant_s")
+        ]
+
+    def as_array(self) -> np.ndarray:
+        """Packed float64 vector of length :data:`N_DAMPER_PARAMS` for the kernels."""
+        out = np.zeros(N_DAMPER_PARAMS)
+        values = self._packed_fields()
+        out[: len(values)] = values
+        out[_I_MAX] = getattr(self, "max_current_a", 0.0)
+        out[_COIL_TAU] = getattr(self, "coil_time_constant_s", 0.0)
+        return out
+
+    def _validate_common(self) -> None:
+        for f in fields(self):  # type: ignore[arg-type]
+            check_finite(f.name, getattr(self, f.name))
+        if hasattr(self, "max_current_a"):
+            check_positive("max_current_a", self.max_current_a)
+            check_nonnegative("coil_time_constant_s", self.coil_time_constant_s)
+
+
+@dataclass(frozen=True)
+class LinearDamper(_DamperBase):
+    """Linear viscous passive damper ``F = c v`` (the passive baseline, MODEL.md 2/7).
+
+    ``damping_n_s_per_m``: c_s (N s/m), default 1.5e4 [reconstructed].
+    """
+
+    damping_n_s_per_m: float = 1.5e4
+    code: ClassVar[int] = PASSIVE
+    name: ClassVar[str] = "passive"
+
+    def __post_init__(self) -> None:
+        self._validate_common()
+        check_nonnegative("damping_n_s_per_m", self.damping_n_s_per_m)
+
+
+@dataclass(frozen=True)
+class ReferenceDamper(_DamperBase):
+    """Spencer et al. (1997) modified Bouc-Wen model: the "hardware" in simulation (MODEL.md 4.1).
+
+    ::
+
+        F  = c1 y' + k1 (x - x0)
+        y' = (alpha z + c0 x' + k0 (x - y)) / (c0 + c1)
+        z' = -gamma |x' - y'| z |z| - beta (x' - y') z^2 + A (x' - y')      (n = 2)
+        p(i) = p_a + p_b i   for alpha, c0, c1;   i' = (i_cmd - i) / tau
+
+    Provenance: [standard form, scaled]. Spencer's published values in SI with every force
+    coefficient x 5 (capsule size) and command voltage replaced by current through
+    ``u = 1.5 V/A * i`` (b-coefficients = Spencer's per-volt values x 5 x 1.5). Spencer's
+    eta = 190 1/s becomes ``coil_time_constant_s = 1/190``. ``n`` is fixed at Spencer's 2, which
+    gives the closed-form hysteresis update used by the integrator.
+    """
+
+    c0a: float = 1.05e4
+    c0b: float = 2.625e3
+    c1a: float = 1.415e5
+    c1b: float = 2.2125e3
+    alpha_a: float = 7.0e4
+    alpha_b: float = 5.2125e5
+    k0: float = 2.345e4
+    k1: float = 2.5e3
+    x0: float = 0.0
+    gamma: float = 3.63e6
+    beta: float = 3.63e6
+    a_coef: float = 301.0
+    max_current_a: float = 1.5
+    coil_time_constant_s: float = 1.0 / 190.0
+    code: ClassVar[int] = REFERENCE
+    name: ClassVar[str] = "reference"
+
+    def __post_init__(self) -> None:
+        self._validate_common()
+        for n in ("c0a", "c1a", "a_coef"):
+            check_positive(n, getattr(self, n))
+        for n in ("c0b", "c1b", "alpha_a", "alpha_b", "k0", "k1"):
+            check_nonnegative(n, getattr(self, n))
+        _check_bouc_wen_shape(self.gamma, self.beta)
+
+
+@dataclass(frozen=True)
+class BoucWenDamper(_DamperBase):
+    """Bouc-Wen MR damper model (paper eq. 1, MODEL.md 4.2) [standard form]::
+
+        F  = c0 x' + k0 (x - x0) + alpha z
+        z' = -gamma |x'| z |z| - beta x' z^2 + A x'        (n = 2)
+        alpha = alpha_a + alpha_b i,   c0 = c0a + c0b i
+
+    Default values: PROVISIONAL, to be replaced by the identification from reference-damper
+    loops (MODEL.md 6). ``n`` is fixed at 2 (closed-form hysteresis update).
+    """
+
+    c0a: float = 8.0e3
+    c0b: float = 3.0e3
+    alpha_a: float = 2.8e5
+    alpha_b: float = 2.0e6
+    k0: float = 2.5e3
+    x0: float = 0.0
+    gamma: float = 3.63e6
+    beta: float = 3.63e6
+    a_coef: float = 301.0
+    max_current_a: float = 1.5
+    coil_time_constant_s: float = 0.0
+    code: ClassVar[int] = BOUC_WEN
+    name: ClassVar[str] = "bouc_wen"
+
+    def __post_init__(self) -> None:
+        self._validate_common()
+        check_positive("a_coef", self.a_coef)
+        _check_bouc_wen_shape(self.gamma, self.beta)
+
+
+@dataclass(frozen=True)
+class TanhDamper(_DamperBase):
+    """Hyperbolic-tangent hysteresis model (paper eq. 3, Kwok et al. 2006, MODEL.md 4.3)::
+
+        F = c v + k x + alpha tanh(beta v + delta sign(x)) + f0
+        c, k, alpha, f0 linear in current (p = p_a + p_b i); beta, delta constant
+
+    Default values: PROVISIONAL, to be replaced by the identification (MODEL.md 6).
+    """
+
+    c_a: float = 1.0e4
+    c_b: float = 2.5e3
+    k_a: float = 2.0e3
+    k_b: float = 0.0
+    alpha_a: float = 1.2e3
+    alpha_b: float = 3.5e3
+    f0_a: float = 0.0
+    f0_b: float = 0.0
+    beta: float = 40.0
+    delta: float = 0.5
+    max_current_a: float = 1.5
+    coil_time_constant_s: float = 0.0
+    code: ClassVar[int] = TANH
+    name: ClassVar[str] = "tanh"
+
+    def __post_init__(self) -> None:
+        self._validate_common()
+        check_positive("beta", self.beta)
+
+
+@dataclass(frozen=True)
+class BiExponentialDamper(_DamperBase):
+    """Bi-exponential MR damper model (paper eq. 4, MODEL.md 4.4) [reconstructed form]::
+
+        S_d(v) = sign(v) (1 - exp(-d |v|))
+        F(v, i) = a(i) S_d(v) + b(i) v + c(i)    (upper set when x >= 0, lower set when x < 0)
+        a(i) = a0 + a1 i,  b(i) = b0 + b1 i,  c(i) = c0 + c1 i,  d constant per branch (s/m)
+
+    a: yield force (N), b: post-yield viscous slope (N s/m), c: hysteresis offset (N).
+    Default values: PROVISIONAL, to be replaced by the identification (MODEL.md 6).
+    """
+
+    upper_a0: float = 1.1e3
+    upper_a1: float = 3.6e3
+    upper_b0: float = 1.0e4
+    upper_b1: float = 2.5e3
+    upper_c0: float = 150.0
+    upper_c1: float = 500.0
+    upper_d: float = 38.0
+    lower_a0: float = 1.1e3
+    lower_a1: float = 3.6e3
+    lower_b0: float = 1.0e4
+    lower_b1: float = 2.5e3
+    lower_c0: float = -150.0
+    lower_c1: float = -500.0
+    lower_d: float = 38.0
+    max_current_a: float = 1.5
+    coil_time_constant_s: float = 0.0
+    code: ClassVar[int] = BI_EXPONENTIAL
+    name: ClassVar[str] = "bi_exponential"
+
+    def __post_init__(self) -> None:
+        self._validate_common()
+        check_positive("upper_d", self.upper_d)
+        check_positive("lower_d", self.lower_d)
+
+
+DamperParams = LinearDamper | ReferenceDamper | BoucWenDamper | TanhDamper | BiExponentialDamper
+_CLASSES = {
+    "passive": LinearDamper,
+    "reference": ReferenceDamper,
+    "bouc_wen": BoucWenDamper,
+    "tanh": TanhDamper,
+    "bi_exponential": BiExponentialDamper,
+}
+
+
+def _check_bouc_wen_shape(gamma: float, beta: float) -> None:
+    """Bounded Bouc-Wen loop (n = 2): gamma >= 0 and gamma + beta > 0.
+
+    Loading saturates at ``sqrt(A / (gamma + beta))``; unloading moves towards
+    ``sqrt(A / (beta - gamma))``, which lies inside the saturation level only if gamma >= 0.
+    """
+    if not (gamma >= 0.0 and gamma + beta > 0.0):
+        raise ValueError(
+            "gamma must be >= 0 and gamma + beta > 0 for a bounded hysteresis loop, got "
+            f"gamma={gamma!r}, beta={beta!r}"
+        )
+
+
+def make_damper(name: str, **overrides: float) -> DamperParams:
+    """Build a damper model by name (one of :data:`DAMPER_NAMES`) with parameter overrides.
+
+    Raises ``ValueError`` naming the parameter for an unknown model or an unknown/bad parameter.
+    """
+    check_choice("damper model", name, DAMPER_NAMES)
+    cls = _CLASSES[name]
+    known = {f.name for f in fields(cls)}
+    for key in overrides:
+        if key not in known:
+            raise ValueError(
+                f"unknown parameter {key!r} for damper model {name!r}; accepted: "
+                f"{', '.join(sorted(known))}"
+            )
+    return cls(**overrides)
+
+
+# --------------------------------------------------------------------------- compiled core
+
+
+@njit(cache=True, inline="always")
+def damper_eval(model: int, p: np.ndarray, x: float, v: float, y: float, z: float, i: float):
+    """Force and internal rates of one damper.
+
+    Returns ``(F, y_dot, w)``: force (N), Spencer's internal velocity y' (m/s; 0 for others)
+    and ``w``, the deformation rate that drives the hysteretic variable (``x' - y'`` for the
+    reference damper, ``x'`` for Bouc-Wen, 0 for models without one).
+    """
+    if model == REFERENCE:
+        c0 = p[0] + p[1] * i
+        c1 = p[2] + p[3] * i
+        alpha = p[4] + p[5] * i
+        y_dot = (alpha * z + c0 * v + p[6] * (x - y)) / (c0 + c1)
+        return c1 * y_dot + p[7] * (x - p[8]), y_dot, v - y_dot
+    if model == BOUC_WEN:
+        force = (p[0] + p[1] * i) * v + p[4] * (x - p[5]) + (p[2] + p[3] * i) * z
+        return force, 0.0, v
+    if model == TANH:
+        sx = 1.0 if x >= 0.0 else -1.0
+        force = (
+            (p[0] + p[1] * i) * v
+            + (p[2] + p[3] * i) * x
+            + (p[4] + p[5] * i) * math.tanh(p[8] * v + p[9] * sx)
+            + p[6]
+            + p[7] * i
+        )
+        return force, 0.0, 0.0
+    if model == BI_EXPONENTIAL:
+        o = 0 if x >= 0.0 else 7
+        s_d = math.copysign(1.0 - math.exp(-p[o + 6] * abs(v)), v)
+        force = (
+            (p[o] + p[o + 1] * i) * s_d + (p[o + 2] + p[o + 3] * i) * v + p[o + 4] + p[o + 5] * i
+        )
+        return force, 0.0, 0.0
+    return p[0] * v, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def hysteresis_params(model: int, p: np.ndarray):
+    """``(A, gamma, beta)`` of the model's hysteresis (zeros for models without one)."""
+    if model == REFERENCE:
+        return p[11], p[9], p[10]
+    if model == BOUC_WEN:
+        return p[8], p[6], p[7]
+    return 0.0, 0.0, 0.0
+
+
+@njit(cache=True)
+def _damper_force_batch(model, params, x, v, i, z, y, force, z_dot, y_dot):
+    for k in range(x.shape[0]):
+        p = params[k]
+        f, yd, w = damper_eval(model, p, x[k], v[k], y[k], z[k], i[k])
+        a_coef, gamma, beta = hysteresis_params(model, p)
+        force[k] = f
+        y_dot[k] = yd
+        z_dot[k] = hysteresis_rate(z[k], w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
+
+
+def damper_force(
+    damper: DamperParams,
+    stroke_m: np.ndarray | float,
+    stroke_rate_m_per_s: np.ndarray | float,
+    current_a: np.ndarray | float,
+    state: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Force and internal-state derivative of a damper model, batched (numpy in, numpy out).
+
+    Parameters
+    ----------
+    damper : a damper parameter dataclass.
+    stroke_m, stroke_rate_m_per_s, current_a : broadcastable arrays; current in
+        ``[0, damper.max_current_a]`` (A).
+    state : ``(..., 2)`` internal state ``[z, y]`` (m); zeros if None.
+
+    Returns
+    -------
+    force : (N) array, positive when resisting a positive stroke rate.
+    state_derivative : ``(..., 2)`` array ``[z', y']``.
+    """
+    x, v, i = np.broadcast_arrays(
+        np.asarray(stroke_m, float),
+        np.asarray(stroke_rate_m_per_s, float),
+        np.asarray(current_a, float),
+    )
+    shape = x.shape
+    i_max = getattr(damper, "max_current_a", np.inf)
+    check_array_in_range("current_a", i, 0.0, i_max)
+    if state is None:
+        state = np.zeros((*shape, 2))
+    state = np.broadcast_to(np.asarray(state, float), (*shape, 2)).reshape(-1, 2)
+    n = x.size
+    params = np.broadcast_to(damper.as_array(), (n, N_DAMPER_PARAMS))
+    force, z_dot, y_dot = np.empty(n), np.empty(n), np.empty(n)
+    _damper_force_batch(
+        damper.code,
+        np.ascontiguousarray(params),
+        x.ravel().copy(),
+        v.ravel().copy(),
+        i.ravel().copy(),
+        np.ascontiguousarray(state[:, 0]),
+        np.ascontiguousarray(state[:, 1]),
+        force,
+        z_dot,
+        y_dot,
+    )
+    return force.reshape(shape), np.stack([z_dot, y_dot], axis=-1).reshape(*shape, 2)

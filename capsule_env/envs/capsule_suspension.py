@@ -1,0 +1,306 @@
+"""CapsuleSuspension-v0: semi-active MR-damper secondary suspension of a Hyperloop capsule.
+
+The single environment and its native vector environment. Both are thin shells over
+:class:`capsule_env.core.CapsuleBatch` (one compiled kernel for 1 or thousands of vehicles).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import Env, spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig, observation_bounds
+from capsule_env.render import draw_quarter_car
+
+__all__ = ["CapsuleSuspensionEnv", "CapsuleSuspensionVectorEnv"]
+
+
+def _spaces(config: EnvConfig) -> tuple[spaces.Box, spaces.Box]:
+    action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+    low, high = observation_bounds(config, config.max_current_a)
+    return action_space, spaces.Box(low, high, dtype=np.float32)
+
+
+class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
+    """Semi-active MR-damper control of a Hyperloop capsule's secondary suspension.
+
+    ## Description
+
+    A 2-DOF vertical 1/4-car of a capsule vehicle (car body 6000 kg on an air spring and an MR
+    damper over a 2400 kg bogie, levitated by an EDS "spring" of 2.25e6 N/m) runs at 810 km/h
+    over an irregular guideway (a random FRA-shaped profile scaled to 8 mm peak by default).
+    Each control step (200 Hz) the agent chooses the MR damper's action; the goal is ride
+    comfort, a small car-body acceleration. The physics, the damper models and their inverses
+    follow Kim et al.'s capsule study (``capsule_env/`` docs and ``MODEL.md``): in ``sim`` the
+    plant's damper is the very model the controller inverts (the paper's simulation); in
+    ``hils`` the plant is the reference Spencer damper with coil lag, sensor noise and a control
+    delay while the controller inverts an identified model (the paper's HILS test emulated).
+
+    ## Action Space
+
+    ``Box(-1, 1, (1,), float32)``. Actions outside [-1, 1] are clipped; NaN or infinite actions
+    raise ``ValueError``.
+
+    | action_mode | meaning of ``a`` |
+    |-------------|------------------|
+    | ``"force"`` (default) | desired damper force ``F_d = a * max_force_n`` (N), turned into a coil current by ``inverse_model`` (Bi-exponential closed form, CSDC for Bouc-Wen, or tanh), using the measured stroke and stroke rate; requests the damper cannot make become 0 A or ``i_max`` |
+    | ``"current"`` | coil current command ``i = (a + 1) / 2 * i_max`` (A), ``i_max`` = 1.5 A |
+
+    ## Observation Space
+
+    ``Box(-inf, inf, (n,), float32)`` in SI units (no scaling: wrap in ``VecNormalize`` or
+    ``NormalizeObservation`` for learning). ``observation="sensors"`` (default), what a real
+    vehicle measures (with noise in ``hils``):
+
+    | index | observation | unit |
+    |-------|-------------|------|
+    | 0 | car body vertical acceleration | m/s^2 |
+    | 1 | bogie vertical acceleration | m/s^2 |
+    | 2 | damper stroke ``x = z_c - z_b`` | m |
+    | 3 | stroke rate ``v`` | m/s |
+    | 4 | last coil current command | A |
+
+    ``observation="full_state"`` (simulator truth, no noise):
+
+    | index | observation | unit |
+    |-------|-------------|------|
+    | 0 | car body displacement ``z_c`` | m |
+    | 1 | car body velocity | m/s |
+    | 2 | bogie displacement ``z_b`` | m |
+    | 3 | bogie velocity | m/s |
+    | 4 | guideway elevation under the bogie ``z_g`` | m |
+    | 5 | car body acceleration | m/s^2 |
+    | 6 | bogie acceleration | m/s^2 |
+    | 7 | stroke | m |
+    | 8 | stroke rate | m/s |
+    | 9 | actual coil current (after the coil lag) | A |
+
+    ## Rewards
+
+    A ride-comfort cost with stroke and energy terms, per step::
+
+        r = -( w_acc (a_c / a_ref)^2 + w_stroke (x / x_ref)^2 + w_energy (i / i_max)^2 )
+            - bump_stop_penalty * [|x| > stroke_limit_m]
+
+    with ``a_c`` the car-body acceleration, ``x`` the stroke, ``i`` the applied current
+    (coil power is proportional to ``i^2``). Defaults: ``w_acc = 1``, ``a_ref = 0.5 m/s^2``,
+    ``w_stroke = 0.1``, ``x_ref = 0.02 m``, ``w_energy = 0.01``, penalty 100. Each term is in
+    ``info`` (``cost_acceleration``, ``cost_stroke``, ``cost_energy``).
+
+    ## Starting State
+
+    The vehicle at rest in static equilibrium over the guideway's first elevation (both masses
+    displaced by ``z_g(0)``), damper states and coil current zero. Each reset draws a new
+    guideway window (a random stretch of one of ``guideway_bank_size`` long profiles generated
+    from ``guideway_seed``, rescaled to the peak), and, if enabled, new vehicle parameters and
+    speed. The reset observation is exact (no noise).
+
+    ## Episode End
+
+    - Truncation: ``episode_length_s`` (10 s = 2000 steps by default; registered
+      ``max_episode_steps=2000``, the env also truncates itself at its own length).
+    - Termination: the stroke passes the bump stop ``|x| > stroke_limit_m`` (60 mm default).
+
+    ## Info
+
+    Every step: the physical signals ``car_body_displacement_m``, ``bogie_displacement_m``,
+    velocities, accelerations, ``stroke_m``, ``stroke_rate_m_s``, ``damper_force_n``,
+    ``desired_force_n`` (0 in current mode), ``current_command_a``, ``coil_current_a``,
+    ``guideway_elevation_m`` and the reward terms.
+
+    ## Arguments
+
+    ``gymnasium.make("CapsuleSuspension-v0", **kwargs)`` with any field of
+    :class:`capsule_env.core.EnvConfig`, each validated (a bad value raises ``ValueError``
+    naming the argument and the accepted values):
+
+    - ``action_mode``: ``"force"`` | ``"current"``.
+    - ``inverse_model``: ``"bi_exponential"`` | ``"csdc"`` | ``"tanh"`` (force mode).
+    - ``setting``: ``"sim"`` | ``"hils"``; ``damper`` overrides the plant's damper
+      (``"reference"``, ``"bouc_wen"``, ``"bi_exponential"``, ``"tanh"``, ``"passive"``).
+    - HILS knobs, each separate (None = the setting's value): ``coil_time_constant_s``
+      (hils 1/190 s), ``sensor_noise`` (multiplier of the per-channel noise levels, hils 1),
+      ``control_delay_steps`` (hils 1).
+    - Guideway: ``guideway`` (``"random"``, ``"sine"``, ``"swept_sine"``, ``"bump"``,
+      ``"step"``), ``guideway_params`` (dict of :class:`capsule_env.guideway.GuidewayParams`
+      fields, e.g. ``{"peak_m": 0.008}``), ``speed_kmh`` (810), ``guideway_seed`` (0),
+      ``guideway_bank_size`` (16).
+    - Timing: ``control_rate_hz`` (200), ``episode_length_s`` (10), ``substeps`` (auto).
+    - ``observation``: ``"sensors"`` | ``"full_state"``.
+    - Reward: ``reward_acceleration_weight``, ``reward_stroke_weight``,
+      ``reward_energy_weight``, ``acceleration_scale_m_s2``, ``stroke_scale_m``,
+      ``stroke_limit_m``, ``bump_stop_penalty``; ``max_force_n`` (8 kN, force-mode scale).
+    - Overrides: ``vehicle_params``, ``damper_params`` (plant), ``inverse_params`` (the model
+      the controller inverts), each a dict of dataclass fields.
+    - Domain randomisation per episode: ``vehicle_randomization`` (relative half-width of a
+      uniform factor on each of m_c, m_b, k_s, k_p) and ``speed_range_kmh`` (low, high).
+    - ``render_mode``: ``"rgb_array"``.
+
+    ## Version History
+
+    - v0: initial release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.render_mode = render_mode
+        self._batch = CapsuleBatch(self.config, 1)
+        self.action_space, self.observation_space = _spaces(self.config)
+        self._needs_reset = True
+
+    @property
+    def batch(self) -> CapsuleBatch:
+        """The underlying one-vehicle simulation (state, parameters, signals)."""
+        return self._batch
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        if seed is not None:
+            self._batch.seed(seed)
+        elif self._needs_reset and self._batch.rngs[0] is None:  # pragma: no cover
+            self._batch.seed(None)
+        self._batch.reset()
+        self._needs_reset = False
+        return self._batch.obs[0].copy(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        try:
+            value = float(action[0])
+        except (TypeError, IndexError):
+            value = np.asarray(action, dtype=np.float64)
+            if value.size != 1:
+                raise ValueError(f"action must have shape (1,), got shape {value.shape}") from None
+            value = float(value.reshape(-1)[0])
+        batch = self._batch
+        batch.step_one(value)
+        terminated = bool(batch.terminated[0])
+        truncated = bool(batch.step_count[0] >= batch.max_steps)
+        return (
+            batch.obs[0].copy(),
+            float(batch.reward[0]),
+            terminated,
+            truncated,
+            self._info(),
+        )
+
+    def _info(self) -> dict[str, Any]:
+        return dict(zip(SIGNAL_NAMES, self._batch.signals[0].tolist(), strict=True))
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        return _render_one(self._batch, 0)
+
+
+def _render_one(batch: CapsuleBatch, n: int) -> np.ndarray:
+    span = np.linspace(-30.0, 30.0, 121)
+    profile = batch.profiles[batch.profile_index[n]]
+    t = batch.state[n, 7]
+    pos = batch.start_position[n] + batch.speed[n] * t + span
+    elevation = batch.gain[n] * np.interp(pos / batch.spacing, np.arange(profile.size), profile)
+    return draw_quarter_car(
+        batch.state[n, 0],
+        batch.state[n, 2],
+        elevation,
+        coil_current_fraction=batch.state[n, 6] / max(batch.i_max, 1e-9),
+    )
+
+
+class CapsuleSuspensionVectorEnv(VectorEnv):
+    """Native batched ``CapsuleSuspension-v0``: ``num_envs`` vehicles in one compiled kernel.
+
+    Same dynamics, spaces, reward and arguments as :class:`CapsuleSuspensionEnv`. Autoreset is
+    ``NEXT_STEP`` (Gymnasium's default): the step after an episode ends resets that vehicle and
+    returns its first observation with reward 0 and ``terminated = truncated = False``; the
+    action given for it in that step is ignored. ``reset(seed=s)`` seeds vehicle ``n`` with
+    ``s + n``, so vehicle ``n`` reproduces the single env reset with seed ``s + n`` step for
+    step. ``info`` is a dict of arrays (one entry per vehicle) with Gymnasium's ``_key`` masks.
+    Batches of 64 or more run on all cores (numba threads).
+    """
+
+    metadata = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 50,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        max_episode_steps: int | None = None,
+        **kwargs: Any,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.num_envs = int(num_envs)
+        self.render_mode = render_mode
+        self._batch = CapsuleBatch(self.config, self.num_envs)
+        if max_episode_steps is not None:
+            # As Gymnasium's TimeLimit on the single env: the earlier of the two limits.
+            self._batch.max_steps = min(self._batch.max_steps, int(max_episode_steps))
+        self.single_action_space, self.single_observation_space = _spaces(self.config)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._mask = np.ones(self.num_envs, dtype=bool)
+
+    @property
+    def batch(self) -> CapsuleBatch:
+        return self._batch
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        if isinstance(seed, (list, tuple, np.ndarray)):
+            self._batch.rngs = [np.random.default_rng(int(s)) for s in seed]
+        elif seed is not None:
+            self._batch.seed(seed)
+        self._batch.reset()
+        self._autoreset[:] = False
+        return self._batch.obs.copy(), self._infos()
+
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        batch = self._batch
+        a = np.asarray(actions, dtype=np.float64)
+        if a.size != self.num_envs:
+            raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
+        batch.step(a.reshape(self.num_envs))
+        reward = batch.reward.copy()
+        terminated = batch.terminated.copy()
+        truncated = batch.step_count >= batch.max_steps
+        if self._autoreset.any():
+            mask = self._autoreset
+            batch.reset(mask)
+            reward[mask] = 0.0
+            terminated[mask] = False
+            truncated[mask] = False
+        self._autoreset = terminated | truncated
+        return batch.obs.copy(), reward, terminated, truncated, self._infos()
+
+    def _infos(self) -> dict[str, Any]:
+        columns = self._batch.signals.T.copy()
+        infos: dict[str, Any] = {}
+        for j, name in enumerate(SIGNAL_NAMES):
+            infos[name] = columns[j]
+            infos["_" + name] = self._mask
+        return infos
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        if self.render_mode != "rgb_array":
+            return None
+        return tuple(_render_one(self._batch, n) for n in range(self.num_envs))

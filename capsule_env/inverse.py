@@ -1,0 +1,214 @@
+"""Inverse MR damper models: desired damper force -> coil current (MODEL.md section 5).
+
+Every inverse here rests on one fact: at fixed kinematics (and fixed hysteretic state) the
+Bi-exponential, tanh and Bouc-Wen forces are *affine in the current*,
+``F(i) = F0 + slope * i``. Inverting that line, clipped to ``[0, i_max]``, is the paper's
+closed-form Bi-exponential inverse (eqs. 5-11), the tanh-model inverse and the algebraic core of
+the CSDC algorithm (Wang & Liao 2005) for Bouc-Wen. Shared rules:
+
+- semi-active rule: a request whose sign is opposite to the stroke rate (``F_d v < 0``) cannot
+  be produced by a passive device, so the current is 0;
+- a request outside the achievable band ``[F(0), F(i_max)]`` is clipped to the nearest
+  achievable force (0 A or ``i_max``);
+- where the slope vanishes (e.g. ``v = 0`` with no hysteresis offset) nothing is divided: the
+  current that brings the force nearest the request is chosen.
+
+The CSDC inverse has state: its estimate of the Bouc-Wen ``z``, run online from the measured
+stroke with the exact hysteresis update; :class:`CSDCInverse` keeps it per vehicle and is reset
+per episode. Pure numba/numpy, no Gym import.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from capsule_env._validation import check_choice
+from capsule_env.dampers import (
+    BI_EXPONENTIAL,
+    BOUC_WEN,
+    TANH,
+    BiExponentialDamper,
+    BoucWenDamper,
+    TanhDamper,
+)
+from capsule_env.hysteresis import hysteresis_update
+
+__all__ = [
+    "INVERSE_NAMES",
+    "affine_in_current",
+    "bi_exponential_inverse",
+    "tanh_inverse",
+    "CSDCInverse",
+    "inverse_current",
+]
+
+INVERSE_NAMES = ("bi_exponential", "csdc", "tanh")
+_I_MAX = 14
+
+
+@njit(cache=True, inline="always")
+def affine_in_current(model, p, x, v, z):
+    """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)``."""
+    if model == BI_EXPONENTIAL:
+        o = 0 if x >= 0.0 else 7
+        s_d = math.copysign(1.0 - math.exp(-p[o + 6] * abs(v)), v)
+        return p[o] * s_d + p[o + 2] * v + p[o + 4], p[o + 1] * s_d + p[o + 3] * v + p[o + 5]
+    if model == TANH:
+        sx = 1.0 if x >= 0.0 else -1.0
+        th = math.tanh(p[8] * v + p[9] * sx)
+        return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
+    if model == BOUC_WEN:
+        return p[0] * v + p[4] * (x - p[5]) + p[2] * z, p[1] * v + p[3] * z
+    return 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def invert_affine(f_desired, f0, slope, v, i_max):
+    """Current for ``F0 + slope * i = F_d`` with the semi-active rule and clipping."""
+    if f_desired * v < 0.0:
+        return 0.0
+    f_max = f0 + slope * i_max
+    if abs(slope) * i_max <= 1e-9 * (abs(f0) + abs(f_desired) + 1.0):
+        # Force barely depends on current here: pick the end nearer the request.
+        return 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
+    i = (f_desired - f0) / slope
+    return min(max(i, 0.0), i_max)
+
+
+@njit(cache=True)
+def _inverse_batch(model, params, f_d, x, v, z, out):
+    for k in range(f_d.shape[0]):
+        p = params[k]
+        f0, slope = affine_in_current(model, p, x[k], v[k], z[k])
+        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[_I_MAX])
+
+
+def _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s, z=None) -> np.ndarray:
+    f_d, x, v = np.broadcast_arrays(
+        np.asarray(desired_force_n, float),
+        np.asarray(stroke_m, float),
+        np.asarray(stroke_rate_m_s, float),
+    )
+    shape = f_d.shape
+    for name, arr in (("desired_force_n", f_d), ("stroke_m", x), ("stroke_rate_m_s", v)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must be finite (got NaN or inf)")
+    n = f_d.size
+    zz = np.zeros(n) if z is None else np.broadcast_to(np.asarray(z, float), shape).ravel().copy()
+    params = np.ascontiguousarray(np.broadcast_to(damper.as_array(), (n, damper.as_array().size)))
+    out = np.empty(n)
+    _inverse_batch(
+        damper.code, params, f_d.ravel().copy(), x.ravel().copy(), v.ravel().copy(), zz, out
+    )
+    return out.reshape(shape)
+
+
+def bi_exponential_inverse(
+    damper: BiExponentialDamper,
+    desired_force_n: np.ndarray | float,
+    stroke_m: np.ndarray | float,
+    stroke_rate_m_s: np.ndarray | float,
+) -> np.ndarray:
+    """Closed-form Bi-exponential inverse (paper eqs. 5-11, MODEL.md 5), batched.
+
+    ``i* = (F_d - a0 S_d(v) - b0 v - c0) / (a1 S_d(v) + b1 v + c1)`` with the upper set where
+    ``x >= 0`` and the lower set where ``x < 0``; valid where ``F(v, 0) <= F_d <= F(v, i_max)``,
+    clipped to ``[0, i_max]`` outside; 0 A when ``F_d`` and ``v`` have opposite signs.
+    Returns the current (A) with the broadcast shape of the inputs.
+    """
+    if not isinstance(damper, BiExponentialDamper):
+        raise ValueError("damper must be a BiExponentialDamper for the Bi-exponential inverse")
+    return _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s)
+
+
+def tanh_inverse(
+    damper: TanhDamper,
+    desired_force_n: np.ndarray | float,
+    stroke_m: np.ndarray | float,
+    stroke_rate_m_s: np.ndarray | float,
+) -> np.ndarray:
+    """Inverse of the tanh model (its c, k, alpha, f0 are linear in current), batched."""
+    if not isinstance(damper, TanhDamper):
+        raise ValueError("damper must be a TanhDamper for the tanh inverse")
+    return _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s)
+
+
+@njit(cache=True)
+def _csdc_batch(p, f_d, x, v, z, x_prev, out):
+    a_coef, gamma, beta = p[8], p[6], p[7]
+    for k in range(f_d.shape[0]):
+        z[k] = hysteresis_update(z[k], x[k] - x_prev[k], a_coef, gamma, beta)
+        x_prev[k] = x[k]
+        f0, slope = affine_in_current(BOUC_WEN, p, x[k], v[k], z[k])
+        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[_I_MAX])
+
+
+class CSDCInverse:
+    """Continuous state damper controller (CSDC) inverse of the Bouc-Wen model, with state.
+
+    ``i = clip((F_d - c0a x' - k0 (x - x0) - alpha_a z) / (c0b x' + alpha_b z), 0, i_max)``
+    when ``F_d x' > 0``, else 0 (paper eq. 2, MODEL.md 5). ``z`` is estimated online by
+    running the Bouc-Wen z-equation on the measured stroke: each call advances the estimate over
+    the stroke increment since the previous call with the exact n = 2 update (exact for
+    monotone stroke between calls), then inverts.
+
+    Parameters
+    ----------
+    damper : the identified Bouc-Wen model the controller believes in.
+    num_vehicles : batch size; each vehicle has its own estimate.
+    """
+
+    def __init__(self, damper: BoucWenDamper, num_vehicles: int = 1) -> None:
+        if not isinstance(damper, BoucWenDamper):
+            raise ValueError("damper must be a BoucWenDamper for the CSDC inverse")
+        self.damper = damper
+        self._params = damper.as_array()
+        self.z_estimate = np.zeros(num_vehicles)
+        self._previous_stroke = np.zeros(num_vehicles)
+
+    def reset(self, stroke_m: np.ndarray | float = 0.0, mask: np.ndarray | None = None) -> None:
+        """Start a new episode: estimate z = 0 at the given stroke (all vehicles or ``mask``)."""
+        if mask is None:
+            self.z_estimate[:] = 0.0
+            self._previous_stroke[:] = stroke_m
+        else:
+            self.z_estimate[mask] = 0.0
+            self._previous_stroke[mask] = np.broadcast_to(stroke_m, self.z_estimate.shape)[mask]
+
+    def __call__(
+        self,
+        desired_force_n: np.ndarray | float,
+        stroke_m: np.ndarray | float,
+        stroke_rate_m_s: np.ndarray | float,
+    ) -> np.ndarray:
+        """Advance the z estimate to the measured stroke and return the current (A)."""
+        n = self.z_estimate.shape[0]
+        f_d, x, v = (
+            np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), (n,)))
+            for a in (desired_force_n, stroke_m, stroke_rate_m_s)
+        )
+        for name, arr in (("desired_force_n", f_d), ("stroke_m", x), ("stroke_rate_m_s", v)):
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} must be finite (got NaN or inf)")
+        out = np.empty(n)
+        _csdc_batch(self._params, f_d, x, v, self.z_estimate, self._previous_stroke, out)
+        return out
+
+
+def inverse_current(
+    name: str,
+    damper: BiExponentialDamper | TanhDamper,
+    desired_force_n: np.ndarray | float,
+    stroke_m: np.ndarray | float,
+    stroke_rate_m_s: np.ndarray | float,
+) -> np.ndarray:
+    """Stateless inverse by name (``"bi_exponential"`` or ``"tanh"``); CSDC needs its object."""
+    check_choice("inverse model", name, INVERSE_NAMES)
+    if name == "bi_exponential":
+        return bi_exponential_inverse(damper, desired_force_n, stroke_m, stroke_rate_m_s)
+    if name == "tanh":
+        return tanh_inverse(damper, desired_force_n, stroke_m, stroke_rate_m_s)
+    raise ValueError("the 'csdc' inverse has state: use CSDCInverse(damper, num_vehicles)")

@@ -1,0 +1,515 @@
+"""Tests of the time integration (capsule_env.dynamics) against independent facts.
+
+* Linear plant: steady-state sine responses fitted from ``simulate`` against the analytic
+  transfer function ``(j w I - A)^-1 E`` of the state-space matrices.
+* Reference damper + plant: the default substep against a 10x finer one, and against an
+  independent ``scipy.integrate.solve_ivp`` (LSODA) integration of MODEL.md 2 + 4.1 written out
+  here.
+* Robustness at stroke rates up to ~2 m/s, the coil lag's exact exponential, and the batched
+  kernel (identical rows, single vehicle, serial vs parallel bit for bit).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from capsule_env import dynamics
+from capsule_env.dampers import (
+    DAMPER_NAMES,
+    N_DAMPER_PARAMS,
+    LinearDamper,
+    ReferenceDamper,
+    make_damper,
+)
+from capsule_env.dynamics import (
+    N_OUTPUTS,
+    PARALLEL_THRESHOLD,
+    STATE_SIZE,
+    default_substeps,
+    initial_state,
+    simulate,
+    simulate_damper,
+    step_batch,
+)
+from capsule_env.guideway import random_profile, sine_profile
+from capsule_env.vehicle import VehicleParams, frequency_response
+
+SPEED = 225.0  # m/s (810 km/h)
+DT = 0.005  # control interval, s
+I_MAX = 1.5
+
+# MODEL.md section 2 and 4.1 values, typed in independently of the code's defaults.
+MC, MB, KS, KP = 6000.0, 2400.0, 4.95e5, 2.25e6
+SPENCER = dict(
+    c0a=1.05e4,
+    c0b=2.625e3,
+    c1a=1.415e5,
+    c1b=2.2125e3,
+    aa=7.0e4,
+    ab=5.2125e5,
+    k0=2.345e4,
+    k1=2.5e3,
+    x0=0.0,
+    g=3.63e6,
+    b=3.63e6,
+    A=301.0,
+    eta=190.0,
+)
+
+
+def rms(a: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(a))))
+
+
+# ------------------------------------------------------------------ transfer function
+TF_FREQS = [0.5, 1.0, 1.3, 2.0, 3.0, 5.4, 7.0, 10.0]
+TF_AMP = 0.005  # m
+TF_SPACING = 0.05  # m
+
+
+def fit_sine(t: np.ndarray, y: np.ndarray, f: float) -> complex:
+    """Least-squares fit y ~ a sin(w t) + b cos(w t) + c; returns the phasor a + j b."""
+    w = 2.0 * math.pi * f
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
+    (a, b, _), *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return complex(a, b)
+
+
+@pytest.fixture(scope="module")
+def sine_responses():
+    """f -> (measured phasor / input amplitude) of car body and bogie displacement."""
+    damper = LinearDamper()  # c = 1.5e4 N s/m
+    assert damper.damping_n_s_per_m == 1.5e4
+    out = {}
+    for f in TF_FREQS:
+        duration = 20.0  # transients decay as exp(-1.2 t) at worst (body mode, zeta ~ 0.15)
+        profile = sine_profile(
+            SPEED * duration + 10.0, TF_SPACING, frequency_hz=f, speed_mps=SPEED, amplitude_m=TF_AMP
+        )
+        r = simulate(damper, profile, TF_SPACING, SPEED, 0.0, duration, dt_s=DT)
+        n_periods = math.floor(6.0 * f)  # an integer number of periods in the last ~6 s
+        window = r["time_s"] >= duration - n_periods / f - 1e-9
+        t = r["time_s"][window]
+        out[f] = tuple(
+            fit_sine(t, r[key][window], f) / TF_AMP
+            for key in ("car_body_displacement_m", "bogie_displacement_m")
+        )
+    return out
+
+
+@pytest.mark.parametrize("f", TF_FREQS)
+def test_sine_response_matches_transfer_function(sine_responses, f):
+    # z_g = X sin(w t) -> z = |H| X sin(w t + arg H): phasor (a + j b) / X = H.
+    h = frequency_response(f, secondary_damping_n_s_per_m=1.5e4)[0]
+    for measured, expected in zip(sine_responses[f], (h[0], h[2]), strict=True):
+        assert abs(measured) == pytest.approx(abs(expected), rel=0.01)
+        phase_err = math.degrees(abs(np.angle(measured / expected)))
+        assert phase_err < 2.0
+
+
+def test_transfer_function_resonances_are_seen(sine_responses):
+    # The measured gains peak at the modes: body gain largest near 1.3 Hz, bogie near 5.4 Hz.
+    body = {f: abs(v[0]) for f, v in sine_responses.items()}
+    bogie = {f: abs(v[1]) for f, v in sine_responses.items()}
+    assert max(body, key=body.get) == 1.3
+    assert max(bogie, key=bogie.get) == 5.4
+
+
+# ------------------------------------------------------------------ integration accuracy
+ACC_DURATION = 10.0
+ACC_SEED = 11
+
+
+@pytest.fixture(scope="module")
+def accuracy_profile():
+    return random_profile(2300.0, 0.25, seed=ACC_SEED)
+
+
+def current_case(case: str) -> np.ndarray | float:
+    if case == "0A":
+        return 0.0
+    if case == "1.5A":
+        return I_MAX
+    rng = np.random.default_rng(5)
+    return rng.uniform(0.0, I_MAX, int(round(ACC_DURATION / DT)))
+
+
+@pytest.fixture(scope="module")
+def accuracy_runs(accuracy_profile):
+    damper = ReferenceDamper()
+    n_default = default_substeps(damper, DT)
+    runs = {}
+    for case in ("0A", "1.5A", "random"):
+        cmd = current_case(case)
+        coarse = simulate(damper, accuracy_profile, 0.25, SPEED, cmd, ACC_DURATION, dt_s=DT)
+        fine = simulate(
+            damper,
+            accuracy_profile,
+            0.25,
+            SPEED,
+            cmd,
+            ACC_DURATION,
+            dt_s=DT,
+            substeps=10 * n_default,
+        )
+        runs[case] = (coarse, fine)
+    return runs
+
+
+@pytest.mark.parametrize("case", ["0A", "1.5A", "random"])
+def test_default_substeps_within_1pct_of_10x_finer(accuracy_runs, case):
+    coarse, fine = accuracy_runs[case]
+    f_c, f_f = coarse["damper_force_n"][1:], fine["damper_force_n"][1:]
+    assert np.all(np.isfinite(f_c))
+    assert rms(f_f) > 500.0  # the guideway really works the damper
+    assert rms(f_c - f_f) / rms(f_f) < 0.01
+    for key in ("car_body_displacement_m", "bogie_displacement_m"):
+        assert rms(coarse[key] - fine[key]) / rms(fine[key]) < 0.01
+
+
+def test_default_substeps_of_reference_damper():
+    # Documented rule: stiffness_bound * h <= 2 (RK4 real-axis stability is 2.785).
+    damper = ReferenceDamper()
+    n = default_substeps(damper, DT)
+    assert dynamics.stiffness_bound(damper) * DT / n <= 2.0
+    # Spencer's pre-yield rate (alpha A + k0) / (c0 + c1) at 1.5 A, from MODEL.md 4.1.
+    p = SPENCER
+    rate = ((p["aa"] + 1.5 * p["ab"]) * p["A"] + p["k0"]) / (
+        p["c0a"] + 1.5 * p["c0b"] + p["c1a"] + 1.5 * p["c1b"]
+    )
+    assert n >= math.ceil(rate * DT / 2.785)
+
+
+def reference_plant_rhs(profile: np.ndarray, spacing: float, i_cmd: float):
+    """MODEL.md 2 + 4.1 written out: d/dt [z_c, z_c', z_b, z_b', z, y, i]."""
+    p = SPENCER
+    positions = np.arange(profile.size) * spacing
+
+    def forces(s):
+        zc, vc, zb, vb, z, y, i = s
+        x, v = zc - zb, vc - vb
+        c0, c1 = p["c0a"] + p["c0b"] * i, p["c1a"] + p["c1b"] * i
+        alpha = p["aa"] + p["ab"] * i
+        y_dot = (alpha * z + c0 * v + p["k0"] * (x - y)) / (c0 + c1)
+        return c1 * y_dot + p["k1"] * (x - p["x0"]), y_dot, v - y_dot
+
+    def rhs(t, s):
+        zc, vc, zb, vb, z, y, i = s
+        force, y_dot, w = forces(s)
+        z_dot = -p["g"] * abs(w) * z * abs(z) - p["b"] * w * z * z + p["A"] * w
+        zg = np.interp(SPEED * t, positions, profile)
+        secondary = KS * (zc - zb) + force
+        return [
+            vc,
+            -secondary / MC,
+            vb,
+            (secondary - KP * (zb - zg)) / MB,
+            z_dot,
+            y_dot,
+            -p["eta"] * (i - i_cmd),
+        ]
+
+    return rhs, forces
+
+
+@pytest.mark.parametrize("i_cmd", [0.0, 1.5])
+def test_default_step_matches_independent_solve_ivp(accuracy_profile, i_cmd):
+    duration = 3.0
+    r = simulate(ReferenceDamper(), accuracy_profile, 0.25, SPEED, i_cmd, duration, dt_s=DT)
+    rhs, forces = reference_plant_rhs(accuracy_profile, 0.25, i_cmd)
+    t = r["time_s"]
+    sol = solve_ivp(
+        rhs,
+        (0.0, duration),
+        np.zeros(7),
+        method="LSODA",
+        t_eval=t,
+        rtol=1e-9,
+        atol=1e-12,
+        max_step=2e-4,
+    )
+    assert sol.status == 0, sol.message
+    expected = forces(sol.y)[0]
+    got = r["damper_force_n"]
+    assert rms(expected[1:]) > 500.0
+    assert rms(got[1:] - expected[1:]) / rms(expected[1:]) < 0.01
+    for key, row in (
+        ("car_body_displacement_m", 0),
+        ("bogie_displacement_m", 2),
+        ("coil_current_a", 6),
+    ):
+        assert rms(r[key] - sol.y[row]) <= 0.01 * rms(sol.y[row])
+
+
+def test_coil_lag_is_first_order_exponential():
+    # i' = -eta (i - i_cmd), i(0) = 0: i(t) = i_cmd (1 - exp(-eta t)) exactly; then a step down.
+    profile = np.zeros(100)
+    cmd = np.r_[np.full(20, 1.2), np.full(20, 0.3)]
+    r = simulate(ReferenceDamper(), profile, 1.0, SPEED, cmd, 40 * DT, dt_s=DT)
+    t = r["time_s"]
+    eta = SPENCER["eta"]
+    t1 = 20 * DT
+    i1 = 1.2 * (1.0 - math.exp(-eta * t1))
+    expected = np.where(
+        t <= t1 + 1e-12,
+        1.2 * (1.0 - np.exp(-eta * t)),
+        0.3 + (i1 - 0.3) * np.exp(-eta * (t - t1)),
+    )
+    np.testing.assert_allclose(r["coil_current_a"], expected, rtol=1e-10, atol=1e-12)
+    # Flat guideway, plant at rest: nothing moves and the force stays zero.
+    np.testing.assert_array_equal(r["car_body_displacement_m"], 0.0)
+    np.testing.assert_array_equal(r["damper_force_n"][1:], 0.0)
+
+
+def test_current_command_is_clipped_to_range():
+    profile = np.zeros(100)
+    d = ReferenceDamper(coil_time_constant_s=0.0)
+    r = simulate(d, profile, 1.0, SPEED, np.array([-1.0, 5.0, 0.7]), 3 * DT, dt_s=DT)
+    np.testing.assert_array_equal(r["coil_current_a"][1:], [0.0, I_MAX, 0.7])
+
+
+def test_simulate_output_conventions(accuracy_profile):
+    r = simulate(LinearDamper(), accuracy_profile, 0.25, SPEED, 0.0, 1.0, dt_s=DT)
+    t = r["time_s"]
+    np.testing.assert_allclose(t, np.arange(201) * DT, atol=1e-12)
+    np.testing.assert_allclose(
+        r["stroke_m"], r["car_body_displacement_m"] - r["bogie_displacement_m"]
+    )
+    positions = np.arange(accuracy_profile.size) * 0.25
+    np.testing.assert_allclose(
+        r["guideway_m"][1:], np.interp(SPEED * t[1:], positions, accuracy_profile), atol=1e-12
+    )
+    # F = c v with v the stroke rate; Newton's second law on the car body: m_c a = -k_s x - F.
+    np.testing.assert_allclose(r["damper_force_n"][1:], 1.5e4 * r["stroke_rate_m_s"][1:])
+    np.testing.assert_allclose(
+        MC * r["body_acc_m_s2"][1:], -KS * r["stroke_m"][1:] - r["damper_force_n"][1:], atol=1e-6
+    )
+    np.testing.assert_allclose(
+        MB * r["bogie_acc_m_s2"][1:],
+        KS * r["stroke_m"][1:]
+        + r["damper_force_n"][1:]
+        - KP * (r["bogie_displacement_m"][1:] - r["guideway_m"][1:]),
+        atol=1e-6,
+    )
+
+
+# ------------------------------------------------------------------------- robustness
+ROUNDING = 1.0 + 1e-9
+
+
+def force_bound(name: str, v_max: float, x_max: float) -> float:
+    """Upper bound on |F| from MODEL.md 4's force laws at |v| <= v_max, |x| <= x_max.
+
+    Every coefficient is linear in i on [0, 1.5 A], so its magnitude is at most
+    |p_a| + |p_b| 1.5; the hysteretic z of Bouc-Wen stays within sqrt(A / (gamma + beta)), and
+    Spencer's internal displacement is taken within +-2 x_max of the stroke. Some of these
+    bounds are attained (viscous and saturated terms), hence the rounding margin ROUNDING.
+    """
+    d = make_damper(name)
+
+    def mag(a, b):
+        return abs(a) + abs(b) * I_MAX
+
+    if name == "passive":
+        return d.damping_n_s_per_m * v_max
+    if name == "reference":
+        z_sat = math.sqrt(d.a_coef / (d.gamma + d.beta))
+        # F = c1/(c0 + c1) (alpha z + c0 v + k0 (x - y)) + k1 x, c1/(c0 + c1) < 1
+        return (
+            mag(d.alpha_a, d.alpha_b) * z_sat
+            + mag(d.c0a, d.c0b) * v_max
+            + d.k0 * 3.0 * x_max
+            + d.k1 * x_max
+        )
+    if name == "bouc_wen":
+        z_sat = math.sqrt(d.a_coef / (d.gamma + d.beta))
+        return mag(d.c0a, d.c0b) * v_max + d.k0 * x_max + mag(d.alpha_a, d.alpha_b) * z_sat
+    if name == "tanh":
+        return (
+            mag(d.c_a, d.c_b) * v_max
+            + mag(d.k_a, d.k_b) * x_max
+            + mag(d.alpha_a, d.alpha_b)
+            + mag(d.f0_a, d.f0_b)
+        )
+    return max(
+        mag(getattr(d, s + "_a0"), getattr(d, s + "_a1"))
+        + mag(getattr(d, s + "_b0"), getattr(d, s + "_b1")) * v_max
+        + mag(getattr(d, s + "_c0"), getattr(d, s + "_c1"))
+        for s in ("upper", "lower")
+    )
+
+
+CURRENT_CASES = [0.0, 0.75, 1.5, "random"]
+
+
+def current_signal(case, n: int, seed: int) -> np.ndarray | float:
+    if case == "random":
+        return np.random.default_rng(seed).uniform(0.0, I_MAX, n)
+    return case
+
+
+@pytest.mark.parametrize("name", DAMPER_NAMES)
+def test_damper_alone_finite_and_bounded_at_2_m_per_s(name):
+    # 0.1 m at 3.2 Hz: stroke rate up to 2.01 m/s, sampled at the 200 Hz control rate.
+    t = np.arange(0.0, 2.0 + 1e-9, DT)
+    w = 2.0 * math.pi * 3.2
+    x, v = 0.1 * np.sin(w * t), 0.1 * w * np.cos(w * t)
+    assert np.max(np.abs(v)) > 2.0
+    d = make_damper(name)
+    bound = force_bound(name, np.max(np.abs(v)), 0.1)
+    for case in CURRENT_CASES:
+        i = current_signal(case, t.size, seed=1)
+        for substeps in (None, default_substeps(d, DT)):
+            kwargs = {} if substeps is None else {"substeps": substeps}
+            r = simulate_damper(d, t, x, v, i, **kwargs)
+            for key, arr in r.items():
+                assert np.all(np.isfinite(arr)), (key, case)
+            assert np.max(np.abs(r["force_n"])) <= bound * ROUNDING, (case, substeps)
+            assert np.max(np.abs(r["internal_displacement_m"] - x)) <= 2.0 * 0.1
+            assert np.max(np.abs(r["hysteretic_z_m"])) <= 0.0065
+
+
+@pytest.mark.parametrize("name", DAMPER_NAMES)
+def test_plant_finite_and_bounded_under_large_sine(name):
+    # 50 mm at 8 Hz over the EDS spring drives stroke rates of 2-3 m/s.
+    duration = 3.0
+    profile = sine_profile(
+        SPEED * duration + 5.0, 0.25, frequency_hz=8.0, speed_mps=SPEED, amplitude_m=0.05
+    )
+    d = make_damper(name)
+    n = int(round(duration / DT))
+    for case in CURRENT_CASES:
+        r = simulate(d, profile, 0.25, SPEED, current_signal(case, n, seed=2), duration, dt_s=DT)
+        for key, arr in r.items():
+            assert np.all(np.isfinite(arr[1:])), (key, case)
+        v_max = np.max(np.abs(r["stroke_rate_m_s"]))
+        x_max = np.max(np.abs(r["stroke_m"]))
+        assert v_max > 1.9, case
+        bound = force_bound(name, v_max, x_max)
+        assert np.max(np.abs(r["damper_force_n"][1:])) <= bound * ROUNDING, case
+        # Displacements stay of the order of the excitation (no numerical blow-up).
+        assert np.max(np.abs(r["bogie_displacement_m"])) < 10 * 0.05
+        assert np.max(np.abs(r["hysteretic_z_m"])) <= 0.0065
+
+
+# ---------------------------------------------------------------------- batched kernel
+BATCH_STEPS = 200
+
+
+def batch_inputs(n: int, identical: bool, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    damper = ReferenceDamper()
+    spacing = 0.25
+    profiles = np.stack([random_profile(600.0, spacing, seed=s) for s in (21, 22, 23)])
+    dp = np.tile(damper.as_array(), (n, 1))
+    vp = np.tile(VehicleParams().as_array(), (n, 1))
+    idx = np.zeros(n, dtype=np.int64)
+    x0 = np.zeros(n)
+    speed = np.full(n, SPEED)
+    cmd = rng.uniform(0.0, I_MAX, (BATCH_STEPS, 1)) * np.ones((1, n))
+    if not identical:
+        dp[:, 0] *= rng.uniform(0.8, 1.2, n)  # c0a
+        dp[:, 4] *= rng.uniform(0.8, 1.2, n)  # alpha_a
+        vp[:, 0] *= rng.uniform(0.9, 1.1, n)
+        idx = rng.integers(0, profiles.shape[0], n).astype(np.int64)
+        x0 = rng.uniform(0.0, 100.0, n)
+        speed = rng.uniform(150.0, 225.0, n)
+        cmd = rng.uniform(0.0, I_MAX, (BATCH_STEPS, n))
+    assert dp.shape == (n, N_DAMPER_PARAMS)
+    return damper, dict(
+        dp=dp,
+        vp=vp,
+        profiles=profiles,
+        idx=idx,
+        spacing=spacing,
+        x0=x0,
+        speed=speed,
+        cmd=np.ascontiguousarray(cmd),
+    )
+
+
+def run_batch(code: int, inp: dict, rows: slice | None = None, substeps: int = 5):
+    """Step the batch (or a slice of its rows, as a smaller batch) for BATCH_STEPS intervals."""
+    rows = rows or slice(None)
+
+    def c(a):
+        return np.ascontiguousarray(a[rows])
+
+    dp, vp, idx, x0, speed = (
+        c(inp["dp"]),
+        c(inp["vp"]),
+        c(inp["idx"]),
+        c(inp["x0"]),
+        c(inp["speed"]),
+    )
+    n = dp.shape[0]
+    state = initial_state(n)
+    out = np.empty((n, N_OUTPUTS))
+    states = np.empty((BATCH_STEPS, n, STATE_SIZE))
+    outs = np.empty((BATCH_STEPS, n, N_OUTPUTS))
+    for k in range(BATCH_STEPS):
+        cmd = np.ascontiguousarray(inp["cmd"][k, rows])
+        step_batch(
+            code,
+            dp,
+            vp,
+            state,
+            cmd,
+            inp["profiles"],
+            idx,
+            inp["spacing"],
+            x0,
+            speed,
+            DT,
+            substeps,
+            out,
+        )
+        states[k], outs[k] = state, out
+    return states, outs
+
+
+# The parallel kernel costs 10-20 s of numba compilation on a cold cache: marked slow.
+@pytest.mark.parametrize("n", [3, pytest.param(PARALLEL_THRESHOLD + 3, marks=pytest.mark.slow)])
+def test_identical_rows_give_identical_results_equal_to_simulate(n):
+    damper, inp = batch_inputs(n, identical=True)
+    states, outs = run_batch(damper.code, inp)
+    assert np.all(np.isfinite(states))
+    for row in range(1, n):
+        np.testing.assert_array_equal(states[:, row], states[:, 0])
+        np.testing.assert_array_equal(outs[:, row], outs[:, 0])
+    r = simulate(
+        damper,
+        inp["profiles"][0],
+        inp["spacing"],
+        SPEED,
+        inp["cmd"][:, 0],
+        BATCH_STEPS * DT,
+        dt_s=DT,
+        substeps=5,
+    )
+    np.testing.assert_array_equal(r["car_body_displacement_m"][1:], states[:, 0, 0])
+    np.testing.assert_array_equal(r["bogie_velocity_m_s"][1:], states[:, 0, 3])
+    np.testing.assert_array_equal(r["coil_current_a"][1:], states[:, 0, 6])
+    np.testing.assert_array_equal(r["damper_force_n"][1:], outs[:, 0, 0])
+    np.testing.assert_array_equal(r["guideway_m"][1:], outs[:, 0, 3])
+
+
+@pytest.mark.slow
+def test_parallel_kernel_equals_serial_bit_for_bit():
+    n = PARALLEL_THRESHOLD + 5
+    damper, inp = batch_inputs(n, identical=False, seed=9)
+    states, outs = run_batch(damper.code, inp)  # n >= threshold: parallel kernel
+    assert np.all(np.isfinite(states))
+    assert np.ptp(states[-1, :, 0]) > 0.0  # the rows really differ
+    for row in range(n):  # each row alone: a batch of 1, the serial kernel
+        s1, o1 = run_batch(damper.code, inp, rows=slice(row, row + 1))
+        np.testing.assert_array_equal(s1[:, 0], states[:, row])
+        np.testing.assert_array_equal(o1[:, 0], outs[:, row])
+    # And the serial kernel on a whole sub-threshold block agrees too.
+    block = slice(0, PARALLEL_THRESHOLD - 1)
+    s_block, _ = run_batch(damper.code, inp, rows=block)
+    np.testing.assert_array_equal(s_block, states[:, block])

@@ -1,0 +1,290 @@
+"""CapsuleSuspension-v0: registration, API conformance, determinism, vector equivalence."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import capsule_env
+from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig
+from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
+from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+
+ENV_ID = "CapsuleSuspension-v0"
+COMBOS = [
+    {"action_mode": "force", "setting": "sim"},
+    {"action_mode": "force", "setting": "hils"},
+    {"action_mode": "current", "setting": "sim"},
+    {"action_mode": "current", "setting": "hils"},
+    {"action_mode": "force", "setting": "sim", "inverse_model": "csdc"},
+    {"action_mode": "force", "setting": "hils", "inverse_model": "tanh"},
+    {"observation": "full_state", "setting": "hils"},
+]
+
+
+def _rollout(env, actions, seed):
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a)
+        out.append(np.concatenate([obs, [reward, info["damper_force_n"]]]))
+        if terminated or truncated:
+            break
+    return out
+
+
+def test_registration_is_idempotent_and_make_works():
+    capsule_env._register()
+    capsule_env._register()
+    env = gym.make(ENV_ID)
+    assert isinstance(env.unwrapped, CapsuleSuspensionEnv)
+    assert env.spec.max_episode_steps == 2000
+
+
+def test_make_with_module_prefix_in_fresh_interpreter():
+    code = (
+        "import gymnasium as gym; env = gym.make('capsule_env:CapsuleSuspension-v0');"
+        "env.reset(seed=0); print(env.step(env.action_space.sample())[0].shape)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "(5,)"
+
+
+def test_make_vec_modes():
+    vec = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point")
+    assert isinstance(vec.unwrapped, CapsuleSuspensionVectorEnv)
+    obs, _ = vec.reset(seed=0)
+    assert obs.shape == (3, 5)
+    sync = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync")
+    obs, _ = sync.reset(seed=0)
+    obs, reward, term, trunc, info = sync.step(np.zeros((2, 1), dtype=np.float32))
+    assert obs.shape == (2, 5) and reward.shape == (2,)
+    sync.close()
+
+
+@pytest.mark.slow
+def test_make_vec_async():
+    vec = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="async")
+    vec.reset(seed=0)
+    obs, reward, *_ = vec.step(np.zeros((2, 1), dtype=np.float32))
+    assert obs.shape == (2, 5) and np.all(np.isfinite(reward))
+    vec.close()
+
+
+@pytest.mark.parametrize("kwargs", COMBOS)
+def test_gymnasium_and_sb3_env_checkers_pass_without_warnings(kwargs):
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(ENV_ID, **kwargs).unwrapped)
+        sb3_check_env(gym.make(ENV_ID, **kwargs), warn=True)
+
+
+@pytest.mark.parametrize("kwargs", COMBOS[:4])
+def test_same_seed_same_trajectory(kwargs):
+    actions = np.random.default_rng(0).uniform(-1, 1, (300, 1)).astype(np.float32)
+    a = _rollout(gym.make(ENV_ID, **kwargs), actions, seed=5)
+    b = _rollout(gym.make(ENV_ID, **kwargs), actions, seed=5)
+    c = _rollout(gym.make(ENV_ID, **kwargs), actions, seed=6)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
+
+
+@pytest.mark.parametrize("setting", ["sim", "hils"])
+def test_single_native_vector_and_sb3_vec_env_agree(setting):
+    n, steps, seed = 3, 250, 11
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (steps, n, 1)).astype(np.float32)
+    vec = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting)
+    sb3 = CapsuleSuspensionSB3VecEnv(num_envs=n, setting=setting)
+    sb3.seed(seed)
+    v_obs, _ = vec.reset(seed=seed)
+    s_obs = sb3.reset()
+    np.testing.assert_array_equal(v_obs, s_obs)
+    singles = [CapsuleSuspensionEnv(setting=setting) for _ in range(n)]
+    single_obs = [env.reset(seed=seed + k)[0] for k, env in enumerate(singles)]
+    np.testing.assert_array_equal(np.stack(single_obs), v_obs)
+    for t in range(steps):
+        v_obs, v_rew, *_ = vec.step(actions[t])
+        s_obs, s_rew, _, _ = sb3.step(actions[t])
+        for k, env in enumerate(singles):
+            o, r, *_ = env.step(actions[t, k])
+            np.testing.assert_array_equal(o, v_obs[k])
+            assert r == v_rew[k]
+        np.testing.assert_array_equal(v_obs, s_obs)
+        np.testing.assert_allclose(v_rew, s_rew, rtol=1e-6)  # SB3 rewards are float32
+
+
+def test_parallel_kernel_matches_serial_bit_for_bit():
+    config = EnvConfig(setting="hils")
+    big = CapsuleBatch(config, 80)  # parallel kernel
+    small = [CapsuleBatch(config, 1) for _ in range(3)]
+    big.seed(3)
+    big.reset()
+    for k, b in enumerate(small):
+        b.seed(3 + k)
+        b.reset()
+    actions = np.random.default_rng(2).uniform(-1, 1, (200, 80))
+    for a in actions:
+        big.step(a)
+        for k, b in enumerate(small):
+            b.step(a[k : k + 1])
+    for k, b in enumerate(small):
+        np.testing.assert_array_equal(big.state[k], b.state[0])
+
+
+def test_nan_action_raises_and_out_of_range_is_clipped():
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(np.array([np.nan], dtype=np.float32))
+    with pytest.raises(ValueError, match="action"):
+        env.step(np.array([np.inf], dtype=np.float32))
+    a = _rollout(gym.make(ENV_ID, action_mode="current"), [np.array([5.0])] * 50, seed=1)
+    b = _rollout(gym.make(ENV_ID, action_mode="current"), [np.array([1.0])] * 50, seed=1)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    vec = CapsuleSuspensionVectorEnv(num_envs=2)
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        vec.step(np.array([[0.0], [np.nan]]))
+
+
+@pytest.mark.parametrize("damper", ["reference", "bouc_wen", "bi_exponential", "tanh", "passive"])
+@pytest.mark.parametrize("setting", ["sim", "hils"])
+def test_long_random_rollouts_stay_finite(damper, setting):
+    vec = CapsuleSuspensionVectorEnv(num_envs=16, damper=damper, setting=setting)
+    vec.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(2500):  # crosses an episode boundary (autoreset)
+        obs, reward, term, trunc, info = vec.step(rng.uniform(-1, 1, (16, 1)))
+        assert np.isfinite(obs).all() and np.isfinite(reward).all()
+        assert np.isfinite(info["damper_force_n"]).all()
+        assert vec.single_observation_space.contains(obs[0])
+
+
+def test_info_has_signals_and_reward_terms():
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    _, reward, _, _, info = env.step(np.array([0.3], dtype=np.float32))
+    for name in SIGNAL_NAMES:
+        assert name in info
+    assert reward == pytest.approx(
+        -(info["cost_acceleration"] + info["cost_stroke"] + info["cost_energy"])
+    )
+    cfg = EnvConfig()
+    expected = cfg.reward_acceleration_weight * (
+        info["car_body_acceleration_m_s2"] / cfg.acceleration_scale_m_s2
+    ) ** 2
+    assert info["cost_acceleration"] == pytest.approx(expected)
+    # force mode: desired force is the action times the force scale
+    assert info["desired_force_n"] == pytest.approx(0.3 * cfg.max_force_n, rel=1e-6)
+
+
+def test_truncation_and_termination():
+    env = gym.make(ENV_ID, episode_length_s=0.5, max_episode_steps=100)
+    env.reset(seed=0)
+    for k in range(100):
+        _, _, terminated, truncated, _ = env.step(np.zeros(1, dtype=np.float32))
+        assert not terminated
+        assert truncated == (k == 99)
+    env = gym.make(ENV_ID, stroke_limit_m=1e-4, action_mode="current")
+    env.reset(seed=0)
+    for _ in range(2000):
+        _, reward, terminated, _, info = env.step(np.array([-1.0], dtype=np.float32))
+        if terminated:
+            break
+    assert terminated and abs(info["stroke_m"]) > 1e-4
+    assert reward < -EnvConfig().bump_stop_penalty
+
+
+def test_vector_autoreset_next_step():
+    vec = CapsuleSuspensionVectorEnv(num_envs=2, episode_length_s=0.05)  # 10 steps
+    vec.reset(seed=0)
+    zeros = np.zeros((2, 1))
+    for _ in range(9):
+        _, _, _, trunc, _ = vec.step(zeros)
+        assert not trunc.any()
+    _, _, _, trunc, _ = vec.step(zeros)
+    assert trunc.all()
+    obs, reward, term, trunc, _ = vec.step(zeros)  # the autoreset step
+    assert np.all(reward == 0.0) and not term.any() and not trunc.any()
+    assert np.all(vec.batch.step_count == 0)
+
+
+def test_hils_knobs_are_separate():
+    base = EnvConfig(setting="hils")
+    assert base.plant_damper_name == "reference"
+    assert base.effective_control_delay_steps == 1
+    assert base.effective_sensor_noise > 0
+    quiet = EnvConfig(setting="hils", sensor_noise=0.0, control_delay_steps=0)
+    env = CapsuleSuspensionEnv(setting="hils", sensor_noise=0.0, control_delay_steps=0)
+    env.reset(seed=0)
+    obs, *_, info = env.step(np.zeros(1, dtype=np.float32))
+    assert obs[2] == pytest.approx(info["stroke_m"], rel=1e-6)  # no noise
+    assert quiet.effective_coil_time_constant_s == pytest.approx(1 / 190)
+    # one-step delay: the first command is applied one step late (0 A applied first)
+    delayed = CapsuleSuspensionEnv(setting="hils", action_mode="current")
+    delayed.reset(seed=0)
+    delayed.step(np.ones(1, dtype=np.float32))
+    assert delayed.batch.state[0, 6] == 0.0  # coil current still 0: command not yet applied
+    delayed.step(np.ones(1, dtype=np.float32))
+    assert delayed.batch.state[0, 6] > 0.0
+
+
+def test_domain_randomisation():
+    env = CapsuleSuspensionEnv(vehicle_randomization=0.2, speed_range_kmh=(600, 900))
+    seen = []
+    env.reset(seed=0)
+    for _ in range(5):
+        env.reset()
+        seen.append(np.concatenate([env.batch.vehicle_params[0], env.batch.speed]))
+    seen = np.array(seen)
+    nominal = capsule_env.VehicleParams().as_array()
+    assert np.all(np.abs(seen[:, :4] / nominal - 1) <= 0.2 + 1e-12)
+    assert np.all((seen[:, 4] >= 600 / 3.6) & (seen[:, 4] <= 900 / 3.6))
+    assert np.unique(seen[:, 0]).size == 5
+
+
+def test_bad_arguments_name_the_parameter():
+    with pytest.raises(ValueError, match="action_mode"):
+        gym.make(ENV_ID, action_mode="torque")
+    with pytest.raises(ValueError, match="damper"):
+        gym.make(ENV_ID, damper="magic")
+    with pytest.raises(ValueError, match="inverse_model"):
+        gym.make(ENV_ID, inverse_model="lut")
+    with pytest.raises(ValueError, match="unknown environment argument 'speed'"):
+        gym.make(ENV_ID, speed=3)
+    with pytest.raises(ValueError, match="car_body_mass_kg"):
+        gym.make(ENV_ID, vehicle_params={"car_body_mass_kg": -1.0})
+    with pytest.raises(ValueError, match="guideway kind"):
+        gym.make(ENV_ID, guideway="cobblestones")
+
+
+def test_render_rgb_array():
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(1, dtype=np.float32))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3  # something is drawn
+
+
+def test_guideway_window_is_scaled_to_peak():
+    batch = CapsuleBatch(EnvConfig(), 4)
+    batch.seed(0)
+    batch.reset()
+    peaks = []
+    for k in range(4):
+        t = np.arange(0, 10.0, 0.001)
+        pos = batch.start_position[k] + batch.speed[k] * t
+        prof = batch.profiles[batch.profile_index[k]]
+        z = batch.gain[k] * np.interp(pos / batch.spacing, np.arange(prof.size), prof)
+        peaks.append(np.abs(z).max())
+    np.testing.assert_allclose(peaks, 0.008, rtol=0.01)
