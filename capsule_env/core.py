@@ -113,9 +113,12 @@ SIGNAL_NAMES = (
     "cost_energy",
 )
 N_SIGNALS = len(SIGNAL_NAMES)
-#: Standard deviation of each sensor channel's noise at ``sensor_noise=1`` [reconstructed: a few
-#: per cent of the channel's typical level on the default guideway; HILS default].
-SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 0.0])
+#: Standard deviation of the measurement noise at ``sensor_noise=1`` [reconstructed: a few per
+#: cent of each channel's typical level on the default guideway; the HILS default]. Entries:
+#: car body and bogie acceleration (m/s^2), stroke (m), stroke rate (m/s), then for the
+#: ``full_state`` set: car body displacement (m), car body velocity (m/s), bogie displacement
+#: (m), bogie velocity (m/s), guideway elevation (m).
+SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4])
 _INVERSE_CODE = {"bi_exponential": 4, "tanh": 3, "csdc": BOUC_WEN}
 
 
@@ -354,7 +357,7 @@ def _gaussian(key, step, channel):
 (F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
  F_STROKE_LIMIT, F_PENALTY, F_SPACING) = range(11)  # fmt: skip
 # cfg_i: scalars (int64)
-I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, I_N_SUB, I_FULL_OBS, I_DELAY_POS = range(6)
+I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, I_N_SUB, I_FULL_OBS, I_DELAY_POS, I_NOISE = range(7)
 # env_f: per-vehicle floats; env_i: per-vehicle ints
 E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
@@ -402,22 +405,26 @@ def _env_step_one(
     env_i[n, E_STEP] += 1
     k = env_i[n, E_STEP]
     # 4. sensors (with counter-based noise)
-    key = noise_key[n]
-    meas[n, 0] = acc_c + noise_std[0] * _gaussian(key, k, 0)
-    meas[n, 1] = acc_b + noise_std[1] * _gaussian(key, k, 1)
-    meas[n, 2] = stroke + noise_std[2] * _gaussian(key, k, 2)
-    meas[n, 3] = rate + noise_std[3] * _gaussian(key, k, 3)
+    meas[n, 0] = acc_c
+    meas[n, 1] = acc_b
+    meas[n, 2] = stroke
+    meas[n, 3] = rate
     meas[n, 4] = i_cmd
+    if cfg_i[I_NOISE]:
+        key = noise_key[n]
+        for j in range(4):
+            meas[n, j] += noise_std[j] * _gaussian(key, k, j)
     if cfg_i[I_FULL_OBS]:
         obs[n, 0] = s[BODY_DISP]
         obs[n, 1] = s[BODY_VEL]
         obs[n, 2] = s[BOGIE_DISP]
         obs[n, 3] = s[BOGIE_VEL]
         obs[n, 4] = zg
-        obs[n, 5] = acc_c
-        obs[n, 6] = acc_b
-        obs[n, 7] = stroke
-        obs[n, 8] = rate
+        if cfg_i[I_NOISE]:
+            for j in range(5):
+                obs[n, j] += noise_std[4 + j] * _gaussian(noise_key[n], k, 4 + j)
+        for j in range(4):  # the same (noisy) measurements the inverse model uses
+            obs[n, 5 + j] = meas[n, j]
         obs[n, 9] = s[COIL_CURRENT]
     else:
         for j in range(5):
@@ -550,6 +557,7 @@ class CapsuleBatch:
                 self.n_sub,
                 int(self.full_obs),
                 0,
+                int(np.any(self.noise_std > 0.0)),
             ],
             dtype=np.int64,
         )

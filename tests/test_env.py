@@ -179,9 +179,10 @@ def test_info_has_signals_and_reward_terms():
         -(info["cost_acceleration"] + info["cost_stroke"] + info["cost_energy"])
     )
     cfg = EnvConfig()
-    expected = cfg.reward_acceleration_weight * (
-        info["car_body_acceleration_m_s2"] / cfg.acceleration_scale_m_s2
-    ) ** 2
+    expected = (
+        cfg.reward_acceleration_weight
+        * (info["car_body_acceleration_m_s2"] / cfg.acceleration_scale_m_s2) ** 2
+    )
     assert info["cost_acceleration"] == pytest.approx(expected)
     # force mode: desired force is the action times the force scale
     assert info["desired_force_n"] == pytest.approx(0.3 * cfg.max_force_n, rel=1e-6)

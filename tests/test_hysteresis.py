@@ -146,9 +146,9 @@ def test_spencer_loop_is_the_known_bouc_wen_loop():
 
 
 def test_negative_gamma_loop_is_unbounded_for_the_ode():
-    # Independent fact behind the rejection test below: with gamma < 0 < gamma + beta the Bouc-Wen ODE
-    # leaves its "saturation" level on unloading (dz/du = A - (beta - gamma) z^2 < 0 at
-    # z = z_sat), so the loop is not bounded.
+    # Independent fact behind the rejection test below: with gamma < 0 < gamma + beta the
+    # Bouc-Wen ODE leaves its "saturation" level on unloading (dz/du = A - (beta - gamma) z^2 < 0
+    # at z = z_sat), so the loop is not bounded.
     a, g, b = 301.0, -1.0e6, 5.0e6
     z_sat = math.sqrt(a / (g + b))
     assert a - (b - g) * z_sat**2 < 0.0

@@ -64,7 +64,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     | 3 | stroke rate ``v`` | m/s |
     | 4 | last coil current command | A |
 
-    ``observation="full_state"`` (simulator truth, no noise):
+    ``observation="full_state"`` (every state; with measurement noise where ``sensor_noise`` > 0,
+    as in ``hils``, so controllers that read states are not given what sensors could not):
 
     | index | observation | unit |
     |-------|-------------|------|

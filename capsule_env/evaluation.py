@@ -1,0 +1,132 @@
+"""Run controllers over guideway realisations and compute the paper's metrics.
+
+The evaluation loop used by ``evaluate.py`` and the tests: a controller (anything with SB3's
+``predict``) drives the native vector env, one vehicle per episode, and the signals in
+``info`` are recorded; :func:`episode_metrics` turns them into the paper's vibration-reduction
+effect (against the passive run on the same guideway realisations) and ride metrics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from capsule_env import metrics
+from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+
+#: Guideway bank for evaluation: held out from training (which uses ``guideway_seed=0``).
+EVALUATION_GUIDEWAY_SEED = 2026
+RECORDED = (
+    "car_body_displacement_m",
+    "bogie_displacement_m",
+    "car_body_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "damper_force_n",
+    "desired_force_n",
+    "current_command_a",
+    "coil_current_a",
+    "guideway_elevation_m",
+)
+
+
+class Policy(Protocol):
+    def predict(
+        self, observation: np.ndarray, state: Any = None, episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]: ...  # fmt: skip
+
+
+@dataclass
+class Rollout:
+    """Recorded signals, each ``(episodes, steps)``, of one controller in one setting."""
+
+    signals: dict[str, np.ndarray]
+    dt_s: float
+    terminated: np.ndarray  # (episodes,) bool: hit the bump stop
+    action_mode: str
+
+
+def run_episodes(
+    policy: Policy,
+    env_kwargs: dict[str, Any],
+    episodes: int = 10,
+    seed: int = 0,
+    episode_length_s: float = 10.0,
+) -> Rollout:
+    """Run ``episodes`` episodes (vehicle ``k`` seeded ``seed + k``) with one vector env.
+
+    ``env_kwargs`` are the env's arguments (setting, the controller's needs, overrides).
+    After a termination the vehicle's remaining samples repeat its last values.
+    """
+    kwargs = {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}
+    env = CapsuleSuspensionVectorEnv(num_envs=episodes, episode_length_s=episode_length_s, **kwargs)
+    steps = env.batch.max_steps
+    obs, _ = env.reset(seed=seed)
+    if hasattr(policy, "reset"):
+        policy.reset()
+    record = {name: np.zeros((episodes, steps)) for name in RECORDED}
+    alive = np.ones(episodes, dtype=bool)
+    terminated_any = np.zeros(episodes, dtype=bool)
+    start = np.ones(episodes, dtype=bool)
+    state = None
+    for t in range(steps):
+        actions, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
+        start[:] = False
+        obs, _, terminated, truncated, info = env.step(actions)
+        for name in RECORDED:
+            column = record[name]
+            column[alive, t] = info[name][alive]
+            if t > 0:
+                column[~alive, t] = column[~alive, t - 1]
+        terminated_any |= terminated & alive
+        alive &= ~terminated
+    env.close()
+    return Rollout(record, env.batch.dt, terminated_any, env.config.action_mode)
+
+
+def episode_metrics(
+    rollout: Rollout,
+    passive: Rollout | None,
+    bands_hz: dict[str, tuple[float, float]] | None = None,
+    coil_resistance_ohm: float = metrics.DEFAULT_COIL_RESISTANCE_OHM,
+) -> dict[str, Any]:
+    """The paper's metrics, averaged over episodes (with the per-episode spread).
+
+    ``vre`` (per cent, paper eq. 16, needs the passive rollout on the same seeds):
+    ``body_mode1``, ``body_mode2``, ``bogie_mode1``, ``bogie_mode2``. Ride metrics:
+    ``rms_body_acc`` and ``wk_rms_body_acc`` (m/s^2, ISO 2631-1 Wk), ``rms_body_disp`` and
+    ``rms_bogie_disp`` (m), ``max_stroke`` (m), ``mean_current`` (A), ``coil_power_w`` (W),
+    ``force_tracking_error`` (relative, force mode only), ``terminated_episodes``.
+    """
+    bands = bands_hz or metrics.DEFAULT_BANDS_HZ
+    s, dt = rollout.signals, rollout.dt_s
+    per_episode = {
+        "rms_body_acc": metrics.rms(s["car_body_acceleration_m_s2"]),
+        "wk_rms_body_acc": metrics.wk_weighted_rms(s["car_body_acceleration_m_s2"], dt),
+        "rms_body_disp": metrics.rms(s["car_body_displacement_m"]),
+        "rms_bogie_disp": metrics.rms(s["bogie_displacement_m"]),
+        "max_stroke": np.max(np.abs(s["stroke_m"]), axis=-1),
+        "mean_current": np.mean(s["coil_current_a"], axis=-1),
+        "coil_power_w": metrics.coil_power_w(s["coil_current_a"], coil_resistance_ohm),
+    }
+    if rollout.action_mode == "force":
+        per_episode["force_tracking_error"] = metrics.force_tracking_error(
+            s["desired_force_n"], s["damper_force_n"]
+        )
+    out: dict[str, Any] = {k: float(np.nanmean(v)) for k, v in per_episode.items()}
+    out["std"] = {k: float(np.nanstd(v)) for k, v in per_episode.items()}
+    if passive is not None:
+        vre = {}
+        for body, key in (("body", "car_body_displacement_m"), ("bogie", "bogie_displacement_m")):
+            for mode, band in bands.items():
+                v = metrics.vibration_reduction_effect(
+                    passive.signals[key], s[key], dt, band
+                )  # fmt: skip
+                vre[f"{body}_{mode}"] = float(np.mean(v))
+                out["std"][f"vre_{body}_{mode}"] = float(np.std(v))
+        out["vre"] = vre
+    out["terminated_episodes"] = int(rollout.terminated.sum())
+    return out

@@ -1,0 +1,120 @@
+"""Controllers (hand-computed laws) and a short end-to-end run of evaluate.py."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import evaluate
+from agents import (
+    ClippedOptimalController,
+    ConstantCurrentController,
+    HybridController,
+    PassiveController,
+    SkyhookController,
+    classical_controllers,
+)
+from agents.base import FULL
+from capsule_env.evaluation import episode_metrics, run_episodes
+from capsule_env.vehicle import VehicleParams, state_space
+
+
+def _obs(body_vel, bogie_vel, n=10):
+    obs = np.zeros((len(body_vel), n))
+    obs[:, FULL["car_body_velocity_m_s"]] = body_vel
+    obs[:, FULL["bogie_velocity_m_s"]] = bogie_vel
+    return obs
+
+
+def test_skyhook_laws_by_hand():
+    body = np.array([0.1, 0.1, -0.1, -0.05])
+    bogie = np.array([0.0, 0.2, 0.0, -0.1])
+    rel = body - bogie  # [0.1, -0.1, -0.1, 0.05]
+    on_off = SkyhookController("bi_exponential", "on_off", c_max=7e4, c_min=1e3, max_force_n=8e3)
+    expected = np.where(body * rel > 0, 7e4 * rel, 1e3 * rel)
+    np.testing.assert_allclose(on_off.desired_force(_obs(body, bogie)), expected)
+    a, _ = on_off.predict(_obs(body, bogie))
+    np.testing.assert_allclose(a[:, 0], np.clip(expected / 8e3, -1, 1), rtol=1e-6)
+    cont = SkyhookController("csdc", "continuous", c_sky=5e4)
+    np.testing.assert_allclose(
+        cont.desired_force(_obs(body, bogie)), np.where(body * rel > 0, 5e4 * body, 0.0)
+    )
+    assert on_off.name == "skyhook-biexp" and cont.name == "skyhook-cont-csdc"
+    assert on_off.uses_unmeasured_signals and on_off.env_kwargs["observation"] == "full_state"
+
+
+def test_hybrid_and_constant_and_passive():
+    body, bogie = np.array([0.1, 0.0]), np.array([-0.2, 0.1])
+    h = HybridController(alpha=0.5, c_sky=4e4, c_ground=2e4)
+    rel = body - bogie
+    sky = np.where(body * rel > 0, 4e4 * body, 0.0)
+    ground = np.where(-bogie * rel > 0, -2e4 * bogie, 0.0)
+    np.testing.assert_allclose(h.desired_force(_obs(body, bogie)), 0.5 * sky + 0.5 * ground)
+    a, _ = ConstantCurrentController(1.0).predict(np.zeros((3, 5)))
+    assert np.all(a == 1.0)
+    assert PassiveController().env_kwargs["damper"] == "passive"
+    with pytest.raises(ValueError, match="fraction_of_max"):
+        ConstantCurrentController(2.0)
+    with pytest.raises(ValueError, match="inverse_model"):
+        SkyhookController("magic")
+
+
+def test_lqr_gain_stabilises_the_linear_plant():
+    """Closed loop A - B K (state [x_c - x_b, z_c', z_b - z_g, z_b']) is stable and better
+    damped at the body mode than the passive damper."""
+    ctrl = ClippedOptimalController()
+    v = VehicleParams()
+    mc, mb, ks, kp = v.as_array()
+    a = np.array([[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]])
+    b = np.array([[0], [-1 / mc], [0], [1 / mb]])
+    closed = np.linalg.eigvals(a - b @ ctrl.gain[None, :])
+    assert np.all(closed.real < 0)
+    passive = np.linalg.eigvals(state_space(v, 1.5e4)[0])
+    zeta = lambda ev: -ev.real / np.abs(ev)  # noqa: E731
+    body_cl = closed[np.argmin(np.abs(np.abs(closed) - 2 * np.pi * 1.3))]
+    body_pass = passive[np.argmin(np.abs(np.abs(passive) - 2 * np.pi * 1.3))]
+    assert zeta(body_cl) > zeta(body_pass)
+
+
+def test_vre_of_passive_against_itself_is_zero():
+    passive = PassiveController()
+    roll = run_episodes(passive, {**passive.env_kwargs}, episodes=2, seed=3, episode_length_s=2)
+    m = episode_metrics(roll, roll)
+    assert all(abs(v) < 1e-12 for v in m["vre"].values())
+
+
+def test_skyhook_reduces_body_first_mode_in_sim():
+    ctrls = classical_controllers()
+    passive = run_episodes(ctrls["passive"], ctrls["passive"].env_kwargs, 3, 0, 10.0)
+    sky = run_episodes(ctrls["skyhook-biexp"], ctrls["skyhook-biexp"].env_kwargs, 3, 0, 10.0)
+    m = episode_metrics(sky, passive)
+    assert m["vre"]["body_mode1"] > 20.0  # Skyhook's purpose: damp the body mode
+    assert m["terminated_episodes"] == 0
+
+
+def test_evaluate_end_to_end(tmp_path):
+    out = tmp_path / "eval.json"
+    plots = tmp_path / "plots"
+    code = evaluate.main(
+        ["--episodes", "2", "--episode-length", "2", "--json", str(out), "--plots", str(plots),
+         "--controllers", "passive,skyhook-csdc,skyhook-biexp", "--no-shipped-policy"]
+    )  # fmt: skip
+    assert code == 0
+    data = json.loads(out.read_text())
+    assert len(data["natural_frequencies_hz"]) == 2
+    for setting in ("sim", "hils"):
+        ctrls = data["settings"][setting]["controllers"]
+        assert set(ctrls) == {"passive", "skyhook-csdc", "skyhook-biexp"}
+        entry = ctrls["skyhook-biexp"]
+        assert set(entry["vre"]) == {"body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"}
+        for key in ("rms_body_acc", "wk_rms_body_acc", "rms_body_disp", "max_stroke",
+                    "mean_current"):  # fmt: skip
+            assert np.isfinite(entry[key])
+    assert len(list(plots.glob("*.png"))) == 6
+
+
+def test_evaluate_rejects_unknown_controller():
+    with pytest.raises(SystemExit, match="unknown controller"):
+        evaluate.main(["--controllers", "nope", "--no-shipped-policy"])
