@@ -45,8 +45,9 @@ from capsule_env.dynamics import (
     COIL_CURRENT,
     N_OUTPUTS,
     STATE_SIZE,
+    SUBSTEP_BINS,
     _advance,
-    default_substeps,
+    substep_table,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
 from capsule_env.hysteresis import hysteresis_update
@@ -296,9 +297,31 @@ class EnvConfig:
 
     @property
     def n_substeps(self) -> int:
+        """RK4 substeps per control step at the maximum current."""
+        return int(self.substep_table.max())
+
+    @property
+    def substep_table(self) -> np.ndarray:
+        """Substeps per control step by coil-current bin (``dynamics.substep_table``)."""
         if self.substeps is not None:
-            return int(self.substeps)
-        return default_substeps(self.plant_damper, self.dt_s, self.vehicle)
+            return np.full(SUBSTEP_BINS, int(self.substeps), dtype=np.int64)
+        return substep_table(
+            self.plant_damper, self.dt_s, self.vehicle, input_rate_rad_s=self.input_rate_rad_s
+        )
+
+    @property
+    def input_rate_rad_s(self) -> float:
+        """Highest angular frequency of the guideway input at the highest speed (rad/s)."""
+        gw = self.guideway_spec
+        speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
+        shortest = {
+            "random": gw.min_wavelength_m,
+            "sine": speed / gw.frequency_hz,
+            "swept_sine": speed / max(gw.start_hz, gw.stop_hz),
+            "bump": gw.bump_length_m,
+            "step": max(2.0 * gw.ramp_length_m, 4.0 * gw.spacing_m),
+        }[gw.kind]
+        return 2.0 * math.pi * speed / shortest
 
     @property
     def observation_names(self) -> tuple[str, ...]:
@@ -357,16 +380,17 @@ def _gaussian(key, step, channel):
 (F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
  F_STROKE_LIMIT, F_PENALTY, F_SPACING) = range(11)  # fmt: skip
 # cfg_i: scalars (int64)
-I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, I_N_SUB, I_FULL_OBS, I_DELAY_POS, I_NOISE = range(7)
+(I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, _I_UNUSED, I_FULL_OBS, I_DELAY_WRITE, I_DELAY_READ,
+ I_NOISE) = range(8)  # fmt: skip
 # env_f: per-vehicle floats; env_i: per-vehicle ints
 E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _env_step_one(
     n, action, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
     i_max = cfg_f[F_I_MAX]
     inv_code = cfg_i[I_INV_CODE]
@@ -388,15 +412,13 @@ def _env_step_one(
         f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
         i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
     # 2. control delay: a ring buffer of delay + 1 commands
-    n_buf = delay_buf.shape[1]
-    delay_pos = cfg_i[I_DELAY_POS]
-    delay_buf[n, delay_pos % n_buf] = i_cmd
-    applied = delay_buf[n, (delay_pos + 1) % n_buf]
+    delay_buf[n, cfg_i[I_DELAY_WRITE]] = i_cmd
+    applied = delay_buf[n, cfg_i[I_DELAY_READ]]
     # 3. plant
     _advance(
         cfg_i[I_PLANT_CODE], dp[n], vp[n], state[n], applied, profiles, env_i[n, E_PROFILE],
         cfg_f[F_SPACING], env_f[n, E_START], env_f[n, E_SPEED], env_f[n, E_GAIN], cfg_f[F_DT],
-        cfg_i[I_N_SUB], out[n],
+        sub_table, out[n],
     )  # fmt: skip
     s = state[n]
     stroke = s[BODY_DISP] - s[BOGIE_DISP]
@@ -432,9 +454,13 @@ def _env_step_one(
     for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
         obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
     # 5. reward
-    c_acc = cfg_f[F_W_ACC] * (acc_c / cfg_f[F_ACC_REF]) ** 2
-    c_stroke = cfg_f[F_W_STROKE] * (stroke / cfg_f[F_STROKE_REF]) ** 2
-    c_energy = cfg_f[F_W_ENERGY] * (applied / i_max) ** 2 if i_max > 0.0 else 0.0
+    # (x * x, not x ** 2: numba lowers the power to a slow libm call)
+    acc_rel = acc_c / cfg_f[F_ACC_REF]
+    stroke_rel = stroke / cfg_f[F_STROKE_REF]
+    current_rel = applied / i_max if i_max > 0.0 else 0.0
+    c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
+    c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
+    c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
     hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
     terminated[n] = hit
     reward[n] = -(c_acc + c_stroke + c_energy) - (cfg_f[F_PENALTY] if hit else 0.0)
@@ -459,24 +485,26 @@ def _env_step_one(
 @njit(cache=True)
 def _env_step_serial(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
     for n in range(actions.shape[0]):
         _env_step_one(
             n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
-            meas, delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+            meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
+            out,
         )  # fmt: skip
 
 
 @njit(cache=True, parallel=True)
 def _env_step_parallel(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
     for n in prange(actions.shape[0]):
         _env_step_one(
             n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
-            meas, delay_buf, dp, vp, state, profiles, obs, reward, terminated, sig, out,
+            meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
+            out,
         )  # fmt: skip
 
 
@@ -502,7 +530,7 @@ class CapsuleBatch:
         self.inverse = config.inverse_damper
         self.i_max = config.max_current_a
         self.dt = config.dt_s
-        self.n_sub = config.n_substeps
+        self.sub_table = config.substep_table
         self.max_steps = config.max_episode_steps
         self.full_obs = config.observation == "full_state"
         self.obs_dim = len(config.observation_names)
@@ -554,8 +582,9 @@ class CapsuleBatch:
                 0 if config.action_mode == "force" else 1,
                 _INVERSE_CODE[config.inverse_model],
                 self.plant.code,
-                self.n_sub,
+                0,
                 int(self.full_obs),
+                0,
                 0,
                 int(np.any(self.noise_std > 0.0)),
             ],
@@ -564,6 +593,7 @@ class CapsuleBatch:
         self._kernel = _env_step_parallel if n >= PARALLEL_THRESHOLD else _env_step_serial
         self._nominal_vehicle = self.vehicle.as_array()
         self._action_buf = np.zeros(n)
+        self._delay_pos = 0
 
     # ---------------------------------------------------------------- guideway bank
     def _build_bank(self) -> np.ndarray:
@@ -660,12 +690,16 @@ class CapsuleBatch:
         self._run()
 
     def _run(self) -> None:
-        self.cfg_i[I_DELAY_POS] += 1
+        # ring buffer of delay + 1 commands: write this step's, apply the oldest
+        self._delay_pos += 1
+        n_buf = self.delay_buf.shape[1]
+        self.cfg_i[I_DELAY_WRITE] = self._delay_pos % n_buf
+        self.cfg_i[I_DELAY_READ] = (self._delay_pos + 1) % n_buf
         self._kernel(
             self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
-            self.obs, self.reward, self.terminated, self.signals, self._out,
+            self.sub_table, self.obs, self.reward, self.terminated, self.signals, self._out,
         )  # fmt: skip
 
     @property

@@ -23,7 +23,8 @@ stage's deformation increment (:mod:`capsule_env.hysteresis`), and the first-ord
 ``i' = (i_cmd - i)/tau`` solved exactly. What remains for RK4 is the pre-yield coupling of the
 damper's stiffness alpha*A with its dashpots, whose rate ``alpha A / (c0 + c1)`` (about 1.6e3 1/s
 for the reference damper at 1.5 A) and the plant's modes set the substep:
-:func:`default_substeps` keeps ``|lambda| h <= 2`` (5 substeps of 1 ms at 200 Hz).
+:func:`substep_table` keeps ``|lambda| h <= 2`` for the highest current in each control interval (at
+1.5 A: 5 substeps of 1 ms at 200 Hz; at low current fewer).
 
 One kernel serves a single vehicle and thousands: :func:`step_batch` advances every row by one
 control interval, in parallel threads for large batches. Pure numba/numpy, no Gym import.
@@ -53,6 +54,7 @@ __all__ = [
     "STATE_SIZE",
     "OUTPUT_NAMES",
     "default_substeps",
+    "substep_table",
     "stiffness_bound",
     "step_batch",
     "initial_state",
@@ -91,17 +93,25 @@ def _derivs(model, dp, mc, mb, ks, kp, zc, vc, zb, vb, y, z, i, zg):
 
 
 @njit(cache=True, inline="always")
-def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain, dt, n_sub, out):
-    """Advance one vehicle's state row ``s`` in place by ``dt`` with ``n_sub`` RK4 substeps.
+def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain, dt, sub_table,
+             out):  # fmt: skip
+    """Advance one vehicle's state row ``s`` in place by ``dt`` with RK4 substeps.
 
-    The guideway elevation is ``gain * profiles[k](x_start + speed * t)``.
+    The guideway elevation is ``gain * profiles[k](x_start + speed * t)``. The number of
+    substeps is ``sub_table[bin]`` for the bin of the highest current in the interval (the
+    damper's stiffness grows with current; see :func:`substep_table`).
     """
     mc, mb, ks, kp = vp[0], vp[1], vp[2], vp[3]
     a_coef, gamma, beta = hysteresis_params(model, dp)
     hysteretic = a_coef > 0.0
-    i_cmd = min(max(i_cmd, 0.0), dp[_I_MAX]) if model != PASSIVE else 0.0
-    h = dt / n_sub
+    i_max = dp[_I_MAX]
+    i_cmd = min(max(i_cmd, 0.0), i_max) if model != PASSIVE else 0.0
     tau = dp[_COIL_TAU]
+    n_bins = sub_table.shape[0]
+    i_high = max(i_cmd, s[6]) if tau > 0.0 else i_cmd
+    b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
+    n_sub = sub_table[min(max(b, 0), n_bins - 1)]
+    h = dt / n_sub
     if tau > 0.0:
         e_half = math.exp(-0.5 * h / tau)
     else:
@@ -163,22 +173,22 @@ def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain
 
 
 @njit(cache=True)
-def _step_serial(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, n_sub,
+def _step_serial(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
                  out):  # fmt: skip
     for n in range(state.shape[0]):
         _advance(
             model, dp[n], vp[n], state[n], i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n],
-            gain[n], dt, n_sub, out[n],
+            gain[n], dt, table, out[n],
         )  # fmt: skip
 
 
 @njit(cache=True, parallel=True)
 def _step_parallel(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt,
-                   n_sub, out):  # fmt: skip
+                   table, out):  # fmt: skip
     for n in prange(state.shape[0]):
         _advance(
             model, dp[n], vp[n], state[n], i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n],
-            gain[n], dt, n_sub, out[n],
+            gain[n], dt, table, out[n],
         )  # fmt: skip
 
 
@@ -198,7 +208,7 @@ def step_batch(
     start_position_m: np.ndarray,
     speed_mps: np.ndarray,
     dt_s: float,
-    substeps: int,
+    substeps: int | np.ndarray,
     out: np.ndarray,
     guideway_gain: np.ndarray | None = None,
 ) -> None:
@@ -215,7 +225,9 @@ def step_batch(
     profiles : (K, L) guideway elevation profiles (m) sampled every ``spacing_m``.
     profile_index, start_position_m, speed_mps : (N,) which profile, where on it at t = 0 (m)
         and the vehicle speed (m/s).
-    dt_s, substeps : control interval (s) and the number of RK4 substeps in it.
+    dt_s : control interval (s).
+    substeps : RK4 substeps per interval: an int, or a :func:`substep_table` (int64 array) that
+        picks the number from the highest coil current in the interval.
     out : (N, N_OUTPUTS) written with :data:`OUTPUT_NAMES` at the end of the interval.
     guideway_gain : (N,) factor on each vehicle's profile (default 1).
 
@@ -223,27 +235,40 @@ def step_batch(
     """
     if guideway_gain is None:
         guideway_gain = np.ones(state.shape[0])
+    table = _as_table(substeps)
     kernel = _step_parallel if state.shape[0] >= PARALLEL_THRESHOLD else _step_serial
     kernel(
         damper_code, damper_params, vehicle_params, state, current_command_a, profiles,
-        profile_index, spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, substeps, out,
+        profile_index, spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, out,
     )  # fmt: skip
 
 
-def stiffness_bound(damper: DamperParams, vehicle: VehicleParams | None = None) -> float:
-    """Upper bound (1/s) on the eigenvalue magnitudes the RK4 stages must resolve.
+#: Highest angular frequency of the default guideway input (rad/s): the 2 m shortest
+#: wavelength of the random profile at 810 km/h (225 m/s).
+DEFAULT_INPUT_RATE = 2.0 * math.pi * 225.0 / 2.0
+
+
+def stiffness_bound(
+    damper: DamperParams,
+    vehicle: VehicleParams | None = None,
+    current_a: float | None = None,
+    input_rate_rad_s: float = DEFAULT_INPUT_RATE,
+) -> float:
+    """Upper bound (1/s) on the rates the RK4 stages must resolve.
 
     The plant's fastest mode, the damper's pre-yield rate ``(alpha A + k0)/(c0 + c1)`` (Spencer)
     or its pre-yield stiffness ``alpha A`` acting on the relative mass (Bouc-Wen), and the
-    slope ``dF/dv`` at ``v = 0`` on the relative mass (algebraic models), at the maximum current.
+    slope ``dF/dv`` at ``v = 0`` on the relative mass (algebraic models), at ``current_a``
+    (default: the maximum current); and the highest frequency of the guideway input
+    ``input_rate_rad_s`` (2 pi speed / shortest wavelength).
     """
     vehicle = vehicle or VehicleParams()
     mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
     ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
     relative_mass = mc * mb / (mc + mb)
-    rates = [math.sqrt((ks + kp) / mb), math.sqrt(ks / relative_mass)]
+    rates = [math.sqrt((ks + kp) / mb), math.sqrt(ks / relative_mass), input_rate_rad_s]
     p = damper.as_array()
-    i = p[_I_MAX]
+    i = p[_I_MAX] if current_a is None else float(current_a)
     code = damper.code
     if code == REFERENCE:
         c0, c1, alpha = p[0] + p[1] * i, p[2] + p[3] * i, p[4] + p[5] * i
@@ -264,18 +289,55 @@ def stiffness_bound(damper: DamperParams, vehicle: VehicleParams | None = None) 
     return max(rates)
 
 
+#: Current bins of a :func:`substep_table`.
+SUBSTEP_BINS = 16
+
+
+def substep_table(
+    damper: DamperParams,
+    dt_s: float,
+    vehicle: VehicleParams | None = None,
+    max_lambda_h: float = 2.0,
+    bins: int = SUBSTEP_BINS,
+    input_rate_rad_s: float = DEFAULT_INPUT_RATE,
+) -> np.ndarray:
+    """Substeps per control interval for each current bin, so that ``stiffness_bound * h <=
+    max_lambda_h`` at the highest current of the bin (and of every lower bin).
+
+    The default 2.0 stays inside RK4's real-axis stability interval (2.785); on the reference
+    damper it keeps the force within 0.5 % RMS of a 10x finer step (``tests/test_dynamics.py``;
+    measured 0.03-0.4 % over 10 s of random guideway at constant and random currents).
+    A vehicle whose coil current stays low is integrated with fewer, longer substeps.
+    """
+    i_max = float(getattr(damper, "max_current_a", 0.0))
+    table = np.empty(bins, dtype=np.int64)
+    worst = 0
+    for b in range(bins):
+        bound = stiffness_bound(damper, vehicle, i_max * (b + 1) / bins, input_rate_rad_s)
+        worst = max(worst, math.ceil(bound * dt_s / max_lambda_h))
+        table[b] = max(1, worst)
+    return table
+
+
 def default_substeps(
     damper: DamperParams,
     dt_s: float,
     vehicle: VehicleParams | None = None,
     max_lambda_h: float = 2.0,
+    input_rate_rad_s: float = DEFAULT_INPUT_RATE,
 ) -> int:
-    """RK4 substeps per control interval so that ``stiffness_bound * h <= max_lambda_h``.
+    """The largest entry of :func:`substep_table`: substeps at the maximum current."""
+    return int(
+        substep_table(damper, dt_s, vehicle, max_lambda_h, input_rate_rad_s=input_rate_rad_s).max()
+    )
 
-    The default 2.0 stays inside RK4's real-axis stability interval (2.785); on the reference
-    damper it keeps the force within 0.2 % RMS of a 10x finer step (``tests/test_dynamics.py``).
-    """
-    return max(1, math.ceil(stiffness_bound(damper, vehicle) * dt_s / max_lambda_h))
+
+def _as_table(substeps: int | np.ndarray) -> np.ndarray:
+    if np.ndim(substeps) == 0:
+        if int(substeps) < 1:
+            raise ValueError(f"substeps must be >= 1, got {substeps!r}")
+        return np.full(SUBSTEP_BINS, int(substeps), dtype=np.int64)
+    return np.ascontiguousarray(substeps, dtype=np.int64)
 
 
 def initial_state(n: int = 1) -> np.ndarray:
@@ -291,11 +353,14 @@ def simulate(
     current_command_a: np.ndarray | float,
     duration_s: float,
     dt_s: float = 0.005,
-    substeps: int | None = None,
+    substeps: int | np.ndarray | None = None,
     vehicle: VehicleParams | None = None,
     state0: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Open-loop run of one vehicle over a guideway profile; returns time series.
+
+    ``substeps``: None (the default :func:`substep_table`, adaptive to the current), a fixed
+    number per control interval, or a table.
 
     ``current_command_a`` is a scalar or one value per control interval. The returned dict has
     ``time_s`` (samples at the end of each interval, plus t = 0 first) and the columns
@@ -306,7 +371,7 @@ def simulate(
     vehicle = vehicle or VehicleParams()
     n_steps = int(round(duration_s / dt_s))
     commands = np.broadcast_to(np.asarray(current_command_a, float), (n_steps,))
-    n_sub = substeps or default_substeps(damper, dt_s, vehicle)
+    table = substep_table(damper, dt_s, vehicle) if substeps is None else _as_table(substeps)
     state = initial_state(1) if state0 is None else np.array(state0, float).reshape(1, STATE_SIZE)
     dp = damper.as_array()[None, :]
     vp = vehicle.as_array()[None, :]
@@ -322,7 +387,7 @@ def simulate(
     for step in range(n_steps):
         cmd[0] = commands[step]
         step_batch(damper.code, dp, vp, state, cmd, profiles, zero_i, spacing_m, x0, speed,
-                   dt_s, n_sub, out)  # fmt: skip
+                   dt_s, table, out)  # fmt: skip
         states[step + 1] = state[0]
         outputs[step + 1] = out[0]
     result = {

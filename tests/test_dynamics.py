@@ -172,11 +172,11 @@ def test_default_substeps_within_1pct_of_10x_finer(accuracy_runs, case):
 
 
 def test_default_substeps_meet_documented_accuracy(accuracy_runs):
-    # default_substeps' docstring: "within 0.2 % RMS of a 10x finer step" on the reference
-    # damper. Measured: about 0.05 % (0 A), 0.04 % (1.5 A), 0.08 % (random current).
+    # substep_table's docstring: "within 0.5 % RMS of a 10x finer step" on the reference
+    # damper. Measured: about 0.38 % (0 A), 0.03 % (1.5 A), 0.19 % (random current).
     for coarse, fine in accuracy_runs.values():
         f_c, f_f = coarse["damper_force_n"][1:], fine["damper_force_n"][1:]
-        assert rms(f_c - f_f) / rms(f_f) < 0.002
+        assert rms(f_c - f_f) / rms(f_f) < 0.005
 
 
 def test_default_substeps_of_reference_damper():
