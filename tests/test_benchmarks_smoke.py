@@ -1,0 +1,31 @@
+"""The benchmark scripts start and print their tables (a smoke test: no speed is asserted)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+
+@pytest.mark.slow
+def test_bench_env_quick_runs(tmp_path):
+    out = tmp_path / "bench.json"
+    subprocess.run(
+        [sys.executable, "benchmarks/bench_env.py", "--quick", "--json", str(out)], check=True,
+        capture_output=True,
+    )  # fmt: skip
+    data = json.loads(out.read_text())
+    assert {"single", "vector", "sb3", "realtime", "memory", "startup"} <= set(data)
+
+
+def test_bench_training_runs(tmp_path):
+    out = tmp_path / "train.json"
+    subprocess.run(
+        [sys.executable, "benchmarks/bench_training.py", "--timesteps", "512", "--num-envs", "4",
+         "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--json", str(out)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    data = json.loads(out.read_text())
+    assert data["timesteps"] >= 512 and 0.0 < data["env_share_of_wall"] < 1.0
