@@ -47,6 +47,8 @@ from capsule_env.dynamics import (
     STATE_SIZE,
     SUBSTEP_BINS,
     _advance,
+    _row8,
+    _row16,
     substep_table,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
@@ -387,99 +389,106 @@ E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
 
 
-@njit(cache=True, inline="always")
-def _env_step_one(
-    n, action, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+@njit(cache=True)
+def _env_step_range(
+    lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
     delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
-    i_max = cfg_f[F_I_MAX]
-    inv_code = cfg_i[I_INV_CODE]
-    # 1. action -> current command (through the inverse model in force mode)
-    if cfg_i[I_ACTION_MODE] == 1:
-        i_cmd = 0.5 * (action + 1.0) * i_max
-        f_d = 0.0  # no force request in current mode
-    else:
-        f_d = action * cfg_f[F_MAX_FORCE]
-        x_m = meas[n, 2]
-        v_m = meas[n, 3]
-        z_est = 0.0
-        if inv_code == BOUC_WEN:
-            z_est = hysteresis_update(
-                env_f[n, E_CSDC_Z], x_m - env_f[n, E_CSDC_X], inv_p[8], inv_p[6], inv_p[7]
-            )
-            env_f[n, E_CSDC_Z] = z_est
-            env_f[n, E_CSDC_X] = x_m
-        f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
-        i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
-    # 2. control delay: a ring buffer of delay + 1 commands
-    delay_buf[n, cfg_i[I_DELAY_WRITE]] = i_cmd
-    applied = delay_buf[n, cfg_i[I_DELAY_READ]]
-    # 3. plant
-    _advance(
-        cfg_i[I_PLANT_CODE], dp[n], vp[n], state[n], applied, profiles, env_i[n, E_PROFILE],
-        cfg_f[F_SPACING], env_f[n, E_START], env_f[n, E_SPEED], env_f[n, E_GAIN], cfg_f[F_DT],
-        sub_table, out[n],
-    )  # fmt: skip
-    s = state[n]
-    stroke = s[BODY_DISP] - s[BOGIE_DISP]
-    rate = s[BODY_VEL] - s[BOGIE_VEL]
-    force, acc_c, acc_b, zg = out[n, 0], out[n, 1], out[n, 2], out[n, 3]
-    env_i[n, E_STEP] += 1
-    k = env_i[n, E_STEP]
-    # 4. sensors (with counter-based noise)
-    meas[n, 0] = acc_c
-    meas[n, 1] = acc_b
-    meas[n, 2] = stroke
-    meas[n, 3] = rate
-    meas[n, 4] = i_cmd
-    if cfg_i[I_NOISE]:
-        key = noise_key[n]
-        for j in range(4):
-            meas[n, j] += noise_std[j] * _gaussian(key, k, j)
-    if cfg_i[I_FULL_OBS]:
-        obs[n, 0] = s[BODY_DISP]
-        obs[n, 1] = s[BODY_VEL]
-        obs[n, 2] = s[BOGIE_DISP]
-        obs[n, 3] = s[BOGIE_VEL]
-        obs[n, 4] = zg
+    """Step vehicles ``lo .. hi - 1``. The loop lives here, not in the caller, so the ~20 arrays
+    are handed over once per range rather than once per vehicle (each hand-over of an array to
+    an inlined function costs numba reference-count updates)."""
+    for n in range(lo, hi):
+        action = actions[n]
+        i_max = cfg_f[F_I_MAX]
+        inv_code = cfg_i[I_INV_CODE]
+        # 1. action -> current command (through the inverse model in force mode)
+        if cfg_i[I_ACTION_MODE] == 1:
+            i_cmd = 0.5 * (action + 1.0) * i_max
+            f_d = 0.0  # no force request in current mode
+        else:
+            f_d = action * cfg_f[F_MAX_FORCE]
+            x_m = meas[n, 2]
+            v_m = meas[n, 3]
+            z_est = 0.0
+            if inv_code == BOUC_WEN:
+                z_est = hysteresis_update(
+                    env_f[n, E_CSDC_Z], x_m - env_f[n, E_CSDC_X], inv_p[8], inv_p[6], inv_p[7]
+                )
+                env_f[n, E_CSDC_Z] = z_est
+                env_f[n, E_CSDC_X] = x_m
+            f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
+            i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
+        # 2. control delay: a ring buffer of delay + 1 commands
+        delay_buf[n, cfg_i[I_DELAY_WRITE]] = i_cmd
+        applied = delay_buf[n, cfg_i[I_DELAY_READ]]
+        # 3. plant
+        new, outputs = _advance(
+            cfg_i[I_PLANT_CODE], _row16(dp, n), vp[n, 0], vp[n, 1], vp[n, 2], vp[n, 3],
+            _row8(state, n), applied, profiles, env_i[n, E_PROFILE], cfg_f[F_SPACING],
+            env_f[n, E_START], env_f[n, E_SPEED], env_f[n, E_GAIN], cfg_f[F_DT], sub_table,
+        )  # fmt: skip
+        for j in range(STATE_SIZE):
+            state[n, j] = new[j]
+        zc, vc, zb, vb = new[BODY_DISP], new[BODY_VEL], new[BOGIE_DISP], new[BOGIE_VEL]
+        stroke = zc - zb
+        rate = vc - vb
+        force, acc_c, acc_b, zg = outputs
+        env_i[n, E_STEP] += 1
+        k = env_i[n, E_STEP]
+        # 4. sensors (with counter-based noise)
+        meas[n, 0] = acc_c
+        meas[n, 1] = acc_b
+        meas[n, 2] = stroke
+        meas[n, 3] = rate
+        meas[n, 4] = i_cmd
         if cfg_i[I_NOISE]:
+            key = noise_key[n]
+            for j in range(4):
+                meas[n, j] += noise_std[j] * _gaussian(key, k, j)
+        if cfg_i[I_FULL_OBS]:
+            obs[n, 0] = zc
+            obs[n, 1] = vc
+            obs[n, 2] = zb
+            obs[n, 3] = vb
+            obs[n, 4] = zg
+            if cfg_i[I_NOISE]:
+                for j in range(5):
+                    obs[n, j] += noise_std[4 + j] * _gaussian(noise_key[n], k, 4 + j)
+            for j in range(4):  # the same (noisy) measurements the inverse model uses
+                obs[n, 5 + j] = meas[n, j]
+            obs[n, 9] = state[n, COIL_CURRENT]
+        else:
             for j in range(5):
-                obs[n, j] += noise_std[4 + j] * _gaussian(noise_key[n], k, 4 + j)
-        for j in range(4):  # the same (noisy) measurements the inverse model uses
-            obs[n, 5 + j] = meas[n, j]
-        obs[n, 9] = s[COIL_CURRENT]
-    else:
-        for j in range(5):
-            obs[n, j] = meas[n, j]
-    for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
-        obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
-    # 5. reward
-    # (x * x, not x ** 2: numba lowers the power to a slow libm call)
-    acc_rel = acc_c / cfg_f[F_ACC_REF]
-    stroke_rel = stroke / cfg_f[F_STROKE_REF]
-    current_rel = applied / i_max if i_max > 0.0 else 0.0
-    c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
-    c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
-    c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
-    hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
-    terminated[n] = hit
-    reward[n] = -(c_acc + c_stroke + c_energy) - (cfg_f[F_PENALTY] if hit else 0.0)
-    sig[n, 0] = s[BODY_DISP]
-    sig[n, 1] = s[BOGIE_DISP]
-    sig[n, 2] = s[BODY_VEL]
-    sig[n, 3] = s[BOGIE_VEL]
-    sig[n, 4] = acc_c
-    sig[n, 5] = acc_b
-    sig[n, 6] = stroke
-    sig[n, 7] = rate
-    sig[n, 8] = force
-    sig[n, 9] = f_d
-    sig[n, 10] = i_cmd
-    sig[n, 11] = s[COIL_CURRENT]
-    sig[n, 12] = zg
-    sig[n, 13] = c_acc
-    sig[n, 14] = c_stroke
-    sig[n, 15] = c_energy
+                obs[n, j] = meas[n, j]
+        for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
+            obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
+        # 5. reward
+        # (x * x, not x ** 2: numba lowers the power to a slow libm call)
+        acc_rel = acc_c / cfg_f[F_ACC_REF]
+        stroke_rel = stroke / cfg_f[F_STROKE_REF]
+        current_rel = applied / i_max if i_max > 0.0 else 0.0
+        c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
+        c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
+        c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
+        hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
+        terminated[n] = hit
+        reward[n] = -(c_acc + c_stroke + c_energy) - (cfg_f[F_PENALTY] if hit else 0.0)
+        sig[n, 0] = zc
+        sig[n, 1] = zb
+        sig[n, 2] = vc
+        sig[n, 3] = vb
+        sig[n, 4] = acc_c
+        sig[n, 5] = acc_b
+        sig[n, 6] = stroke
+        sig[n, 7] = rate
+        sig[n, 8] = force
+        sig[n, 9] = f_d
+        sig[n, 10] = i_cmd
+        sig[n, 11] = state[n, COIL_CURRENT]
+        sig[n, 12] = zg
+        sig[n, 13] = c_acc
+        sig[n, 14] = c_stroke
+        sig[n, 15] = c_energy
 
 
 @njit(cache=True)
@@ -487,12 +496,15 @@ def _env_step_serial(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
     delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
-    for n in range(actions.shape[0]):
-        _env_step_one(
-            n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
-            meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
-            out,
-        )  # fmt: skip
+    _env_step_range(
+        0, actions.shape[0], actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i,
+        noise_key, meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated,
+        sig, out,
+    )  # fmt: skip
+
+
+#: Vehicles per work item of the multi-threaded kernel.
+CHUNK = 32
 
 
 @njit(cache=True, parallel=True)
@@ -500,11 +512,12 @@ def _env_step_parallel(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
     delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
 ):  # fmt: skip
-    for n in prange(actions.shape[0]):
-        _env_step_one(
-            n, actions[n], cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
-            meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
-            out,
+    n = actions.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        _env_step_range(
+            c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p, noise_std,
+            obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
+            sub_table, obs, reward, terminated, sig, out,
         )  # fmt: skip
 
 

@@ -93,15 +93,27 @@ def _derivs(model, dp, mc, mb, ks, kp, zc, vc, zb, vb, y, z, i, zg):
 
 
 @njit(cache=True, inline="always")
-def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain, dt, sub_table,
-             out):  # fmt: skip
-    """Advance one vehicle's state row ``s`` in place by ``dt`` with RK4 substeps.
+def _row16(a, n):
+    """Row ``n`` of a (N, 16) array as a tuple: a value, so no array view is created (views in
+    the per-vehicle loop cost reference-count updates)."""
+    return (
+        a[n, 0], a[n, 1], a[n, 2], a[n, 3], a[n, 4], a[n, 5], a[n, 6], a[n, 7], a[n, 8], a[n, 9],
+        a[n, 10], a[n, 11], a[n, 12], a[n, 13], a[n, 14], a[n, 15],
+    )  # fmt: skip
 
-    The guideway elevation is ``gain * profiles[k](x_start + speed * t)``. The number of
-    substeps is ``sub_table[bin]`` for the bin of the highest current in the interval (the
-    damper's stiffness grows with current; see :func:`substep_table`).
+
+@njit(cache=True, inline="always")
+def _advance(model, dp, mc, mb, ks, kp, s, i_cmd, profiles, k, spacing, x_start, speed, gain, dt,
+             sub_table):  # fmt: skip
+    """Advance one vehicle by ``dt`` with RK4 substeps; pure function of values.
+
+    ``dp``: the packed damper parameters as a tuple; ``s``: the 8-tuple state row. Returns
+    ``(new_state, (force, body_acc, bogie_acc, guideway))``. The guideway elevation is
+    ``gain * profiles[k](x_start + speed * t)``. The number of substeps is ``sub_table[bin]``
+    for the bin of the highest current in the interval (the damper's stiffness grows with
+    current; see :func:`substep_table`). Values in and out, no array rows: handing arrays to an
+    inlined function costs numba reference-count updates per vehicle.
     """
-    mc, mb, ks, kp = vp[0], vp[1], vp[2], vp[3]
     a_coef, gamma, beta = hysteresis_params(model, dp)
     hysteretic = a_coef > 0.0
     i_max = dp[_I_MAX]
@@ -116,7 +128,7 @@ def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain
         e_half = math.exp(-0.5 * h / tau)
     else:
         e_half = 0.0
-    zc, vc, zb, vb, z, y, ic, t = s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]
+    zc, vc, zb, vb, z, y, ic, t = s
     if tau <= 0.0:
         ic = i_cmd
     zg0 = gain * _guideway(profiles, k, spacing, x_start + speed * t)
@@ -164,32 +176,46 @@ def _advance(model, dp, vp, s, i_cmd, profiles, k, spacing, x_start, speed, gain
         ic = ic1
         t += h
         zg0 = zg1
-    s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7] = zc, vc, zb, vb, z, y, ic, t
     d = _derivs(model, dp, mc, mb, ks, kp, zc, vc, zb, vb, y, z, ic, zg0)
-    out[0] = d[5]
-    out[1] = d[1]
-    out[2] = d[3]
-    out[3] = zg0
+    return (zc, vc, zb, vb, z, y, ic, t), (d[5], d[1], d[3], zg0)
+
+
+@njit(cache=True, inline="always")
+def _row8(a, n):
+    return (a[n, 0], a[n, 1], a[n, 2], a[n, 3], a[n, 4], a[n, 5], a[n, 6], a[n, 7])
+
+
+@njit(cache=True)
+def _step_range(lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt,
+                table, out):  # fmt: skip
+    for n in range(lo, hi):
+        new, outputs = _advance(
+            model, _row16(dp, n), vp[n, 0], vp[n, 1], vp[n, 2], vp[n, 3], _row8(state, n),
+            i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n], gain[n], dt, table,
+        )  # fmt: skip
+        for j in range(8):
+            state[n, j] = new[j]
+        for j in range(4):
+            out[n, j] = outputs[j]
 
 
 @njit(cache=True)
 def _step_serial(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
                  out):  # fmt: skip
-    for n in range(state.shape[0]):
-        _advance(
-            model, dp[n], vp[n], state[n], i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n],
-            gain[n], dt, table, out[n],
-        )  # fmt: skip
+    _step_range(0, state.shape[0], model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
+                gain, dt, table, out)  # fmt: skip
+
+
+_CHUNK = 32
 
 
 @njit(cache=True, parallel=True)
 def _step_parallel(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt,
                    table, out):  # fmt: skip
-    for n in prange(state.shape[0]):
-        _advance(
-            model, dp[n], vp[n], state[n], i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n],
-            gain[n], dt, table, out[n],
-        )  # fmt: skip
+    n = state.shape[0]
+    for c in prange((n + _CHUNK - 1) // _CHUNK):
+        _step_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), model, dp, vp, state, i_cmd, profiles,
+                    idx, spacing, x0, speed, gain, dt, table, out)  # fmt: skip
 
 
 #: Batches at least this large are stepped by the multi-threaded kernel.

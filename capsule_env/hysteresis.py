@@ -53,7 +53,7 @@ def _path_to_zero(q0: float, a_coef: float, p: float) -> float:
     return math.atan(-q0 / r) / math.sqrt(-a_coef * p)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def hysteresis_update(z0: float, du: float, a_coef: float, gamma: float, beta: float) -> float:
     """Exact Bouc-Wen (n = 2) hysteretic variable after a monotone deformation increment ``du``.
 
