@@ -36,7 +36,8 @@ class SB3Policy(Controller):
         self.meta = meta
         self.name = meta.get("name", "policy")
         env_kwargs = dict(meta.get("env_kwargs", {}))
-        for key in ("setting", "guideway_seed"):  # chosen by the evaluation, not the policy
+        # chosen by the evaluation, not the policy
+        for key in ("setting", "guideway_seed", "episode_length_s"):
             env_kwargs.pop(key, None)
         self.env_kwargs = env_kwargs
         self.uses_unmeasured_signals = env_kwargs.get("observation") == "full_state"
@@ -62,7 +63,8 @@ class SB3Policy(Controller):
         if norm_path.is_file():
             with norm_path.open("rb") as fh:
                 vec_normalize = pickle.load(fh)
-            obs_rms = vec_normalize.obs_rms
+            if getattr(vec_normalize, "norm_obs", True):
+                obs_rms = vec_normalize.obs_rms
             clip_obs = float(vec_normalize.clip_obs)
             eps = float(vec_normalize.epsilon)
         return cls(model, obs_rms, clip_obs, eps, meta)

@@ -114,6 +114,7 @@ SIGNAL_NAMES = (
     "cost_acceleration",
     "cost_stroke",
     "cost_energy",
+    "cost_velocity",
 )
 N_SIGNALS = len(SIGNAL_NAMES)
 #: Standard deviation of the measurement noise at ``sensor_noise=1`` [reconstructed: a few per
@@ -155,8 +156,10 @@ class EnvConfig:
     reward_acceleration_weight: float = 1.0
     reward_stroke_weight: float = 0.1
     reward_energy_weight: float = 0.01
+    reward_velocity_weight: float = 0.0
     acceleration_scale_m_s2: float = 0.5
     stroke_scale_m: float = 0.02
+    velocity_scale_m_s: float = 0.05
     stroke_limit_m: float = 0.06
     bump_stop_penalty: float = 100.0
     vehicle_params: dict = field(default_factory=dict)
@@ -191,11 +194,13 @@ class EnvConfig:
             "reward_acceleration_weight",
             "reward_stroke_weight",
             "reward_energy_weight",
+            "reward_velocity_weight",
             "bump_stop_penalty",
         ):
             check_nonnegative(name, getattr(self, name))
         check_positive("acceleration_scale_m_s2", self.acceleration_scale_m_s2)
         check_positive("stroke_scale_m", self.stroke_scale_m)
+        check_positive("velocity_scale_m_s", self.velocity_scale_m_s)
         check_positive("stroke_limit_m", self.stroke_limit_m)
         check_in_range("vehicle_randomization", self.vehicle_randomization, 0.0, 0.9)
         if self.speed_range_kmh is not None:
@@ -380,7 +385,7 @@ def _gaussian(key, step, channel):
 # Packed kernel arguments (fewer arguments = less dispatch overhead per call).
 # cfg_f: scalars (float64)
 (F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
- F_STROKE_LIMIT, F_PENALTY, F_SPACING) = range(11)  # fmt: skip
+ F_STROKE_LIMIT, F_PENALTY, F_SPACING, F_W_VEL, F_VEL_REF) = range(13)  # fmt: skip
 # cfg_i: scalars (int64)
 (I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, _I_UNUSED, I_FULL_OBS, I_DELAY_WRITE, I_DELAY_READ,
  I_NOISE) = range(8)  # fmt: skip
@@ -470,9 +475,11 @@ def _env_step_range(
         c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
         c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
         c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
+        vel_rel = vc / cfg_f[F_VEL_REF]
+        c_vel = cfg_f[F_W_VEL] * vel_rel * vel_rel
         hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
         terminated[n] = hit
-        reward[n] = -(c_acc + c_stroke + c_energy) - (cfg_f[F_PENALTY] if hit else 0.0)
+        reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (cfg_f[F_PENALTY] if hit else 0.0)
         sig[n, 0] = zc
         sig[n, 1] = zb
         sig[n, 2] = vc
@@ -489,6 +496,7 @@ def _env_step_range(
         sig[n, 13] = c_acc
         sig[n, 14] = c_stroke
         sig[n, 15] = c_energy
+        sig[n, 16] = c_vel
 
 
 @njit(cache=True)
@@ -587,7 +595,8 @@ class CapsuleBatch:
                 config.max_force_n, self.i_max, self.dt, config.reward_acceleration_weight,
                 config.acceleration_scale_m_s2, config.reward_stroke_weight,
                 config.stroke_scale_m, config.reward_energy_weight, config.stroke_limit_m,
-                config.bump_stop_penalty, gw.spacing_m,
+                config.bump_stop_penalty, gw.spacing_m, config.reward_velocity_weight,
+                config.velocity_scale_m_s,
             ]
         )  # fmt: skip
         self.cfg_i = np.array(

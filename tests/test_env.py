@@ -176,7 +176,12 @@ def test_info_has_signals_and_reward_terms():
     for name in SIGNAL_NAMES:
         assert name in info
     assert reward == pytest.approx(
-        -(info["cost_acceleration"] + info["cost_stroke"] + info["cost_energy"])
+        -(
+            info["cost_acceleration"]
+            + info["cost_stroke"]
+            + info["cost_energy"]
+            + info["cost_velocity"]
+        )
     )
     cfg = EnvConfig()
     expected = (
@@ -184,6 +189,12 @@ def test_info_has_signals_and_reward_terms():
         * (info["car_body_acceleration_m_s2"] / cfg.acceleration_scale_m_s2) ** 2
     )
     assert info["cost_acceleration"] == pytest.approx(expected)
+    vel = CapsuleSuspensionEnv(reward_velocity_weight=2.0)
+    vel.reset(seed=0)
+    _, _, _, _, info = vel.step(np.array([0.3], dtype=np.float32))
+    assert info["cost_velocity"] == pytest.approx(
+        2.0 * (info["car_body_velocity_m_s"] / cfg.velocity_scale_m_s) ** 2
+    )
     # force mode: desired force is the action times the force scale
     assert info["desired_force_n"] == pytest.approx(0.3 * cfg.max_force_n, rel=1e-6)
 

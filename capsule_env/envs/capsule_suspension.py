@@ -84,13 +84,15 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
     A ride-comfort cost with stroke and energy terms, per step::
 
-        r = -( w_acc (a_c / a_ref)^2 + w_stroke (x / x_ref)^2 + w_energy (i / i_max)^2 )
-            - bump_stop_penalty * [|x| > stroke_limit_m]
+        r = -( w_acc (a_c / a_ref)^2 + w_stroke (x / x_ref)^2 + w_energy (i / i_max)^2
+               + w_vel (z_c' / v_ref)^2 ) - bump_stop_penalty * [|x| > stroke_limit_m]
 
     with ``a_c`` the car-body acceleration, ``x`` the stroke, ``i`` the applied current
-    (coil power is proportional to ``i^2``). Defaults: ``w_acc = 1``, ``a_ref = 0.5 m/s^2``,
-    ``w_stroke = 0.1``, ``x_ref = 0.02 m``, ``w_energy = 0.01``, penalty 100. Each term is in
-    ``info`` (``cost_acceleration``, ``cost_stroke``, ``cost_energy``).
+    (coil power is proportional to ``i^2``) and ``z_c'`` the car-body velocity (a Skyhook-like
+    term that weighs the body mode). Defaults: ``w_acc = 1``, ``a_ref = 0.5 m/s^2``,
+    ``w_stroke = 0.1``, ``x_ref = 0.02 m``, ``w_energy = 0.01``, ``w_vel = 0``,
+    ``v_ref = 0.05 m/s``, penalty 100. Each term is in ``info`` (``cost_acceleration``,
+    ``cost_stroke``, ``cost_energy``, ``cost_velocity``).
 
     ## Starting State
 
@@ -133,8 +135,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     - Timing: ``control_rate_hz`` (200), ``episode_length_s`` (10), ``substeps`` (auto).
     - ``observation``: ``"sensors"`` | ``"full_state"``.
     - Reward: ``reward_acceleration_weight``, ``reward_stroke_weight``,
-      ``reward_energy_weight``, ``acceleration_scale_m_s2``, ``stroke_scale_m``,
-      ``stroke_limit_m``, ``bump_stop_penalty``; ``max_force_n`` (8 kN, force-mode scale).
+      ``reward_energy_weight``, ``reward_velocity_weight``, ``acceleration_scale_m_s2``,
+      ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``;
+      ``max_force_n`` (8 kN, force-mode scale).
     - Overrides: ``vehicle_params``, ``damper_params`` (plant), ``inverse_params`` (the model
       the controller inverts), each a dict of dataclass fields.
     - Domain randomisation per episode: ``vehicle_randomization`` (relative half-width of a

@@ -1,0 +1,80 @@
+"""Train PPO with several seeds and compare every run with Skyhook on held-out guideways.
+
+    python experiments/three_seeds.py                     # seeds 0 1 2, default train.py
+    python experiments/three_seeds.py --seeds 0 1 2 --train-args "--env reward_velocity_weight=0.2"
+
+For each seed: ``python train.py --seed S --output-dir runs/three-seeds/seedS <train-args>``,
+then ``evaluate.py`` in ``hils`` on seeds 1000..1009 of the held-out guideway bank with the
+classical controllers and that run's ``best_model``. Prints a table with the mean and spread
+of the ISO Wk-weighted RMS car-body acceleration and the car-body first-mode vibration
+reduction, against the best Skyhook variant (the issue's bar: Wk <= 0.9 x Skyhook's and a
+higher first-mode reduction), and writes ``runs/three-seeds/summary.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SKYHOOKS = ("skyhook-biexp", "skyhook-csdc", "skyhook-tanh", "skyhook-cont-biexp")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    p.add_argument("--train-args", default="", help="extra arguments for train.py")
+    p.add_argument("--root", type=Path, default=Path("runs/three-seeds"))
+    p.add_argument("--skip-training", action="store_true", help="evaluate existing runs only")
+    args = p.parse_args(argv)
+    args.root.mkdir(parents=True, exist_ok=True)
+    runs = {}
+    for seed in args.seeds:
+        out = args.root / f"seed{seed}"
+        if not args.skip_training:
+            t0 = time.perf_counter()
+            cmd = [sys.executable, "train.py", "--seed", str(seed), "--output-dir", str(out),
+                   "--no-progress", *shlex.split(args.train_args)]  # fmt: skip
+            subprocess.run(cmd, check=True)
+            print(f"seed {seed}: trained in {time.perf_counter() - t0:.0f} s", flush=True)
+        evaluation = out / "evaluation.json"
+        subprocess.run(
+            [sys.executable, "evaluate.py", "--setting", "hils", "--no-shipped-policy",
+             "--controllers", ",".join(("passive", *SKYHOOKS)), "--policy",
+             str(out / "best_model.zip"), "--json", str(evaluation)],
+            check=True, stdout=subprocess.DEVNULL,
+        )  # fmt: skip
+        runs[seed] = json.loads(evaluation.read_text())["settings"]["hils"]["controllers"]
+    first = next(iter(runs.values()))
+    best_sky = min(SKYHOOKS, key=lambda n: first[n]["wk_rms_body_acc"])
+    sky_wk = first[best_sky]["wk_rms_body_acc"]
+    sky_vre = first[best_sky]["vre"]["body_mode1"]
+    policy = [n for n in first if n not in SKYHOOKS and n != "passive"][0]
+    wk = np.array([r[policy]["wk_rms_body_acc"] for r in runs.values()])
+    vre = np.array([r[policy]["vre"]["body_mode1"] for r in runs.values()])
+    print(f"\nhils, 10 held-out guideway seeds; best Skyhook by Wk: {best_sky} "
+          f"(Wk {sky_wk:.4f} m/s^2, VRE body m1 {sky_vre:.2f} %), passive Wk "
+          f"{first['passive']['wk_rms_body_acc']:.4f}")  # fmt: skip
+    for seed, r in runs.items():
+        m = r[policy]
+        print(f"  seed {seed}: Wk {m['wk_rms_body_acc']:.4f} ({m['wk_rms_body_acc'] / sky_wk:.3f} x "
+              f"Skyhook), VRE body m1 {m['vre']['body_mode1']:.2f} %")  # fmt: skip
+    print(f"  mean +- std: Wk {wk.mean():.4f} +- {wk.std():.4f} ({wk.mean() / sky_wk:.3f} x), "
+          f"VRE {vre.mean():.2f} +- {vre.std():.2f} %")  # fmt: skip
+    bar = bool(np.all(wk <= 0.9 * sky_wk) and np.all(vre > sky_vre))
+    print(f"  bar (every seed: Wk <= 0.9 x Skyhook and higher VRE): {'met' if bar else 'NOT met'}")
+    summary = {"best_skyhook": best_sky, "skyhook_wk": sky_wk, "skyhook_vre_body_mode1": sky_vre,
+               "policy_wk": wk.tolist(), "policy_vre_body_mode1": vre.tolist(), "bar_met": bar,
+               "seeds": args.seeds, "train_args": args.train_args}  # fmt: skip
+    (args.root / "summary.json").write_text(json.dumps(summary, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

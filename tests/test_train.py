@@ -1,0 +1,276 @@
+"""train.py: a short run end to end, the saved files load for evaluation, resume, SAC/TD3, CLI."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+import evaluate  # noqa: E402
+import train  # noqa: E402
+from agents.sb3_policy import SB3Policy  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+# Small and fast: 4 vehicles, 256-step PPO rollouts (1024 samples per update), a 2-episode,
+# 1-second evaluation.
+FAST = [
+    "--num-envs", "4", "--eval-episodes", "2", "--eval-episode-length", "1",
+    "--no-progress", "--hyperparams", "",
+]  # fmt: skip
+
+
+def edited_yml(algo: str, folder: Path, **changes: Any) -> Path:
+    """A copy of hyperparams/<algo>.yml with some top-level entries replaced (no PyYAML)."""
+    lines = (ROOT / "hyperparams" / f"{algo}.yml").read_text().splitlines()
+    for key, value in changes.items():
+        hits = [k for k, line in enumerate(lines) if re.match(rf"^  {key}:", line)]
+        assert len(hits) == 1, key
+        lines[hits[0]] = f"  {key}: {value}"
+    path = folder / f"{algo}.yml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def tiny_ppo_yml(tmp_path_factory) -> Path:
+    """hyperparams/ppo.yml with a short rollout and small batches (same format and keys)."""
+    return edited_yml("ppo", tmp_path_factory.mktemp("hp"), n_steps=256, batch_size=256,
+                      n_epochs=2)  # fmt: skip
+
+
+def fast_args(yml: Path, out: Path, *extra: str) -> list[str]:
+    args = list(FAST)
+    args[args.index("--hyperparams") + 1] = str(yml)
+    return [*args, "--output-dir", str(out), *extra]
+
+
+@pytest.fixture(scope="module")
+def ppo_run(tiny_ppo_yml, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ppo")
+    argv = fast_args(tiny_ppo_yml, out, "--total-timesteps", "2048", "--eval-freq", "1024",
+                     "--name", "tiny-ppo")  # fmt: skip
+    summary = train.train(train.parse_args(argv))
+    return out, summary
+
+
+def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
+    out, summary = ppo_run
+    assert summary["num_timesteps"] == 2048 and not summary["interrupted"]
+    for stem in ("best_model", "final_model"):
+        for suffix in (".zip", ".vecnormalize.pkl", ".json"):
+            assert (out / f"{stem}{suffix}").is_file(), f"{stem}{suffix} missing"
+    meta = json.loads((out / "best_model.json").read_text())
+    assert meta["name"] == "tiny-ppo" and meta["algo"] == "ppo"
+    assert meta["env_kwargs"]["setting"] == "hils"
+    assert meta["env_kwargs"]["action_mode"] == "force"
+    assert "guideway_seed" not in meta["env_kwargs"]  # chosen by the evaluation
+    assert meta["eval"]["guideway_seed"] == 2026
+    assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc"])
+    assert "vre" in meta["eval"]["metrics"]
+    assert meta["num_timesteps"] > 0 and meta["wall_time_s"] > 0
+    final = json.loads((out / "final_model.json").read_text())
+    assert final["num_timesteps"] == 2048
+    lines = (out / "evaluations.jsonl").read_text().splitlines()
+    assert len(lines) == 2  # at 1024 and at 2048 (the end)
+
+    report = tmp_path / "eval.json"
+    rc = evaluate.main([
+        "--policy", str(out / "best_model.zip"), "--episodes", "2", "--episode-length", "1",
+        "--setting", "hils", "--controllers", "passive", "--no-shipped-policy",
+        "--json", str(report),
+    ])  # fmt: skip
+    assert rc == 0
+    controllers = json.loads(report.read_text())["settings"]["hils"]["controllers"]
+    assert "tiny-ppo" in controllers and "passive" in controllers
+    assert np.isfinite(controllers["tiny-ppo"]["wk_rms_body_acc"])
+
+
+def test_saved_policy_matches_trained_model(ppo_run):
+    out, summary = ppo_run
+    model = summary["model"]  # the model at the end of training = final_model.*
+    with (out / "final_model.vecnormalize.pkl").open("rb") as fh:
+        vec_normalize = pickle.load(fh)
+    policy = SB3Policy.load(out / "final_model.zip")
+    assert policy.meta["algo"] == "ppo"
+    rng = np.random.default_rng(0)
+    dim = vec_normalize.obs_rms.mean.shape[0]
+    obs = (rng.normal(size=(16, dim)) * np.sqrt(vec_normalize.obs_rms.var)
+           + vec_normalize.obs_rms.mean).astype(np.float32)  # fmt: skip
+    expected, _ = model.predict(vec_normalize.normalize_obs(obs), deterministic=True)
+    got, _ = policy.predict(obs)
+    np.testing.assert_allclose(got, np.clip(expected, -1, 1), rtol=1e-6, atol=1e-6)
+    # and the live training statistics are the saved ones
+    np.testing.assert_array_equal(
+        model.get_vec_normalize_env().obs_rms.mean, vec_normalize.obs_rms.mean
+    )
+
+
+class _StopAt:
+    """A callback that presses Ctrl-C once ``num_timesteps`` reaches ``steps``."""
+
+    def __new__(cls, steps: int):
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        class StopAt(BaseCallback):
+            def _on_step(self) -> bool:
+                if self.num_timesteps >= steps:
+                    raise KeyboardInterrupt
+                return True
+
+        return StopAt()
+
+
+def _statistics_at_start():
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Capture(BaseCallback):
+        seen: dict = {}
+
+        def _on_training_start(self) -> None:
+            env = self.model.get_vec_normalize_env()
+            Capture.seen = {
+                "mean": env.obs_rms.mean.copy(),
+                "var": env.obs_rms.var.copy(),
+                "count": env.obs_rms.count,
+                "ret_var": env.ret_rms.var.copy(),
+                "num_timesteps": self.model.num_timesteps,
+            }
+
+        def _on_step(self) -> bool:
+            return True
+
+    return Capture
+
+
+def test_interrupt_then_resume_auto(tiny_ppo_yml, tmp_path):
+    argv = fast_args(tiny_ppo_yml, tmp_path, "--total-timesteps", "3072", "--eval-freq", "0",
+                     "--checkpoint-freq", "0")  # fmt: skip
+    # Ctrl-C half-way through the second rollout (4 x 256 = 1024 steps each): a checkpoint is
+    # saved, counting only the steps learned from (the first rollout).
+    first = train.train(train.parse_args(argv), extra_callbacks=[_StopAt(1536)])
+    assert first["interrupted"] and first["num_timesteps"] == 1024
+    ckpt = tmp_path / "checkpoints" / "ckpt_000000001024"
+    for suffix in (".zip", ".vecnormalize.pkl", ".json"):
+        assert Path(str(ckpt) + suffix).is_file()
+    assert json.loads(Path(str(ckpt) + ".json").read_text())["num_timesteps"] == 1024
+    assert not (tmp_path / "final_model.zip").exists()
+    with open(str(ckpt) + ".vecnormalize.pkl", "rb") as fh:
+        saved = pickle.load(fh)
+
+    capture = _statistics_at_start()
+    second = train.train(train.parse_args([*argv, "--resume", "auto"]), extra_callbacks=[capture()])
+    seen = capture.seen
+    assert seen["num_timesteps"] == 1024  # not reset
+    np.testing.assert_array_equal(seen["mean"], saved.obs_rms.mean)
+    np.testing.assert_array_equal(seen["var"], saved.obs_rms.var)
+    assert seen["count"] == saved.obs_rms.count
+    np.testing.assert_array_equal(seen["ret_var"], saved.ret_rms.var)
+    assert second["num_timesteps"] == 3072 and not second["interrupted"]
+    final = json.loads((tmp_path / "final_model.json").read_text())
+    assert final["num_timesteps"] == 3072
+    assert final["wall_time_s"] >= json.loads(Path(str(ckpt) + ".json").read_text())["wall_time_s"]
+
+
+def test_resume_without_checkpoint_is_a_clear_error(tiny_ppo_yml, tmp_path):
+    with pytest.raises(SystemExit, match="no checkpoint"):
+        train.train(train.parse_args(fast_args(tiny_ppo_yml, tmp_path, "--resume", "auto")))
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_off_policy_tiny_run_and_resume(algo, tmp_path):
+    # learning_starts below the run length so that gradient steps happen
+    small = edited_yml(algo, tmp_path, learning_starts=100, batch_size=32)
+    argv = fast_args(small, tmp_path, "--algo", algo, "--num-envs", "2", "--total-timesteps",
+                     "300", "--eval-freq", "0", "--checkpoint-freq", "200",
+                     "--name", f"tiny-{algo}")  # fmt: skip
+    summary = train.train(train.parse_args(argv))
+    assert summary["num_timesteps"] == 300
+    ckpt = tmp_path / "checkpoints" / "ckpt_000000000200"
+    assert Path(str(ckpt) + ".replay_buffer.pkl").is_file()
+    policy = SB3Policy.load(tmp_path / "best_model.zip")
+    assert policy.meta["algo"] == algo
+    dim = policy.obs_rms.mean.shape[0]
+    action, _ = policy.predict(np.zeros((3, dim), dtype=np.float32))
+    assert action.shape == (3, 1) and np.all(np.abs(action) <= 1)
+    # resume from the 200-step checkpoint (replay buffer restored) up to 400 steps
+    resumed = train.train(train.parse_args([
+        *argv[: argv.index("--total-timesteps")], "--total-timesteps", "400",
+        *argv[argv.index("--total-timesteps") + 2:], "--resume", str(ckpt) + ".zip",
+    ]))  # fmt: skip
+    assert resumed["num_timesteps"] == 400
+    assert resumed["model"].replay_buffer.size() > 0
+
+
+def test_hyperparameter_files_parse():
+    for algo in train.ALGORITHMS:
+        hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml")
+        for key in ("n_envs", "n_timesteps", "policy", "gamma", "env_kwargs"):
+            assert key in hp, f"{algo}.yml: {key}"
+        kwargs = train.algo_kwargs_from(hp)
+        assert isinstance(kwargs["policy_kwargs"], dict)
+        assert train.normalize_kwargs_from(hp)["gamma"] == hp["gamma"]
+        train.resolve_env_kwargs(hp["env_kwargs"], {})
+
+
+def test_hyperparameter_files_without_pyyaml(monkeypatch):
+    """PyYAML is not a dependency: the built-in reader gives the same entries."""
+    expected = {
+        a: train.load_hyperparams(ROOT / "hyperparams" / f"{a}.yml") for a in train.ALGORITHMS
+    }
+    monkeypatch.setitem(sys.modules, "yaml", None)  # import yaml -> ImportError
+    for algo, entry in expected.items():
+        assert train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml") == entry
+    text = "A:\n  b: !!float 3e5  # comment\n  c: 'x # y'\n  d: [1, \"step\"]\n  e:\n    f: true\n  g: lin_1e-3\n"
+    assert train.parse_simple_yaml(text) == {
+        "A": {"b": 3e5, "c": "x # y", "d": [1, "step"], "e": {"f": True}, "g": "lin_1e-3"}
+    }
+
+
+def test_env_arguments_merge_and_validate():
+    args = train.parse_args(["--env-kwargs", '{"speed_kmh": 600}', "--env", "setting=sim",
+                             "--env", 'guideway_params={"peak_m": 0.01}'])  # fmt: skip
+    assert args.env_kwargs == {"speed_kmh": 600, "setting": "sim",
+                               "guideway_params": {"peak_m": 0.01}}  # fmt: skip
+    merged = train.resolve_env_kwargs({"observation": "full_state"}, args.env_kwargs)
+    assert merged["action_mode"] == "force" and merged["setting"] == "sim"
+    assert merged["observation"] == "full_state"
+    with pytest.raises(SystemExit, match="setting"):
+        train.resolve_env_kwargs({}, {"setting": "moon"})
+    with pytest.raises(SystemExit, match="speed_kmh"):
+        train.resolve_env_kwargs({}, {"speed_kmh": -3})
+    with pytest.raises(SystemExit, match="speed_kmh"):
+        train.resolve_env_kwargs({}, {"speed_kmh": "fast"})
+
+
+def _run_cli(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), *argv],
+        capture_output=True, text=True, cwd=ROOT, timeout=120,
+    )  # fmt: skip
+
+
+def test_cli_help():
+    result = _run_cli("--help")
+    assert result.returncode == 0
+    for flag in ("--algo", "--total-timesteps", "--env", "--resume", "--checkpoint-freq",
+                 "--eval-freq", "--tensorboard", "--threads", "--hyperparams"):  # fmt: skip
+        assert flag in result.stdout
+
+
+def test_cli_bad_env_value_names_the_key(tmp_path):
+    result = _run_cli("--env", "setting=moon", "--output-dir", str(tmp_path))
+    assert result.returncode != 0
+    assert "setting" in result.stderr and "moon" in result.stderr
+    result = _run_cli("--env", "no_such_option=1", "--output-dir", str(tmp_path))
+    assert result.returncode != 0 and "no_such_option" in result.stderr
+    result = _run_cli("--env", "setting", "--output-dir", str(tmp_path))
+    assert result.returncode != 0 and "KEY=VALUE" in result.stderr
