@@ -55,14 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     best_sky = min(SKYHOOKS, key=lambda n: first[n]["wk_rms_body_acc"])
     sky_wk = first[best_sky]["wk_rms_body_acc"]
     sky_vre = first[best_sky]["vre"]["body_mode1"]
-    policy = [n for n in first if n not in SKYHOOKS and n != "passive"][0]
-    wk = np.array([r[policy]["wk_rms_body_acc"] for r in runs.values()])
-    vre = np.array([r[policy]["vre"]["body_mode1"] for r in runs.values()])
+    policies = {
+        s: [n for n in r if n not in SKYHOOKS and n != "passive"][0] for s, r in runs.items()
+    }
+    wk = np.array([r[policies[s]]["wk_rms_body_acc"] for s, r in runs.items()])
+    vre = np.array([r[policies[s]]["vre"]["body_mode1"] for s, r in runs.items()])
     print(f"\nhils, 10 held-out guideway seeds; best Skyhook by Wk: {best_sky} "
           f"(Wk {sky_wk:.4f} m/s^2, VRE body m1 {sky_vre:.2f} %), passive Wk "
           f"{first['passive']['wk_rms_body_acc']:.4f}")  # fmt: skip
     for seed, r in runs.items():
-        m = r[policy]
+        m = r[policies[seed]]
         print(f"  seed {seed}: Wk {m['wk_rms_body_acc']:.4f} ({m['wk_rms_body_acc'] / sky_wk:.3f} x "
               f"Skyhook), VRE body m1 {m['vre']['body_mode1']:.2f} %")  # fmt: skip
     print(f"  mean +- std: Wk {wk.mean():.4f} +- {wk.std():.4f} ({wk.mean() / sky_wk:.3f} x), "
