@@ -30,7 +30,6 @@ from capsule_env._validation import (
 )
 from capsule_env.dampers import (
     BOUC_WEN,
-    PASSIVE,
     BiExponentialDamper,
     BoucWenDamper,
     DamperParams,
@@ -43,7 +42,6 @@ from capsule_env.dynamics import (
     BOGIE_DISP,
     BOGIE_VEL,
     COIL_CURRENT,
-    N_OUTPUTS,
     STATE_SIZE,
     SUBSTEP_BINS,
     _advance,
@@ -387,8 +385,7 @@ def _gaussian(key, step, channel):
 (F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
  F_STROKE_LIMIT, F_PENALTY, F_SPACING, F_W_VEL, F_VEL_REF) = range(13)  # fmt: skip
 # cfg_i: scalars (int64)
-(I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, _I_UNUSED, I_FULL_OBS, I_DELAY_WRITE, I_DELAY_READ,
- I_NOISE) = range(8)  # fmt: skip
+(I_ACTION_MODE, I_INV_CODE, I_PLANT_CODE, I_FULL_OBS, I_DELAY_WRITE, I_DELAY_READ, I_NOISE) = range(7)  # fmt: skip
 # env_f: per-vehicle floats; env_i: per-vehicle ints
 E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
@@ -397,7 +394,7 @@ E_PROFILE, E_STEP = range(2)
 @njit(cache=True)
 def _env_step_range(
     lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
 ):  # fmt: skip
     """Step vehicles ``lo .. hi - 1``. The loop lives here, not in the caller, so the ~20 arrays
     are handed over once per range rather than once per vehicle (each hand-over of an array to
@@ -502,12 +499,12 @@ def _env_step_range(
 @njit(cache=True)
 def _env_step_serial(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
 ):  # fmt: skip
     _env_step_range(
         0, actions.shape[0], actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i,
         noise_key, meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated,
-        sig, out,
+        sig,
     )  # fmt: skip
 
 
@@ -518,14 +515,14 @@ CHUNK = 32
 @njit(cache=True, parallel=True)
 def _env_step_parallel(
     actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, out,
+    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
 ):  # fmt: skip
     n = actions.shape[0]
     for c in prange((n + CHUNK - 1) // CHUNK):
         _env_step_range(
             c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p, noise_std,
             obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
-            sub_table, obs, reward, terminated, sig, out,
+            sub_table, obs, reward, terminated, sig,
         )  # fmt: skip
 
 
@@ -585,7 +582,6 @@ class CapsuleBatch:
         self.reward = np.zeros(n)
         self.terminated = np.zeros(n, dtype=bool)
         self.signals = np.zeros((n, N_SIGNALS))
-        self._out = np.zeros((n, N_OUTPUTS))
         self.noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
         self.obs_bounds = np.array(observation_bounds(config, self.i_max))
         self.rngs = [np.random.default_rng(None) for _ in range(n)]
@@ -604,7 +600,6 @@ class CapsuleBatch:
                 0 if config.action_mode == "force" else 1,
                 _INVERSE_CODE[config.inverse_model],
                 self.plant.code,
-                0,
                 int(self.full_obs),
                 0,
                 0,
@@ -721,13 +716,10 @@ class CapsuleBatch:
             self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
-            self.sub_table, self.obs, self.reward, self.terminated, self.signals, self._out,
+            self.sub_table, self.obs, self.reward, self.terminated, self.signals,
         )  # fmt: skip
 
     @property
     def truncated(self) -> np.ndarray:
         """Vehicles whose episode reached its time limit (``max_episode_steps``)."""
         return self.step_count >= self.max_steps
-
-    def passive_plant(self) -> bool:
-        return self.plant.code == PASSIVE
