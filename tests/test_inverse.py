@@ -132,7 +132,7 @@ def _bouc_wen_plant_tracking(control_rate_hz: float, cycles: int = 4):
 def test_csdc_tracks_force_on_bouc_wen_plant():
     """With its own model as the plant, CSDC's only errors are the one-step hold of the
     current over a control step: tracking error within 3 % RMS of the achievable force at
-    1 kHz and at 200 Hz (measured 1.5 % and 1.7 %)."""
+    1 kHz and at 200 Hz (measured with the identified defaults: 1.3 % and 2.5 %)."""
     assert _bouc_wen_plant_tracking(1000.0) < 0.03
     assert _bouc_wen_plant_tracking(200.0) < 0.03
 
