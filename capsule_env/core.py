@@ -227,9 +227,6 @@ class EnvConfig:
             kwargs["speed_range_kmh"] = tuple(float(v) for v in kwargs["speed_range_kmh"])
         return cls(**kwargs)
 
-    def replace(self, **changes: Any) -> EnvConfig:
-        return replace(self, **changes)
-
     # ---- derived values (properties, not stored copies) ----
     @property
     def hils(self) -> bool:
@@ -299,11 +296,6 @@ class EnvConfig:
     def max_current_a(self) -> float:
         damper = self.plant_damper
         return float(getattr(damper, "max_current_a", self.inverse_damper.max_current_a))
-
-    @property
-    def n_substeps(self) -> int:
-        """RK4 substeps per control step at the maximum current."""
-        return int(self.substep_table.max())
 
     @property
     def substep_table(self) -> np.ndarray:
