@@ -3,7 +3,7 @@
 :class:`EnvConfig` holds and validates every environment option; :class:`CapsuleBatch` runs
 ``N`` vehicles with one compiled step kernel that maps actions to coil currents (through an
 inverse model in force mode), applies the control delay, advances the plant
-(:func:`capsule_env.dynamics._advance`), measures the sensors with noise and computes the reward.
+(:func:`capsule_env.dynamics._step_chunk`: the vectorised block kernel), measures the sensors with noise and computes the reward.
 The single Gymnasium env is a batch of one; the native vector env and the SB3 ``VecEnv`` are
 batches of ``N``: same kernel, same numbers.
 
@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from capsule_env._fastmath import FAST, fast_cos_2pi, fast_log
 from capsule_env._validation import (
     check_choice,
     check_in_range,
@@ -37,6 +38,7 @@ from capsule_env.dampers import (
     make_damper,
 )
 from capsule_env.dynamics import (
+    BLOCK,
     BODY_DISP,
     BODY_VEL,
     BOGIE_DISP,
@@ -44,9 +46,8 @@ from capsule_env.dynamics import (
     COIL_CURRENT,
     STATE_SIZE,
     SUBSTEP_BINS,
-    _advance,
-    _row8,
-    _row16,
+    _step_chunk,
+    block_kernel_mode,
     substep_table,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
@@ -121,6 +122,7 @@ N_SIGNALS = len(SIGNAL_NAMES)
 #: ``full_state`` set: car body displacement (m), car body velocity (m/s), bogie displacement
 #: (m), bogie velocity (m/s), guideway elevation (m).
 SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4])
+N_NOISE_CHANNELS = len(SENSOR_NOISE_STD)
 _INVERSE_CODE = {"bi_exponential": 4, "tanh": 3, "csdc": BOUC_WEN}
 
 
@@ -359,19 +361,6 @@ def _mix(x):
     return x ^ (x >> np.uint64(31))
 
 
-@njit(cache=True, inline="always")
-def _gaussian(key, step, channel):
-    """Standard normal from a counter-based hash (splitmix64 + Box-Muller)."""
-    base = (
-        key
-        + np.uint64(step) * np.uint64(0x9E3779B97F4A7C15)
-        + np.uint64(channel) * np.uint64(0xD1B54A32D192ED03)
-    )
-    u1 = ((_mix(base) >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
-    u2 = (_mix(base + np.uint64(0x632BE59BD9B4E019)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
-
-
 # Packed kernel arguments (fewer arguments = less dispatch overhead per call).
 # cfg_f: scalars (float64)
 (F_MAX_FORCE, F_I_MAX, F_DT, F_W_ACC, F_ACC_REF, F_W_STROKE, F_STROKE_REF, F_W_ENERGY,
@@ -383,19 +372,39 @@ E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
 
 
-@njit(cache=True)
-def _env_step_range(
-    lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
+@njit(**FAST)
+def _gaussian_fast(key, step, channel):
+    """Standard normal from a counter-based hash (splitmix64 + Box-Muller), with the log and
+    cosine of :mod:`capsule_env._fastmath` so that the loop over vehicles vectorises."""
+    base = (
+        key
+        + np.uint64(step) * np.uint64(0x9E3779B97F4A7C15)
+        + np.uint64(channel) * np.uint64(0xD1B54A32D192ED03)
+    )
+    u1 = ((_mix(base) >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
+    u2 = (_mix(base + np.uint64(0x632BE59BD9B4E019)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return math.sqrt(-2.0 * fast_log(u1)) * fast_cos_2pi(u2)
+
+
+@njit(**FAST)
+def _noise_lanes(keys, steps, channel, nb, out):
+    """Sensor noise of one channel for ``nb`` vehicles (a SIMD loop: views start at 0)."""
+    for j in range(nb):
+        out[j] = _gaussian_fast(keys[j], steps[j], channel)
+
+
+@njit(cache=True, error_model="numpy")
+def _env_step_block(
+    model, mode, lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
+    meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+    plant_out,
 ):  # fmt: skip
-    """Step vehicles ``lo .. hi - 1``. The loop lives here, not in the caller, so the ~20 arrays
-    are handed over once per range rather than once per vehicle (each hand-over of an array to
-    an inlined function costs numba reference-count updates)."""
+    """Step vehicles ``lo .. hi - 1`` (at most BLOCK): commands, plant, sensors, reward."""
+    i_max = cfg_f[F_I_MAX]
+    inv_code = cfg_i[I_INV_CODE]
+    # 1. action -> current command (through the inverse model in force mode), control delay
     for n in range(lo, hi):
         action = actions[n]
-        i_max = cfg_f[F_I_MAX]
-        inv_code = cfg_i[I_INV_CODE]
-        # 1. action -> current command (through the inverse model in force mode)
         if cfg_i[I_ACTION_MODE] == 1:
             i_cmd = 0.5 * (action + 1.0) * i_max
             f_d = 0.0  # no force request in current mode
@@ -406,48 +415,52 @@ def _env_step_range(
             z_est = 0.0
             if inv_code == BOUC_WEN:
                 z_est = hysteresis_update(
-                    env_f[n, E_CSDC_Z], x_m - env_f[n, E_CSDC_X], inv_p[8], inv_p[6], inv_p[7]
+                    env_f[E_CSDC_Z, n], x_m - env_f[E_CSDC_X, n], inv_p[8], inv_p[6], inv_p[7]
                 )
-                env_f[n, E_CSDC_Z] = z_est
-                env_f[n, E_CSDC_X] = x_m
+                env_f[E_CSDC_Z, n] = z_est
+                env_f[E_CSDC_X, n] = x_m
             f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
             i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
-        # 2. control delay: a ring buffer of delay + 1 commands
+        # ring buffer of delay + 1 commands
         delay_buf[n, cfg_i[I_DELAY_WRITE]] = i_cmd
-        applied = delay_buf[n, cfg_i[I_DELAY_READ]]
-        # 3. plant
-        new, outputs = _advance(
-            cfg_i[I_PLANT_CODE], _row16(dp, n), vp[n, 0], vp[n, 1], vp[n, 2], vp[n, 3],
-            _row8(state, n), applied, profiles, env_i[n, E_PROFILE], cfg_f[F_SPACING],
-            env_f[n, E_START], env_f[n, E_SPEED], env_f[n, E_GAIN], cfg_f[F_DT], sub_table,
-        )  # fmt: skip
-        for j in range(STATE_SIZE):
-            state[n, j] = new[j]
-        zc, vc, zb, vb = new[BODY_DISP], new[BODY_VEL], new[BOGIE_DISP], new[BOGIE_VEL]
+        applied[n] = delay_buf[n, cfg_i[I_DELAY_READ]]
+        sig[9, n] = f_d
+        sig[10, n] = i_cmd
+        env_i[E_STEP, n] += 1
+    # 2. plant (the vectorised block kernel, or the scalar one; see dynamics.block_kernel_mode)
+    _step_chunk(
+        mode, lo, hi, model, dp, vp, state, applied, profiles, env_i[E_PROFILE],
+        cfg_f[F_SPACING], env_f[E_START], env_f[E_SPEED], env_f[E_GAIN], cfg_f[F_DT], sub_table,
+        plant_out,
+    )  # fmt: skip
+    # 3. sensor noise, one channel at a time across the block
+    nb = hi - lo
+    noise = np.zeros((N_NOISE_CHANNELS, BLOCK))
+    if cfg_i[I_NOISE]:
+        n_channels = N_NOISE_CHANNELS if cfg_i[I_FULL_OBS] else 4
+        keys = noise_key[lo:hi]
+        steps = env_i[E_STEP, lo:hi]
+        for j in range(n_channels):
+            _noise_lanes(keys, steps, j, nb, noise[j])
+    # 4. sensors, observation, reward, signals
+    for n in range(lo, hi):
+        m = n - lo
+        zc, vc = state[n, BODY_DISP], state[n, BODY_VEL]
+        zb, vb = state[n, BOGIE_DISP], state[n, BOGIE_VEL]
         stroke = zc - zb
         rate = vc - vb
-        force, acc_c, acc_b, zg = outputs
-        env_i[n, E_STEP] += 1
-        k = env_i[n, E_STEP]
-        # 4. sensors (with counter-based noise)
-        meas[n, 0] = acc_c
-        meas[n, 1] = acc_b
-        meas[n, 2] = stroke
-        meas[n, 3] = rate
-        meas[n, 4] = i_cmd
-        if cfg_i[I_NOISE]:
-            key = noise_key[n]
-            for j in range(4):
-                meas[n, j] += noise_std[j] * _gaussian(key, k, j)
+        force, acc_c, acc_b, zg = plant_out[n, 0], plant_out[n, 1], plant_out[n, 2], plant_out[n, 3]
+        meas[n, 0] = acc_c + noise_std[0] * noise[0, m]
+        meas[n, 1] = acc_b + noise_std[1] * noise[1, m]
+        meas[n, 2] = stroke + noise_std[2] * noise[2, m]
+        meas[n, 3] = rate + noise_std[3] * noise[3, m]
+        meas[n, 4] = sig[10, n]
         if cfg_i[I_FULL_OBS]:
-            obs[n, 0] = zc
-            obs[n, 1] = vc
-            obs[n, 2] = zb
-            obs[n, 3] = vb
-            obs[n, 4] = zg
-            if cfg_i[I_NOISE]:
-                for j in range(5):
-                    obs[n, j] += noise_std[4 + j] * _gaussian(noise_key[n], k, 4 + j)
+            obs[n, 0] = zc + noise_std[4] * noise[4, m]
+            obs[n, 1] = vc + noise_std[5] * noise[5, m]
+            obs[n, 2] = zb + noise_std[6] * noise[6, m]
+            obs[n, 3] = vb + noise_std[7] * noise[7, m]
+            obs[n, 4] = zg + noise_std[8] * noise[8, m]
             for j in range(4):  # the same (noisy) measurements the inverse model uses
                 obs[n, 5 + j] = meas[n, j]
             obs[n, 9] = state[n, COIL_CURRENT]
@@ -456,11 +469,10 @@ def _env_step_range(
                 obs[n, j] = meas[n, j]
         for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
             obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
-        # 5. reward
-        # (x * x, not x ** 2: numba lowers the power to a slow libm call)
+        # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
         acc_rel = acc_c / cfg_f[F_ACC_REF]
         stroke_rel = stroke / cfg_f[F_STROKE_REF]
-        current_rel = applied / i_max if i_max > 0.0 else 0.0
+        current_rel = applied[n] / i_max if i_max > 0.0 else 0.0
         c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
         c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
         c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
@@ -469,53 +481,72 @@ def _env_step_range(
         hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
         terminated[n] = hit
         reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (cfg_f[F_PENALTY] if hit else 0.0)
-        sig[n, 0] = zc
-        sig[n, 1] = zb
-        sig[n, 2] = vc
-        sig[n, 3] = vb
-        sig[n, 4] = acc_c
-        sig[n, 5] = acc_b
-        sig[n, 6] = stroke
-        sig[n, 7] = rate
-        sig[n, 8] = force
-        sig[n, 9] = f_d
-        sig[n, 10] = i_cmd
-        sig[n, 11] = state[n, COIL_CURRENT]
-        sig[n, 12] = zg
-        sig[n, 13] = c_acc
-        sig[n, 14] = c_stroke
-        sig[n, 15] = c_energy
-        sig[n, 16] = c_vel
+        sig[0, n] = zc
+        sig[1, n] = zb
+        sig[2, n] = vc
+        sig[3, n] = vb
+        sig[4, n] = acc_c
+        sig[5, n] = acc_b
+        sig[6, n] = stroke
+        sig[7, n] = rate
+        sig[8, n] = force
+        sig[11, n] = state[n, COIL_CURRENT]
+        sig[12, n] = zg
+        sig[13, n] = c_acc
+        sig[14, n] = c_stroke
+        sig[15, n] = c_energy
+        sig[16, n] = c_vel
 
 
-@njit(cache=True)
-def _env_step_serial(
-    actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
-):  # fmt: skip
-    _env_step_range(
-        0, actions.shape[0], actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i,
-        noise_key, meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated,
-        sig,
-    )  # fmt: skip
+#: Vehicles per work item of the multi-threaded kernel (one block of the vectorised kernel).
+CHUNK = BLOCK
 
 
-#: Vehicles per work item of the multi-threaded kernel.
-CHUNK = 32
+def _make_env_kernels(model: int, mode: int):
+    """Serial and multi-threaded env kernels for one plant model and kernel mode (closure
+    constants, so each pair compiles separately and only when used; see
+    :func:`capsule_env.dynamics.step_kernels`)."""
+
+    @njit(cache=True)
+    def serial(
+        actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+        delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+        plant_out,
+    ):  # fmt: skip
+        n = actions.shape[0]
+        for lo in range(0, n, BLOCK):
+            _env_step_block(
+                model, mode, lo, min(n, lo + BLOCK), actions, cfg_f, cfg_i, inv_p, noise_std,
+                obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
+                sub_table, obs, reward, terminated, sig, applied, plant_out,
+            )  # fmt: skip
+
+    @njit(cache=True, parallel=True)
+    def parallel(
+        actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
+        delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+        plant_out,
+    ):  # fmt: skip
+        n = actions.shape[0]
+        for c in prange((n + CHUNK - 1) // CHUNK):
+            _env_step_block(
+                model, mode, c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p,
+                noise_std, obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state,
+                profiles, sub_table, obs, reward, terminated, sig, applied, plant_out,
+            )  # fmt: skip
+
+    return serial, parallel
 
 
-@njit(cache=True, parallel=True)
-def _env_step_parallel(
-    actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-    delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig,
-):  # fmt: skip
-    n = actions.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        _env_step_range(
-            c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p, noise_std,
-            obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
-            sub_table, obs, reward, terminated, sig,
-        )  # fmt: skip
+_ENV_KERNELS: dict[tuple[int, int], tuple] = {}
+
+
+def env_kernels(model: int, mode: int) -> tuple:
+    """``(serial, parallel)`` env kernels for a plant model and kernel mode (memoised)."""
+    key = (int(model), int(mode))
+    if key not in _ENV_KERNELS:
+        _ENV_KERNELS[key] = _make_env_kernels(*key)
+    return _ENV_KERNELS[key]
 
 
 PARALLEL_THRESHOLD = 64
@@ -556,15 +587,16 @@ class CapsuleBatch:
         self.state = np.zeros((n, STATE_SIZE))
         self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
         self.vehicle_params = np.ascontiguousarray(np.tile(self.vehicle.as_array(), (n, 1)))
-        self.env_f = np.zeros((n, 5))
-        self.env_i = np.zeros((n, 2), dtype=np.int64)
-        self.csdc_z = self.env_f[:, E_CSDC_Z]
-        self.csdc_x = self.env_f[:, E_CSDC_X]
-        self.start_position = self.env_f[:, E_START]
-        self.speed = self.env_f[:, E_SPEED]
-        self.gain = self.env_f[:, E_GAIN]
-        self.profile_index = self.env_i[:, E_PROFILE]
-        self.step_count = self.env_i[:, E_STEP]
+        # one row per quantity, so that each is contiguous for the vectorised kernel
+        self.env_f = np.zeros((5, n))
+        self.env_i = np.zeros((2, n), dtype=np.int64)
+        self.csdc_z = self.env_f[E_CSDC_Z]
+        self.csdc_x = self.env_f[E_CSDC_X]
+        self.start_position = self.env_f[E_START]
+        self.speed = self.env_f[E_SPEED]
+        self.gain = self.env_f[E_GAIN]
+        self.profile_index = self.env_i[E_PROFILE]
+        self.step_count = self.env_i[E_STEP]
         self.speed[:] = config.speed_kmh / 3.6
         self.gain[:] = 1.0
         self.noise_key = np.zeros(n, dtype=np.uint64)
@@ -573,7 +605,9 @@ class CapsuleBatch:
         self.obs = np.zeros((n, self.obs_dim), dtype=np.float32)
         self.reward = np.zeros(n)
         self.terminated = np.zeros(n, dtype=bool)
-        self.signals = np.zeros((n, N_SIGNALS))
+        self.signals = np.zeros((N_SIGNALS, n))  # one row per signal (info arrays are rows)
+        self.applied_current = np.zeros(n)
+        self.plant_out = np.zeros((n, 4))
         self.noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
         self.obs_bounds = np.array(observation_bounds(config, self.i_max))
         self.rngs = [np.random.default_rng(None) for _ in range(n)]
@@ -599,7 +633,9 @@ class CapsuleBatch:
             ],
             dtype=np.int64,
         )
-        self._kernel = _env_step_parallel if n >= PARALLEL_THRESHOLD else _env_step_serial
+        self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
+        serial, parallel = env_kernels(self.plant.code, self.kernel_mode)
+        self._kernel = parallel if n >= PARALLEL_THRESHOLD else serial
         self._nominal_vehicle = self.vehicle.as_array()
         self._action_buf = np.zeros(n)
         self._delay_pos = 0
@@ -669,8 +705,8 @@ class CapsuleBatch:
             self.measured[n] = 0.0
             self.delay_buf[n] = 0.0
             self.terminated[n] = False
-            self.signals[n] = 0.0
-            self.signals[n, 0] = self.signals[n, 1] = self.signals[n, 12] = zg0
+            self.signals[:, n] = 0.0
+            self.signals[0, n] = self.signals[1, n] = self.signals[12, n] = zg0
             if self.full_obs:
                 self.obs[n] = 0.0
                 self.obs[n, 0] = self.obs[n, 2] = self.obs[n, 4] = zg0
@@ -709,6 +745,7 @@ class CapsuleBatch:
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
             self.sub_table, self.obs, self.reward, self.terminated, self.signals,
+            self.applied_current, self.plant_out,
         )  # fmt: skip
 
     @property

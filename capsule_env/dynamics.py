@@ -37,6 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from capsule_env._fastmath import FAST, fast_exp, fast_log, fast_tanh_nonneg
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
@@ -199,23 +200,446 @@ def _step_range(lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0,
             out[n, j] = outputs[j]
 
 
+# ---------------------------------------------------------------------------------------------
+# Vectorised (SIMD) block kernel
+#
+# The scalar kernel above advances one vehicle at a time; its RK4 stages wait on each other, so
+# a core spends most of its time waiting on the latency of divisions and libm calls. The block
+# kernel below does the same arithmetic with the vehicles of a block (up to BLOCK) side by side:
+# the state of the block is copied into a scratch array with one row per quantity and one
+# column per vehicle, and each RK4 substep is a loop over the columns whose body makes no calls
+# (exp/tanh from capsule_env._fastmath), which LLVM vectorises (4 or 8 vehicles per
+# instruction). Vehicles with different substep counts are sorted by that count, so substep s
+# loops only over those that still need it: nothing is computed and thrown away. Each vehicle's
+# result does not depend on which other vehicles share its block or which SIMD lane it lands
+# in (the same operations in the same order), so a batch of one and a batch of thousands agree
+# bit for bit. Models: reference (Spencer), bi-exponential, tanh, passive; Bouc-Wen (its
+# unloading branch needs tan/atan) and Spencer parameters with gamma > beta use the scalar
+# kernel (see :func:`block_kernel_mode`).
+# ---------------------------------------------------------------------------------------------
+
+#: Vehicles per block of the vectorised kernel.
+BLOCK = 64
+#: :func:`block_kernel_mode` results.
+KERNEL_SCALAR, KERNEL_BLOCK, KERNEL_BLOCK_TANH_UNLOAD = 0, 1, 2
+
+# scratch rows: the state, then per-vehicle constants of the interval
+(_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
+ _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1, _W_A, _W_INV_A, _W_RL, _W_INV_RL, _W_KL,
+ _W_RU, _W_INV_RU, _W_KU, _W_INV_KU) = range(27)  # fmt: skip
+_W_P = 27  # 16 packed damper parameters
+_W_ROWS = _W_P + 16
+
+
+def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
+    """Which kernel :func:`step_batch` uses for these damper rows: ``KERNEL_SCALAR`` (Bouc-Wen,
+    or Spencer rows whose unloading branch is not of tanh/linear form, or rows that disagree),
+    ``KERNEL_BLOCK`` or ``KERNEL_BLOCK_TANH_UNLOAD`` (Spencer with beta > gamma)."""
+    if damper_code in (BI_EXPONENTIAL, TANH, PASSIVE):
+        return KERNEL_BLOCK
+    if damper_code != REFERENCE:
+        return KERNEL_SCALAR
+    p = np.asarray(damper_params).reshape(-1, damper_params.shape[-1])
+    a_coef, gamma, beta = p[:, 11], p[:, 9], p[:, 10]
+    if np.any(a_coef <= 0.0) or np.any(gamma < 0.0) or np.any(gamma + beta <= 0.0):
+        return KERNEL_SCALAR
+    unload = beta - gamma
+    if np.all(unload == 0.0):
+        return KERNEL_BLOCK
+    if np.all(unload > 0.0):
+        return KERNEL_BLOCK_TANH_UNLOAD
+    return KERNEL_SCALAR
+
+
+@njit(**FAST)
+def _hysteresis_fast(z0, du, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u,
+                     tanh_unload):  # fmt: skip
+    """:func:`capsule_env.hysteresis.hysteresis_update` without branches or library calls, for
+    ``A > 0``, ``gamma + beta > 0`` and an unloading coefficient ``beta - gamma`` that is 0
+    (``tanh_unload`` False: linear) or positive (True). ``r, k = sqrt(A/p), sqrt(A p)`` of the
+    loading (``_l``) and unloading (``_u``) Riccati equations; increments are written as
+    ``q + r T (1 - t0^2) / (1 + t0 T)`` (``T = tanh(k m)``, ``t0 = q / r``), so that a zero
+    increment returns ``z0`` exactly, with T's own division folded into that one."""
+    s = 1.0 if du >= 0.0 else -1.0
+    m = abs(du)
+    q = s * z0
+    if tanh_unload:
+        t0u = q * inv_r_u
+        eu = fast_exp(-2.0 * k_u * m)  # tanh(k_u m) = (1 - eu) / (1 + eu)
+        q_unload = q + r_u * (1.0 - t0u * t0u) * (1.0 - eu) / ((1.0 + eu) + t0u * (1.0 - eu))
+        xz = min(max(-t0u, 0.0), 1.0 - 1e-12)
+        m_zero = 0.5 * fast_log((1.0 + xz) / (1.0 - xz)) * inv_k_u
+    else:
+        q_unload = q + a * m
+        m_zero = -q * inv_a
+    unloading = q < 0.0
+    stays = unloading and m <= m_zero
+    q_start = 0.0 if unloading else q
+    m_load = max(m - m_zero, 0.0) if unloading else m
+    t0 = q_start * inv_r_l
+    el = fast_exp(-2.0 * k_l * m_load)  # tanh(k_l m) = (1 - el) / (1 + el): one division
+    q_load = q_start + r_l * (1.0 - t0 * t0) * (1.0 - el) / ((1.0 + el) + t0 * (1.0 - el))
+    return s * (q_unload if stays else q_load)
+
+
+@njit(**FAST)
+def _inv_dashpots(model, p, i):
+    """``1 / (c0 + c1)`` of the Spencer damper at current ``i`` (1 for other models)."""
+    if model == REFERENCE:
+        return 1.0 / ((p[0] + p[1] * i) + (p[2] + p[3] * i))
+    return 1.0
+
+
+@njit(**FAST)
+def _force_fast(model, p, x, v, y, z, i, inv_c):
+    """:func:`capsule_env.dampers.damper_eval` without branches or library calls: ``(F, y')``.
+    ``p``: the 16 packed parameters as a tuple; ``model`` a compile-time constant; ``inv_c``:
+    :func:`_inv_dashpots` at ``i`` (computed ahead, off the stages' dependency chain)."""
+    if model == REFERENCE:
+        c0 = p[0] + p[1] * i
+        c1 = p[2] + p[3] * i
+        alpha = p[4] + p[5] * i
+        y_dot = (alpha * z + c0 * v + p[6] * (x - y)) * inv_c
+        return c1 * y_dot + p[7] * (x - p[8]), y_dot
+    if model == BI_EXPONENTIAL:
+        up = x >= 0.0
+        a0 = p[0] if up else p[7]
+        a1 = p[1] if up else p[8]
+        b0 = p[2] if up else p[9]
+        b1 = p[3] if up else p[10]
+        c0 = p[4] if up else p[11]
+        c1 = p[5] if up else p[12]
+        d = p[6] if up else p[13]
+        mag = 1.0 - fast_exp(-d * abs(v))
+        s_d = mag if v >= 0.0 else -mag
+        return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i, 0.0
+    if model == TANH:
+        sx = 1.0 if x >= 0.0 else -1.0
+        arg = p[8] * v + p[9] * sx
+        th = fast_tanh_nonneg(abs(arg))
+        th = th if arg >= 0.0 else -th
+        force = (p[0] + p[1] * i) * v + (p[2] + p[3] * i) * x + (p[4] + p[5] * i) * th
+        return force + p[6] + p[7] * i, 0.0
+    return p[0] * v, 0.0
+
+
+@njit(**FAST)
+def _guideway_fast(profiles, k, spacing, last, position):
+    """:func:`_guideway` with clamps instead of branches (the same value)."""
+    s = min(max(position / spacing, 0.0), last)
+    j = min(int(s), int(last) - 1)
+    f = s - j
+    return profiles[k, j] * (1.0 - f) + profiles[k, j + 1] * f
+
+
+@njit(cache=True, error_model="numpy")
+def _guideway_lanes(w, first, nb, order, profiles, idx, spacing, x0, speed, gain):
+    """Guideway elevation at the midpoint and end of the substep of columns ``first .. nb-1``
+    (a gather from the profile bank, kept out of the SIMD loop)."""
+    last = profiles.shape[1] - 1.0
+    for l in range(first, nb):
+        n = order[l]
+        t, h = w[_W_T * BLOCK + l], w[_W_H * BLOCK + l]
+        k, g, p0, sp = idx[n], gain[n], x0[n], speed[n]
+        w[_W_ZGH * BLOCK + l] = g * _guideway_fast(
+            profiles, k, spacing, last, p0 + sp * (t + 0.5 * h)
+        )
+        w[_W_ZG1 * BLOCK + l] = g * _guideway_fast(profiles, k, spacing, last, p0 + sp * (t + h))
+
+
+@njit(cache=True, error_model="numpy")
+def _substep_lanes(model, mode, w, first, nb):
+    """One RK4 substep of columns ``first .. nb-1``: the SIMD loop (no calls, no branches).
+    Each loop lives in its own function so that none of its variables is live after it (a
+    value carried out of a loop stops vectorisation)."""
+    # A view starting at ``first`` and indices from 0: LLVM then knows every index is >= 0 and
+    # needs no negative-index wraparound, which would turn the loads into gathers.
+    tanh_unload = mode == KERNEL_BLOCK_TANH_UNLOAD  # a constant: ``mode`` is a literal
+    wv = w[first:]
+    for l in range(nb - first):  # the SIMD loop: no calls, no branches
+        zc, vc, zb, vb = (
+            wv[_W_ZC * BLOCK + l],
+            wv[_W_VC * BLOCK + l],
+            wv[_W_ZB * BLOCK + l],
+            wv[_W_VB * BLOCK + l],
+        )
+        z, y, ic, t, h = (
+            wv[_W_Z * BLOCK + l],
+            wv[_W_Y * BLOCK + l],
+            wv[_W_I * BLOCK + l],
+            wv[_W_T * BLOCK + l],
+            wv[_W_H * BLOCK + l],
+        )
+        i_cmd, e_half = wv[_W_ICMD * BLOCK + l], wv[_W_EHALF * BLOCK + l]
+        inv_mc, inv_mb, ks, kp = (
+            wv[_W_INV_MC * BLOCK + l],
+            wv[_W_INV_MB * BLOCK + l],
+            wv[_W_KS * BLOCK + l],
+            wv[_W_KP * BLOCK + l],
+        )
+        zg0, zgh, zg1 = wv[_W_ZG0 * BLOCK + l], wv[_W_ZGH * BLOCK + l], wv[_W_ZG1 * BLOCK + l]
+        a, inv_a, r_l, inv_r_l = (
+            wv[_W_A * BLOCK + l],
+            wv[_W_INV_A * BLOCK + l],
+            wv[_W_RL * BLOCK + l],
+            wv[_W_INV_RL * BLOCK + l],
+        )
+        k_l, r_u, inv_r_u = wv[_W_KL * BLOCK + l], wv[_W_RU * BLOCK + l], wv[_W_INV_RU * BLOCK + l]
+        k_u, inv_k_u = wv[_W_KU * BLOCK + l], wv[_W_INV_KU * BLOCK + l]
+        b = _W_P * BLOCK + l  # the 16 damper parameters, BLOCK apart
+        p = (
+            wv[b], wv[b + BLOCK], wv[b + 2 * BLOCK], wv[b + 3 * BLOCK], wv[b + 4 * BLOCK],
+            wv[b + 5 * BLOCK], wv[b + 6 * BLOCK], wv[b + 7 * BLOCK], wv[b + 8 * BLOCK],
+            wv[b + 9 * BLOCK], wv[b + 10 * BLOCK], wv[b + 11 * BLOCK], wv[b + 12 * BLOCK],
+            wv[b + 13 * BLOCK], wv[b + 14 * BLOCK], wv[b + 15 * BLOCK],
+        )  # fmt: skip
+        # (read here, not through a helper taking ``w``: handing an array to a function
+        # inside the loop costs reference counting calls that stop vectorisation)
+        ic_half = i_cmd + (ic - i_cmd) * e_half
+        ic1 = i_cmd + (ic_half - i_cmd) * e_half
+        inv_c0 = _inv_dashpots(model, p, ic)
+        inv_ch = _inv_dashpots(model, p, ic_half)
+        inv_c1 = _inv_dashpots(model, p, ic1)
+        u0 = zc - zb - y
+        # stage 1
+        f1, y1 = _force_fast(model, p, zc - zb, vc - vb, y, z, ic, inv_c0)
+        sec = ks * (zc - zb) + f1
+        k10, k11, k12, k13 = vc, -sec * inv_mc, vb, (sec - kp * (zb - zg0)) * inv_mb
+        # stage 2
+        a0, a1 = zc + 0.5 * h * k10, vc + 0.5 * h * k11
+        a2, a3, a4 = zb + 0.5 * h * k12, vb + 0.5 * h * k13, y + 0.5 * h * y1
+        zs = z
+        if model == REFERENCE:
+            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
+                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
+        f2, y2 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
+        sec = ks * (a0 - a2) + f2
+        k20, k21, k22, k23 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
+        # stage 3
+        a0, a1 = zc + 0.5 * h * k20, vc + 0.5 * h * k21
+        a2, a3, a4 = zb + 0.5 * h * k22, vb + 0.5 * h * k23, y + 0.5 * h * y2
+        if model == REFERENCE:
+            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
+                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
+        f3, y3 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
+        sec = ks * (a0 - a2) + f3
+        k30, k31, k32, k33 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
+        # stage 4
+        a0, a1 = zc + h * k30, vc + h * k31
+        a2, a3, a4 = zb + h * k32, vb + h * k33, y + h * y3
+        if model == REFERENCE:
+            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
+                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
+        f4, y4 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic1, inv_c1)
+        sec = ks * (a0 - a2) + f4
+        k40, k41, k42, k43 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zg1)) * inv_mb
+        wt = h / 6.0
+        zc = zc + wt * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
+        vc = vc + wt * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
+        zb = zb + wt * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
+        vb = vb + wt * (k13 + 2.0 * k23 + 2.0 * k33 + k43)
+        y_new = y + wt * (y1 + 2.0 * y2 + 2.0 * y3 + y4)
+        if model == REFERENCE:
+            z = _hysteresis_fast(z, zc - zb - y_new - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
+                                 inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
+        (
+            wv[_W_ZC * BLOCK + l],
+            wv[_W_VC * BLOCK + l],
+            wv[_W_ZB * BLOCK + l],
+            wv[_W_VB * BLOCK + l],
+        ) = (
+            zc,
+            vc,
+            zb,
+            vb,
+        )
+        wv[_W_Z * BLOCK + l], wv[_W_Y * BLOCK + l], wv[_W_I * BLOCK + l], wv[_W_T * BLOCK + l] = (
+            z,
+            y_new,
+            ic1,
+            t + h,
+        )
+        wv[_W_ZG0 * BLOCK + l] = zg1
+
+
+@njit(cache=True, error_model="numpy")
+def _output_lanes(model, w, nb):
+    """Force and accelerations at the end of the interval (into rows ZGH, ZG1, H)."""
+    for l in range(nb):
+        zc, vc, zb, vb = (
+            w[_W_ZC * BLOCK + l],
+            w[_W_VC * BLOCK + l],
+            w[_W_ZB * BLOCK + l],
+            w[_W_VB * BLOCK + l],
+        )
+        b = _W_P * BLOCK + l  # the 16 damper parameters, BLOCK apart
+        p = (
+            w[b], w[b + BLOCK], w[b + 2 * BLOCK], w[b + 3 * BLOCK], w[b + 4 * BLOCK],
+            w[b + 5 * BLOCK], w[b + 6 * BLOCK], w[b + 7 * BLOCK], w[b + 8 * BLOCK],
+            w[b + 9 * BLOCK], w[b + 10 * BLOCK], w[b + 11 * BLOCK], w[b + 12 * BLOCK],
+            w[b + 13 * BLOCK], w[b + 14 * BLOCK], w[b + 15 * BLOCK],
+        )  # fmt: skip
+        force, _ = _force_fast(
+            model,
+            p,
+            zc - zb,
+            vc - vb,
+            w[_W_Y * BLOCK + l],
+            w[_W_Z * BLOCK + l],
+            w[_W_I * BLOCK + l],
+            _inv_dashpots(model, p, w[_W_I * BLOCK + l]),
+        )
+        sec = w[_W_KS * BLOCK + l] * (zc - zb) + force
+        w[_W_ZGH * BLOCK + l] = force
+        w[_W_ZG1 * BLOCK + l] = -sec * w[_W_INV_MC * BLOCK + l]
+        w[_W_H * BLOCK + l] = (sec - w[_W_KP * BLOCK + l] * (zb - w[_W_ZG0 * BLOCK + l])) * w[
+            _W_INV_MB * BLOCK + l
+        ]
+
+
+@njit(cache=True, error_model="numpy")
+def _integrate_block(model, mode, w, nb, nsub, order, profiles, idx, spacing, x0, speed,
+                     gain):  # fmt: skip
+    """RK4 substeps of the vehicles in scratch columns ``0 .. nb-1`` (sorted by ``nsub``)."""
+    first = 0
+    s = 0
+    while first < nb:
+        _guideway_lanes(w, first, nb, order, profiles, idx, spacing, x0, speed, gain)
+        _substep_lanes(model, mode, w, first, nb)
+        s += 1
+        while first < nb and nsub[first] <= s:
+            first += 1
+    _output_lanes(model, w, nb)
+
+
+@njit(cache=True, error_model="numpy")
+def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
+                 gain, dt, table, out):  # fmt: skip
+    """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt``: the vectorised kernel."""
+    nb = hi - lo
+    w = np.empty(_W_ROWS * BLOCK)  # flat: rows BLOCK apart, so LLVM sees they never overlap
+    nsub_of = np.empty(BLOCK, dtype=np.int64)
+    nsub = np.empty(BLOCK, dtype=np.int64)
+    order = np.empty(BLOCK, dtype=np.int64)
+    n_bins = table.shape[0]
+    lo_sub, hi_sub = table.max(), 1
+    for m in range(nb):  # substeps per vehicle (from the highest current of the interval)
+        n = lo + m
+        i_max, tau = dp[n, _I_MAX], dp[n, _COIL_TAU]
+        cmd = min(max(i_cmd[n], 0.0), i_max) if model != PASSIVE else 0.0
+        i_high = max(cmd, state[n, COIL_CURRENT]) if tau > 0.0 else cmd
+        b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
+        ns = table[min(max(b, 0), n_bins - 1)]
+        nsub_of[m] = ns
+        lo_sub, hi_sub = min(lo_sub, ns), max(hi_sub, ns)
+    # counting sort by substeps (stable), so substep s loops over a contiguous tail
+    if hi_sub - lo_sub < 64:
+        count = np.zeros(66, dtype=np.int64)
+        for m in range(nb):
+            count[nsub_of[m] - lo_sub + 1] += 1
+        for c in range(1, 66):
+            count[c] += count[c - 1]
+        for m in range(nb):
+            c = nsub_of[m] - lo_sub
+            order[count[c]] = lo + m
+            count[c] += 1
+    else:  # a hand-made table with widely spread entries: a stable sort
+        ranks = np.argsort(nsub_of[:nb], kind="mergesort")
+        for m in range(nb):
+            order[m] = lo + ranks[m]
+    last = profiles.shape[1] - 1.0
+    for l in range(nb):
+        n = order[l]
+        ns = nsub_of[n - lo]
+        nsub[l] = ns
+        i_max, tau = dp[n, _I_MAX], dp[n, _COIL_TAU]
+        cmd = min(max(i_cmd[n], 0.0), i_max) if model != PASSIVE else 0.0
+        h = dt / ns
+        for j in range(STATE_SIZE):
+            w[j * BLOCK + l] = state[n, j]
+        if tau <= 0.0:
+            w[_W_I * BLOCK + l] = cmd
+        w[_W_H * BLOCK + l] = h
+        w[_W_ICMD * BLOCK + l] = cmd
+        w[_W_EHALF * BLOCK + l] = math.exp(-0.5 * h / tau) if tau > 0.0 else 0.0
+        w[_W_INV_MC * BLOCK + l] = 1.0 / vp[n, 0]
+        w[_W_INV_MB * BLOCK + l] = 1.0 / vp[n, 1]
+        w[_W_KS * BLOCK + l] = vp[n, 2]
+        w[_W_KP * BLOCK + l] = vp[n, 3]
+        w[_W_ZG0 * BLOCK + l] = gain[n] * _guideway_fast(
+            profiles, idx[n], spacing, last, x0[n] + speed[n] * w[_W_T * BLOCK + l]
+        )
+        for j in range(16):
+            w[(_W_P + j) * BLOCK + l] = dp[n, j]
+        if model == REFERENCE:
+            a, gamma, beta = dp[n, 11], dp[n, 9], dp[n, 10]
+            w[_W_A * BLOCK + l], w[_W_INV_A * BLOCK + l] = a, 1.0 / a
+            w[_W_RL * BLOCK + l] = math.sqrt(a / (gamma + beta))
+            w[_W_INV_RL * BLOCK + l] = 1.0 / w[_W_RL * BLOCK + l]
+            w[_W_KL * BLOCK + l] = math.sqrt(a * (gamma + beta))
+            pu = beta - gamma if mode == KERNEL_BLOCK_TANH_UNLOAD else 1.0
+            w[_W_RU * BLOCK + l] = math.sqrt(a / pu)
+            w[_W_INV_RU * BLOCK + l] = 1.0 / w[_W_RU * BLOCK + l]
+            w[_W_KU * BLOCK + l] = math.sqrt(a * pu)
+            w[_W_INV_KU * BLOCK + l] = 1.0 / w[_W_KU * BLOCK + l]
+        else:
+            for j in range(_W_A, _W_INV_KU + 1):
+                w[j * BLOCK + l] = 1.0
+    _integrate_block(model, mode, w, nb, nsub, order, profiles, idx, spacing, x0, speed, gain)
+    for l in range(nb):
+        n = order[l]
+        for j in range(STATE_SIZE):
+            state[n, j] = w[j * BLOCK + l]
+        out[n, 0] = w[_W_ZGH * BLOCK + l]
+        out[n, 1] = w[_W_ZG1 * BLOCK + l]
+        out[n, 2] = w[_W_H * BLOCK + l]
+        out[n, 3] = w[_W_ZG0 * BLOCK + l]
+
+
 @njit(cache=True)
-def _step_serial(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
-                 out):  # fmt: skip
-    _step_range(0, state.shape[0], model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
-                gain, dt, table, out)  # fmt: skip
+def _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
+                gain, dt, table, out):  # fmt: skip
+    if mode == KERNEL_SCALAR:
+        _step_range(lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain,
+                    dt, table, out)  # fmt: skip
+        return
+    for b in range(lo, hi, BLOCK):
+        _plant_block(model, mode, b, min(hi, b + BLOCK), dp, vp, state, i_cmd, profiles, idx,
+                     spacing, x0, speed, gain, dt, table, out)  # fmt: skip
 
 
-_CHUNK = 32
+def _make_step_kernels(mode: int, model: int):
+    """Serial and multi-threaded kernels for one (kernel mode, damper model).
+
+    ``mode`` and ``model`` are closure constants: numba compiles each pair separately (the
+    branches for other models are pruned), so only the models in use are compiled. A vectorised
+    variant takes ~25 s to compile the first time; numba caches it on disk.
+    """
+
+    @njit(cache=True)
+    def serial(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, out):
+        _step_chunk(mode, 0, state.shape[0], model, dp, vp, state, i_cmd, profiles, idx,
+                    spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+
+    @njit(cache=True, parallel=True)
+    def parallel(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, out):
+        n = state.shape[0]
+        for c in prange((n + BLOCK - 1) // BLOCK):
+            _step_chunk(mode, c * BLOCK, min(n, (c + 1) * BLOCK), model, dp, vp, state, i_cmd,
+                        profiles, idx, spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+
+    return serial, parallel
 
 
-@njit(cache=True, parallel=True)
-def _step_parallel(model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt,
-                   table, out):  # fmt: skip
-    n = state.shape[0]
-    for c in prange((n + _CHUNK - 1) // _CHUNK):
-        _step_range(c * _CHUNK, min(n, (c + 1) * _CHUNK), model, dp, vp, state, i_cmd, profiles,
-                    idx, spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+_STEP_KERNELS: dict[tuple[int, int], tuple] = {}
+
+
+def step_kernels(mode: int, model: int) -> tuple:
+    """``(serial, parallel)`` compiled kernels for a kernel mode and damper model (memoised)."""
+    key = (int(mode), int(model))
+    if key not in _STEP_KERNELS:
+        _STEP_KERNELS[key] = _make_step_kernels(*key)
+    return _STEP_KERNELS[key]
 
 
 #: Batches at least this large are stepped by the multi-threaded kernel.
@@ -262,9 +686,10 @@ def step_batch(
     if guideway_gain is None:
         guideway_gain = np.ones(state.shape[0])
     table = _as_table(substeps)
-    kernel = _step_parallel if state.shape[0] >= PARALLEL_THRESHOLD else _step_serial
+    serial, parallel = step_kernels(block_kernel_mode(damper_code, damper_params), damper_code)
+    kernel = parallel if state.shape[0] >= PARALLEL_THRESHOLD else serial
     kernel(
-        damper_code, damper_params, vehicle_params, state, current_command_a, profiles,
+        damper_params, vehicle_params, state, current_command_a, profiles,
         profile_index, spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, out,
     )  # fmt: skip
 

@@ -68,7 +68,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         truncated = batch.step_count >= batch.max_steps
         dones = terminated | truncated
         if self.info_signals:
-            rows = batch.signals.tolist()
+            rows = batch.signals.T.tolist()
             infos = [dict(zip(SIGNAL_NAMES, row, strict=True)) for row in rows]
         else:
             infos = [{} for _ in range(self.num_envs)]

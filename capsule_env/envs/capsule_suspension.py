@@ -198,7 +198,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         )
 
     def _info(self) -> dict[str, Any]:
-        return dict(zip(SIGNAL_NAMES, self._batch.signals[0].tolist(), strict=True))
+        return dict(zip(SIGNAL_NAMES, self._batch.signals[:, 0].tolist(), strict=True))
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
@@ -297,7 +297,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         return batch.obs.copy(), reward, terminated, truncated, self._infos()
 
     def _infos(self) -> dict[str, Any]:
-        columns = self._batch.signals.T.copy()
+        columns = self._batch.signals.copy()
         infos: dict[str, Any] = {}
         for j, name in enumerate(SIGNAL_NAMES):
             infos[name] = columns[j]
