@@ -47,12 +47,19 @@ from capsule_env.dynamics import (
     STATE_SIZE,
     SUBSTEP_BINS,
     _step_chunk,
+    block_constants,
     block_kernel_mode,
     substep_table,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
 from capsule_env.hysteresis import hysteresis_update
-from capsule_env.inverse import INVERSE_NAMES, affine_in_current, invert_affine
+from capsule_env.inverse import (
+    INVERSE_NAMES,
+    affine_in_current,
+    affine_in_current_fast,
+    invert_affine,
+    invert_affine_fast,
+)
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [
@@ -354,7 +361,7 @@ def _build(name: str, cls: type, overrides: dict) -> Any:
 _MASK64 = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
-@njit(cache=True, inline="always")
+@njit(**FAST, inline="always")
 def _mix(x):
     x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
@@ -372,76 +379,108 @@ E_CSDC_Z, E_CSDC_X, E_START, E_SPEED, E_GAIN = range(5)
 E_PROFILE, E_STEP = range(2)
 
 
-@njit(**FAST)
-def _gaussian_fast(key, step, channel):
-    """Standard normal from a counter-based hash (splitmix64 + Box-Muller), with the log and
+@njit(**FAST, inline="always")
+def _gaussian_pair(key, step, pair):
+    """Two independent standard normals from a counter-based hash of ``(key, step, pair)``
+    (splitmix64, then Box-Muller: ``R cos(2 pi u2)`` and ``R sin(2 pi u2)``), with the log and
     cosine of :mod:`capsule_env._fastmath` so that the loop over vehicles vectorises."""
     base = (
         key
         + np.uint64(step) * np.uint64(0x9E3779B97F4A7C15)
-        + np.uint64(channel) * np.uint64(0xD1B54A32D192ED03)
+        + np.uint64(pair) * np.uint64(0xD1B54A32D192ED03)
     )
     u1 = ((_mix(base) >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
     u2 = (_mix(base + np.uint64(0x632BE59BD9B4E019)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-    return math.sqrt(-2.0 * fast_log(u1)) * fast_cos_2pi(u2)
+    radius = math.sqrt(-2.0 * fast_log(u1))
+    return radius * fast_cos_2pi(u2), radius * fast_cos_2pi(u2 - 0.25)
 
 
 @njit(**FAST)
-def _noise_lanes(keys, steps, channel, nb, out):
-    """Sensor noise of one channel for ``nb`` vehicles (a SIMD loop: views start at 0)."""
+def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
+    """Sensor noise of channels ``2 pair`` and ``2 pair + 1`` for ``nb`` vehicles (a SIMD loop:
+    the views start at the block's first vehicle)."""
     for j in range(nb):
-        out[j] = _gaussian_fast(keys[j], steps[j], channel)
+        out_a[j], out_b[j] = _gaussian_pair(keys[j], steps[j], pair)
+
+
+@njit(cache=True)
+def _clip_actions(actions, out):
+    """Clip ``actions`` to [-1, 1] into ``out``; True if any is NaN or infinite."""
+    bad = False
+    for k in range(actions.shape[0]):
+        x = float(actions[k])
+        bad |= not math.isfinite(x)
+        out[k] = min(max(x, -1.0), 1.0)
+    return bad
+
+
+@njit(cache=True, error_model="numpy")
+def _current_lanes(actions, i_max, i_command, f_desired):
+    """Current mode: action in [-1, 1] -> command in [0, i_max] (no force request)."""
+    for j in range(actions.shape[0]):
+        i_command[j] = 0.5 * (actions[j] + 1.0) * i_max
+        f_desired[j] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _inverse_lanes(inv_code, inv_p, actions, meas, max_force, i_max, i_command, f_desired):
+    """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop)."""
+    for j in range(actions.shape[0]):
+        f_d = actions[j] * max_force
+        f0, slope = affine_in_current_fast(inv_code, inv_p, meas[j, 2], meas[j, 3])
+        i_command[j] = invert_affine_fast(f_d, f0, slope, meas[j, 3], i_max)
+        f_desired[j] = f_d
 
 
 @njit(cache=True, error_model="numpy")
 def _env_step_block(
     model, mode, lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
-    meas, delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+    meas, delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated, sig, applied,
     plant_out,
 ):  # fmt: skip
     """Step vehicles ``lo .. hi - 1`` (at most BLOCK): commands, plant, sensors, reward."""
     i_max = cfg_f[F_I_MAX]
     inv_code = cfg_i[I_INV_CODE]
-    # 1. action -> current command (through the inverse model in force mode), control delay
-    for n in range(lo, hi):
-        action = actions[n]
-        if cfg_i[I_ACTION_MODE] == 1:
-            i_cmd = 0.5 * (action + 1.0) * i_max
-            f_d = 0.0  # no force request in current mode
-        else:
-            f_d = action * cfg_f[F_MAX_FORCE]
-            x_m = meas[n, 2]
-            v_m = meas[n, 3]
-            z_est = 0.0
-            if inv_code == BOUC_WEN:
-                z_est = hysteresis_update(
-                    env_f[E_CSDC_Z, n], x_m - env_f[E_CSDC_X, n], inv_p[8], inv_p[6], inv_p[7]
-                )
-                env_f[E_CSDC_Z, n] = z_est
-                env_f[E_CSDC_X, n] = x_m
+    # 1. action -> current command (through the inverse model in force mode), control delay.
+    # Algebraic inverses run in a vectorised loop; CSDC (a hysteresis estimate) in a scalar one.
+    delay_write, delay_read = cfg_i[I_DELAY_WRITE], cfg_i[I_DELAY_READ]
+    f_desired, i_command = sig[9, lo:hi], sig[10, lo:hi]
+    if cfg_i[I_ACTION_MODE] == 1:
+        _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
+    elif inv_code == BOUC_WEN:
+        for n in range(lo, hi):
+            f_d = actions[n] * cfg_f[F_MAX_FORCE]
+            x_m, v_m = meas[n, 2], meas[n, 3]
+            z_est = hysteresis_update(
+                env_f[E_CSDC_Z, n], x_m - env_f[E_CSDC_X, n], inv_p[8], inv_p[6], inv_p[7]
+            )
+            env_f[E_CSDC_Z, n] = z_est
+            env_f[E_CSDC_X, n] = x_m
             f0, slope = affine_in_current(inv_code, inv_p, x_m, v_m, z_est)
-            i_cmd = invert_affine(f_d, f0, slope, v_m, i_max)
-        # ring buffer of delay + 1 commands
-        delay_buf[n, cfg_i[I_DELAY_WRITE]] = i_cmd
-        applied[n] = delay_buf[n, cfg_i[I_DELAY_READ]]
-        sig[9, n] = f_d
-        sig[10, n] = i_cmd
+            sig[9, n] = f_d
+            sig[10, n] = invert_affine(f_d, f0, slope, v_m, i_max)
+    else:
+        _inverse_lanes(inv_code, inv_p, actions[lo:hi], meas[lo:hi], cfg_f[F_MAX_FORCE], i_max,
+                       i_command, f_desired)  # fmt: skip
+    for n in range(lo, hi):
+        delay_buf[n, delay_write] = sig[10, n]  # ring buffer of delay + 1 commands
+        applied[n] = delay_buf[n, delay_read]
         env_i[E_STEP, n] += 1
     # 2. plant (the vectorised block kernel, or the scalar one; see dynamics.block_kernel_mode)
     _step_chunk(
         mode, lo, hi, model, dp, vp, state, applied, profiles, env_i[E_PROFILE],
         cfg_f[F_SPACING], env_f[E_START], env_f[E_SPEED], env_f[E_GAIN], cfg_f[F_DT], sub_table,
-        plant_out,
+        derived, plant_out,
     )  # fmt: skip
     # 3. sensor noise, one channel at a time across the block
     nb = hi - lo
-    noise = np.zeros((N_NOISE_CHANNELS, BLOCK))
+    noise = np.zeros((N_NOISE_CHANNELS + 1, BLOCK))
     if cfg_i[I_NOISE]:
-        n_channels = N_NOISE_CHANNELS if cfg_i[I_FULL_OBS] else 4
+        n_pairs = (N_NOISE_CHANNELS + 1) // 2 if cfg_i[I_FULL_OBS] else 2
         keys = noise_key[lo:hi]
         steps = env_i[E_STEP, lo:hi]
-        for j in range(n_channels):
-            _noise_lanes(keys, steps, j, nb, noise[j])
+        for j in range(n_pairs):
+            _noise_lanes(keys, steps, j, nb, noise[2 * j], noise[2 * j + 1])
     # 4. sensors, observation, reward, signals
     for n in range(lo, hi):
         m = n - lo
@@ -510,7 +549,7 @@ def _make_env_kernels(model: int, mode: int):
     @njit(cache=True)
     def serial(
         actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-        delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+        delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated, sig, applied,
         plant_out,
     ):  # fmt: skip
         n = actions.shape[0]
@@ -518,13 +557,13 @@ def _make_env_kernels(model: int, mode: int):
             _env_step_block(
                 model, mode, lo, min(n, lo + BLOCK), actions, cfg_f, cfg_i, inv_p, noise_std,
                 obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
-                sub_table, obs, reward, terminated, sig, applied, plant_out,
+                sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
             )  # fmt: skip
 
     @njit(cache=True, parallel=True)
     def parallel(
         actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-        delay_buf, dp, vp, state, profiles, sub_table, obs, reward, terminated, sig, applied,
+        delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated, sig, applied,
         plant_out,
     ):  # fmt: skip
         n = actions.shape[0]
@@ -532,7 +571,7 @@ def _make_env_kernels(model: int, mode: int):
             _env_step_block(
                 model, mode, c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p,
                 noise_std, obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state,
-                profiles, sub_table, obs, reward, terminated, sig, applied, plant_out,
+                profiles, sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
             )  # fmt: skip
 
     return serial, parallel
@@ -605,7 +644,10 @@ class CapsuleBatch:
         self.obs = np.zeros((n, self.obs_dim), dtype=np.float32)
         self.reward = np.zeros(n)
         self.terminated = np.zeros(n, dtype=bool)
-        self.signals = np.zeros((N_SIGNALS, n))  # one row per signal (info arrays are rows)
+        # One row per signal (the info arrays are rows). The rows are padded by 8 values: rows
+        # a multiple of 4 KiB apart would all map to the same L1 cache set.
+        self._signals_buf = np.zeros((N_SIGNALS, n + 8))
+        self.signals = self._signals_buf[:, :n]
         self.applied_current = np.zeros(n)
         self.plant_out = np.zeros((n, 4))
         self.noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
@@ -634,6 +676,9 @@ class CapsuleBatch:
             dtype=np.int64,
         )
         self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
+        self.block_constants = block_constants(
+            self.plant.code, self.damper_params, self.dt, self.sub_table
+        )
         serial, parallel = env_kernels(self.plant.code, self.kernel_mode)
         self._kernel = parallel if n >= PARALLEL_THRESHOLD else serial
         self._nominal_vehicle = self.vehicle.as_array()
@@ -673,6 +718,9 @@ class CapsuleBatch:
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Start new episodes for the vehicles in ``mask`` (all if None)."""
         ids = range(self.num_envs) if mask is None else np.flatnonzero(mask)
+        if mask is None and self.num_envs > 1:  # see _run: info arrays handed out stay intact
+            self._signals_buf = np.zeros((N_SIGNALS, self.num_envs + 8))
+            self.signals = self._signals_buf[:, : self.num_envs]
         cfg, gw = self.config, self.guideway
         n_samples = self.profiles.shape[1]
         window_samples = int(math.ceil(self._window_m / self.spacing)) + 1
@@ -718,13 +766,17 @@ class CapsuleBatch:
         """Advance every vehicle by one control interval; results in ``obs``, ``reward``,
         ``terminated``, ``signals``. ``actions`` are (N,) in [-1, 1] (clipped here); NaN or
         infinite actions raise ``ValueError``."""
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs)
-        if not np.isfinite(a).all():
+        a = np.asarray(actions)
+        if a.dtype != np.float32 and a.dtype != np.float64:
+            a = a.astype(np.float64)
+        if a.size != self.num_envs:
+            raise ValueError(f"actions must have {self.num_envs} entries, got shape {a.shape}")
+        a = a.reshape(self.num_envs)
+        if _clip_actions(a, self._action_buf):  # one compiled pass: clip and check
             raise ValueError(
                 "action must be finite numbers in [-1, 1]; got NaN or inf at index "
                 f"{np.flatnonzero(~np.isfinite(a)).tolist()}"
             )
-        np.clip(a, -1.0, 1.0, out=self._action_buf)
         self._run()
 
     def step_one(self, action: float) -> None:
@@ -735,6 +787,11 @@ class CapsuleBatch:
         self._run()
 
     def _run(self) -> None:
+        if self.num_envs > 1:
+            # A fresh signals buffer every step (the kernel writes every entry): the vector
+            # envs hand its rows out as ``info`` arrays without copying them.
+            self._signals_buf = np.empty((N_SIGNALS, self.num_envs + 8))
+            self.signals = self._signals_buf[:, : self.num_envs]
         # ring buffer of delay + 1 commands: write this step's, apply the oldest
         self._delay_pos += 1
         n_buf = self.delay_buf.shape[1]
@@ -744,7 +801,8 @@ class CapsuleBatch:
             self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
-            self.sub_table, self.obs, self.reward, self.terminated, self.signals,
+            self.sub_table, self.block_constants, self.obs, self.reward, self.terminated,
+            self._signals_buf,
             self.applied_current, self.plant_out,
         )  # fmt: skip
 

@@ -229,6 +229,9 @@ KERNEL_SCALAR, KERNEL_BLOCK, KERNEL_BLOCK_TANH_UNLOAD = 0, 1, 2
  _W_RU, _W_INV_RU, _W_KU, _W_INV_KU) = range(27)  # fmt: skip
 _W_P = 27  # 16 packed damper parameters
 _W_ROWS = _W_P + 16
+#: The scratch array holds two halves (even and odd sorted ranks), rows HALF apart.
+HALF = BLOCK // 2
+_W_HALF_SIZE = _W_ROWS * HALF
 
 
 def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
@@ -249,6 +252,37 @@ def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
     if np.all(unload > 0.0):
         return KERNEL_BLOCK_TANH_UNLOAD
     return KERNEL_SCALAR
+
+
+#: Columns of :func:`block_constants`: A, 1/A, r_l, 1/r_l, k_l, r_u, 1/r_u, k_u, 1/k_u (the
+#: scratch rows _W_A .. _W_INV_KU, in order), then the coil-lag factor exp(-h / (2 tau)) of
+#: each substep-table bin.
+_D_EHALF = 9
+
+
+def block_constants(
+    damper_code: int, damper_params: np.ndarray, dt_s: float, table: np.ndarray
+) -> np.ndarray:
+    """Per-vehicle constants of the block kernel, computed once rather than every step: the
+    Riccati constants of the Spencer hysteresis (``r = sqrt(A/p)``, ``k = sqrt(A p)`` of the
+    loading ``p = gamma + beta`` and unloading ``p = beta - gamma`` branches; 1 where unused)
+    and the coil-lag factor ``exp(-h / (2 tau))`` at each table bin's substep ``h = dt / n``
+    (0 without coil lag)."""
+    p = np.atleast_2d(np.asarray(damper_params, dtype=float))
+    out = np.ones((p.shape[0], _D_EHALF + len(table)))
+    if damper_code == REFERENCE:
+        a, gamma, beta = p[:, 11], p[:, 9], p[:, 10]
+        load = gamma + beta
+        unload = np.where(beta - gamma > 0.0, beta - gamma, 1.0)
+        r_l, r_u = np.sqrt(a / load), np.sqrt(a / unload)
+        k_l, k_u = np.sqrt(a * load), np.sqrt(a * unload)
+        cols = (a, 1.0 / a, r_l, 1.0 / r_l, k_l, r_u, 1.0 / r_u, k_u, 1.0 / k_u)
+        out[:, :_D_EHALF] = np.stack(cols, axis=1)
+    tau = p[:, _COIL_TAU][:, None]
+    h = dt_s / np.asarray(table, dtype=float)[None, :]
+    lag = tau > 0.0
+    out[:, _D_EHALF:] = np.where(lag, np.exp(-0.5 * h / np.where(lag, tau, 1.0)), 0.0)
+    return np.ascontiguousarray(out)
 
 
 @njit(**FAST)
@@ -332,175 +366,175 @@ def _guideway_fast(profiles, k, spacing, last, position):
     return profiles[k, j] * (1.0 - f) + profiles[k, j + 1] * f
 
 
+@njit(**FAST)
+def _slot(rank):
+    """Flat offset of the sorted vehicle ``rank`` in the scratch array: even ranks in the first
+    half, odd ranks in the second, ``rank // 2`` within it (rows ``HALF`` apart)."""
+    return (rank & 1) * _W_HALF_SIZE + (rank >> 1)
+
+
+@njit(**FAST, inline="always")
+def _lane_values(wv, j):
+    """The scratch values of one vehicle, as a tuple of values (offset ``j`` in the view)."""
+    return (
+        wv[j], wv[j + HALF], wv[j + 2 * HALF], wv[j + 3 * HALF], wv[j + 4 * HALF],
+        wv[j + 5 * HALF], wv[j + 6 * HALF], wv[j + 7 * HALF], wv[j + 8 * HALF],
+        wv[j + 9 * HALF], wv[j + 10 * HALF], wv[j + 11 * HALF], wv[j + 12 * HALF],
+        wv[j + 13 * HALF], wv[j + 14 * HALF], wv[j + 15 * HALF], wv[j + 16 * HALF],
+        wv[j + 17 * HALF], wv[j + 18 * HALF], wv[j + 19 * HALF], wv[j + 20 * HALF],
+        wv[j + 21 * HALF], wv[j + 22 * HALF], wv[j + 23 * HALF], wv[j + 24 * HALF],
+        wv[j + 25 * HALF], wv[j + 26 * HALF],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _lane_params(wv, j):
+    """The 16 packed damper parameters of one vehicle from the scratch view."""
+    b = j + _W_P * HALF
+    return (
+        wv[b], wv[b + HALF], wv[b + 2 * HALF], wv[b + 3 * HALF], wv[b + 4 * HALF],
+        wv[b + 5 * HALF], wv[b + 6 * HALF], wv[b + 7 * HALF], wv[b + 8 * HALF],
+        wv[b + 9 * HALF], wv[b + 10 * HALF], wv[b + 11 * HALF], wv[b + 12 * HALF],
+        wv[b + 13 * HALF], wv[b + 14 * HALF], wv[b + 15 * HALF],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _rk4_lane(model, tanh_unload, v, p):
+    """One RK4 substep of one vehicle from its scratch values ``v`` and damper parameters
+    ``p`` (tuples): returns the new ``(z_c, z_c', z_b, z_b', z, y, i, t, z_g)``."""
+    zc, vc, zb, vb, z, y, ic, t, h, i_cmd, e_half = v[0:11]
+    inv_mc, inv_mb, ks, kp, zg0, zgh, zg1 = v[11:18]
+    a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u = v[18:27]
+    ic_half = i_cmd + (ic - i_cmd) * e_half
+    ic1 = i_cmd + (ic_half - i_cmd) * e_half
+    inv_c0 = _inv_dashpots(model, p, ic)
+    inv_ch = _inv_dashpots(model, p, ic_half)
+    inv_c1 = _inv_dashpots(model, p, ic1)
+    u0 = zc - zb - y
+    # stage 1
+    f1, y1 = _force_fast(model, p, zc - zb, vc - vb, y, z, ic, inv_c0)
+    sec = ks * (zc - zb) + f1
+    k10, k11, k12, k13 = vc, -sec * inv_mc, vb, (sec - kp * (zb - zg0)) * inv_mb
+    # stage 2
+    a0, a1 = zc + 0.5 * h * k10, vc + 0.5 * h * k11
+    a2, a3, a4 = zb + 0.5 * h * k12, vb + 0.5 * h * k13, y + 0.5 * h * y1
+    zs = z
+    if model == REFERENCE:
+        zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u,
+                              k_u, inv_k_u, tanh_unload)  # fmt: skip
+    f2, y2 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
+    sec = ks * (a0 - a2) + f2
+    k20, k21, k22, k23 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
+    # stage 3
+    a0, a1 = zc + 0.5 * h * k20, vc + 0.5 * h * k21
+    a2, a3, a4 = zb + 0.5 * h * k22, vb + 0.5 * h * k23, y + 0.5 * h * y2
+    if model == REFERENCE:
+        zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u,
+                              k_u, inv_k_u, tanh_unload)  # fmt: skip
+    f3, y3 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
+    sec = ks * (a0 - a2) + f3
+    k30, k31, k32, k33 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
+    # stage 4
+    a0, a1 = zc + h * k30, vc + h * k31
+    a2, a3, a4 = zb + h * k32, vb + h * k33, y + h * y3
+    if model == REFERENCE:
+        zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u,
+                              k_u, inv_k_u, tanh_unload)  # fmt: skip
+    f4, y4 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic1, inv_c1)
+    sec = ks * (a0 - a2) + f4
+    k40, k41, k42, k43 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zg1)) * inv_mb
+    wt = h / 6.0
+    zc = zc + wt * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
+    vc = vc + wt * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
+    zb = zb + wt * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
+    vb = vb + wt * (k13 + 2.0 * k23 + 2.0 * k33 + k43)
+    y_new = y + wt * (y1 + 2.0 * y2 + 2.0 * y3 + y4)
+    if model == REFERENCE:
+        z = _hysteresis_fast(z, zc - zb - y_new - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
+                             inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
+    return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
+
+
+@njit(**FAST, inline="always")
+def _store_lane(wv, j, new, active):
+    """Write a vehicle's new state (rows ZC .. T and ZG0) if ``active`` (a select, no branch)."""
+    wv[j + 0 * HALF] = new[0] if active else wv[j + 0 * HALF]
+    wv[j + 1 * HALF] = new[1] if active else wv[j + 1 * HALF]
+    wv[j + 2 * HALF] = new[2] if active else wv[j + 2 * HALF]
+    wv[j + 3 * HALF] = new[3] if active else wv[j + 3 * HALF]
+    wv[j + 4 * HALF] = new[4] if active else wv[j + 4 * HALF]
+    wv[j + 5 * HALF] = new[5] if active else wv[j + 5 * HALF]
+    wv[j + 6 * HALF] = new[6] if active else wv[j + 6 * HALF]
+    wv[j + 7 * HALF] = new[7] if active else wv[j + 7 * HALF]
+    wv[j + _W_ZG0 * HALF] = new[8] if active else wv[j + _W_ZG0 * HALF]
+
+
 @njit(cache=True, error_model="numpy")
 def _guideway_lanes(w, first, nb, order, profiles, idx, spacing, x0, speed, gain):
-    """Guideway elevation at the midpoint and end of the substep of columns ``first .. nb-1``
-    (a gather from the profile bank, kept out of the SIMD loop)."""
+    """Guideway elevation at the midpoint and end of the substep of sorted vehicles
+    ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
     last = profiles.shape[1] - 1.0
-    for l in range(first, nb):
-        n = order[l]
-        t, h = w[_W_T * BLOCK + l], w[_W_H * BLOCK + l]
+    for rank in range(first, nb):
+        n = order[rank]
+        o = _slot(rank)
+        t, h = w[o + _W_T * HALF], w[o + _W_H * HALF]
         k, g, p0, sp = idx[n], gain[n], x0[n], speed[n]
-        w[_W_ZGH * BLOCK + l] = g * _guideway_fast(
+        w[o + _W_ZGH * HALF] = g * _guideway_fast(
             profiles, k, spacing, last, p0 + sp * (t + 0.5 * h)
         )
-        w[_W_ZG1 * BLOCK + l] = g * _guideway_fast(profiles, k, spacing, last, p0 + sp * (t + h))
+        w[o + _W_ZG1 * HALF] = g * _guideway_fast(profiles, k, spacing, last, p0 + sp * (t + h))
 
 
 @njit(cache=True, error_model="numpy")
 def _substep_lanes(model, mode, w, first, nb):
-    """One RK4 substep of columns ``first .. nb-1``: the SIMD loop (no calls, no branches).
-    Each loop lives in its own function so that none of its variables is live after it (a
-    value carried out of a loop stops vectorisation)."""
-    # A view starting at ``first`` and indices from 0: LLVM then knows every index is >= 0 and
-    # needs no negative-index wraparound, which would turn the loads into gathers.
+    """One RK4 substep of the sorted vehicles ``first .. nb-1``: the SIMD loop.
+
+    Each iteration advances two vehicles, one from each half of the scratch array (even and
+    odd ranks): two independent dependency chains, so the core overlaps their latencies (an RK4
+    substep is one long chain of dependent operations). A vehicle outside ``first .. nb-1``
+    that shares an iteration is computed and not stored (a select). The view starts at the
+    first column and every access is a constant offset from it, so LLVM sees no negative
+    indices and no overlap and vectorises the loop (4 vehicle pairs per instruction).
+    """
     tanh_unload = mode == KERNEL_BLOCK_TANH_UNLOAD  # a constant: ``mode`` is a literal
-    wv = w[first:]
-    for l in range(nb - first):  # the SIMD loop: no calls, no branches
-        zc, vc, zb, vb = (
-            wv[_W_ZC * BLOCK + l],
-            wv[_W_VC * BLOCK + l],
-            wv[_W_ZB * BLOCK + l],
-            wv[_W_VB * BLOCK + l],
-        )
-        z, y, ic, t, h = (
-            wv[_W_Z * BLOCK + l],
-            wv[_W_Y * BLOCK + l],
-            wv[_W_I * BLOCK + l],
-            wv[_W_T * BLOCK + l],
-            wv[_W_H * BLOCK + l],
-        )
-        i_cmd, e_half = wv[_W_ICMD * BLOCK + l], wv[_W_EHALF * BLOCK + l]
-        inv_mc, inv_mb, ks, kp = (
-            wv[_W_INV_MC * BLOCK + l],
-            wv[_W_INV_MB * BLOCK + l],
-            wv[_W_KS * BLOCK + l],
-            wv[_W_KP * BLOCK + l],
-        )
-        zg0, zgh, zg1 = wv[_W_ZG0 * BLOCK + l], wv[_W_ZGH * BLOCK + l], wv[_W_ZG1 * BLOCK + l]
-        a, inv_a, r_l, inv_r_l = (
-            wv[_W_A * BLOCK + l],
-            wv[_W_INV_A * BLOCK + l],
-            wv[_W_RL * BLOCK + l],
-            wv[_W_INV_RL * BLOCK + l],
-        )
-        k_l, r_u, inv_r_u = wv[_W_KL * BLOCK + l], wv[_W_RU * BLOCK + l], wv[_W_INV_RU * BLOCK + l]
-        k_u, inv_k_u = wv[_W_KU * BLOCK + l], wv[_W_INV_KU * BLOCK + l]
-        b = _W_P * BLOCK + l  # the 16 damper parameters, BLOCK apart
-        p = (
-            wv[b], wv[b + BLOCK], wv[b + 2 * BLOCK], wv[b + 3 * BLOCK], wv[b + 4 * BLOCK],
-            wv[b + 5 * BLOCK], wv[b + 6 * BLOCK], wv[b + 7 * BLOCK], wv[b + 8 * BLOCK],
-            wv[b + 9 * BLOCK], wv[b + 10 * BLOCK], wv[b + 11 * BLOCK], wv[b + 12 * BLOCK],
-            wv[b + 13 * BLOCK], wv[b + 14 * BLOCK], wv[b + 15 * BLOCK],
-        )  # fmt: skip
-        # (read here, not through a helper taking ``w``: handing an array to a function
-        # inside the loop costs reference counting calls that stop vectorisation)
-        ic_half = i_cmd + (ic - i_cmd) * e_half
-        ic1 = i_cmd + (ic_half - i_cmd) * e_half
-        inv_c0 = _inv_dashpots(model, p, ic)
-        inv_ch = _inv_dashpots(model, p, ic_half)
-        inv_c1 = _inv_dashpots(model, p, ic1)
-        u0 = zc - zb - y
-        # stage 1
-        f1, y1 = _force_fast(model, p, zc - zb, vc - vb, y, z, ic, inv_c0)
-        sec = ks * (zc - zb) + f1
-        k10, k11, k12, k13 = vc, -sec * inv_mc, vb, (sec - kp * (zb - zg0)) * inv_mb
-        # stage 2
-        a0, a1 = zc + 0.5 * h * k10, vc + 0.5 * h * k11
-        a2, a3, a4 = zb + 0.5 * h * k12, vb + 0.5 * h * k13, y + 0.5 * h * y1
-        zs = z
-        if model == REFERENCE:
-            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
-                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
-        f2, y2 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
-        sec = ks * (a0 - a2) + f2
-        k20, k21, k22, k23 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
-        # stage 3
-        a0, a1 = zc + 0.5 * h * k20, vc + 0.5 * h * k21
-        a2, a3, a4 = zb + 0.5 * h * k22, vb + 0.5 * h * k23, y + 0.5 * h * y2
-        if model == REFERENCE:
-            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
-                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
-        f3, y3 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
-        sec = ks * (a0 - a2) + f3
-        k30, k31, k32, k33 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
-        # stage 4
-        a0, a1 = zc + h * k30, vc + h * k31
-        a2, a3, a4 = zb + h * k32, vb + h * k33, y + h * y3
-        if model == REFERENCE:
-            zs = _hysteresis_fast(z, a0 - a2 - a4 - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
-                                  inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
-        f4, y4 = _force_fast(model, p, a0 - a2, a1 - a3, a4, zs, ic1, inv_c1)
-        sec = ks * (a0 - a2) + f4
-        k40, k41, k42, k43 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zg1)) * inv_mb
-        wt = h / 6.0
-        zc = zc + wt * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
-        vc = vc + wt * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
-        zb = zb + wt * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
-        vb = vb + wt * (k13 + 2.0 * k23 + 2.0 * k33 + k43)
-        y_new = y + wt * (y1 + 2.0 * y2 + 2.0 * y3 + y4)
-        if model == REFERENCE:
-            z = _hysteresis_fast(z, zc - zb - y_new - u0, a, inv_a, r_l, inv_r_l, k_l, r_u,
-                                 inv_r_u, k_u, inv_k_u, tanh_unload)  # fmt: skip
-        (
-            wv[_W_ZC * BLOCK + l],
-            wv[_W_VC * BLOCK + l],
-            wv[_W_ZB * BLOCK + l],
-            wv[_W_VB * BLOCK + l],
-        ) = (
-            zc,
-            vc,
-            zb,
-            vb,
-        )
-        wv[_W_Z * BLOCK + l], wv[_W_Y * BLOCK + l], wv[_W_I * BLOCK + l], wv[_W_T * BLOCK + l] = (
-            z,
-            y_new,
-            ic1,
-            t + h,
-        )
-        wv[_W_ZG0 * BLOCK + l] = zg1
+    col0 = first >> 1
+    first_a = (first + 1) >> 1  # first active column of the even half
+    end = (nb + 1) >> 1
+    end_b = nb >> 1  # odd half: columns < end_b are vehicles
+    wv = w[col0:]  # one view: the odd half sits at the constant offset _W_HALF_SIZE
+    # A multiple of 4 iterations: a partial SIMD group runs as masked lanes rather than as the
+    # loop's scalar remainder (4x slower per vehicle). Lanes past the end only read (padding).
+    for j in range((end - col0 + 3) & -4):
+        col = col0 + j
+        jb = j + _W_HALF_SIZE
+        new_a = _rk4_lane(model, tanh_unload, _lane_values(wv, j), _lane_params(wv, j))
+        new_b = _rk4_lane(model, tanh_unload, _lane_values(wv, jb), _lane_params(wv, jb))
+        _store_lane(wv, j, new_a, col >= first_a and col < end)
+        _store_lane(wv, jb, new_b, col < end_b)
 
 
 @njit(cache=True, error_model="numpy")
-def _output_lanes(model, w, nb):
-    """Force and accelerations at the end of the interval (into rows ZGH, ZG1, H)."""
-    for l in range(nb):
-        zc, vc, zb, vb = (
-            w[_W_ZC * BLOCK + l],
-            w[_W_VC * BLOCK + l],
-            w[_W_ZB * BLOCK + l],
-            w[_W_VB * BLOCK + l],
-        )
-        b = _W_P * BLOCK + l  # the 16 damper parameters, BLOCK apart
-        p = (
-            w[b], w[b + BLOCK], w[b + 2 * BLOCK], w[b + 3 * BLOCK], w[b + 4 * BLOCK],
-            w[b + 5 * BLOCK], w[b + 6 * BLOCK], w[b + 7 * BLOCK], w[b + 8 * BLOCK],
-            w[b + 9 * BLOCK], w[b + 10 * BLOCK], w[b + 11 * BLOCK], w[b + 12 * BLOCK],
-            w[b + 13 * BLOCK], w[b + 14 * BLOCK], w[b + 15 * BLOCK],
-        )  # fmt: skip
-        force, _ = _force_fast(
-            model,
-            p,
-            zc - zb,
-            vc - vb,
-            w[_W_Y * BLOCK + l],
-            w[_W_Z * BLOCK + l],
-            w[_W_I * BLOCK + l],
-            _inv_dashpots(model, p, w[_W_I * BLOCK + l]),
-        )
-        sec = w[_W_KS * BLOCK + l] * (zc - zb) + force
-        w[_W_ZGH * BLOCK + l] = force
-        w[_W_ZG1 * BLOCK + l] = -sec * w[_W_INV_MC * BLOCK + l]
-        w[_W_H * BLOCK + l] = (sec - w[_W_KP * BLOCK + l] * (zb - w[_W_ZG0 * BLOCK + l])) * w[
-            _W_INV_MB * BLOCK + l
-        ]
+def _output_lanes(model, wv, count):
+    """Force and accelerations at the end of the interval (into rows ZGH, ZG1, H) of the first
+    ``count`` columns of one half."""
+    for j in range(count):
+        v = _lane_values(wv, j)
+        p = _lane_params(wv, j)
+        zc, vc, zb, vb, z, y, ic = v[0:7]
+        ks, kp, inv_mc, inv_mb, zg0 = v[_W_KS], v[_W_KP], v[_W_INV_MC], v[_W_INV_MB], v[_W_ZG0]
+        force, _ = _force_fast(model, p, zc - zb, vc - vb, y, z, ic, _inv_dashpots(model, p, ic))
+        sec = ks * (zc - zb) + force
+        wv[j + _W_ZGH * HALF] = force
+        wv[j + _W_ZG1 * HALF] = -sec * inv_mc
+        wv[j + _W_H * HALF] = (sec - kp * (zb - zg0)) * inv_mb
 
 
 @njit(cache=True, error_model="numpy")
 def _integrate_block(model, mode, w, nb, nsub, order, profiles, idx, spacing, x0, speed,
                      gain):  # fmt: skip
-    """RK4 substeps of the vehicles in scratch columns ``0 .. nb-1`` (sorted by ``nsub``)."""
+    """RK4 substeps of the sorted vehicles ``0 .. nb-1`` (ascending ``nsub``): substep ``s``
+    advances the tail of vehicles that need more than ``s`` substeps."""
     first = 0
     s = 0
     while first < nb:
@@ -509,16 +543,20 @@ def _integrate_block(model, mode, w, nb, nsub, order, profiles, idx, spacing, x0
         s += 1
         while first < nb and nsub[first] <= s:
             first += 1
-    _output_lanes(model, w, nb)
+    _output_lanes(model, w[:_W_HALF_SIZE], min(HALF, (((nb + 1) >> 1) + 3) & -4))
+    _output_lanes(model, w[_W_HALF_SIZE:], min(HALF, ((nb >> 1) + 3) & -4))
 
 
 @njit(cache=True, error_model="numpy")
 def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
-                 gain, dt, table, out):  # fmt: skip
+                 gain, dt, table, derived, out):  # fmt: skip
     """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt``: the vectorised kernel."""
     nb = hi - lo
-    w = np.empty(_W_ROWS * BLOCK)  # flat: rows BLOCK apart, so LLVM sees they never overlap
+    # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD lanes;
+    # zeros, so that no lane ever computes on denormal garbage (slow on x86)
+    w = np.zeros(2 * _W_HALF_SIZE + 8)
     nsub_of = np.empty(BLOCK, dtype=np.int64)
+    bin_of = np.empty(BLOCK, dtype=np.int64)
     nsub = np.empty(BLOCK, dtype=np.int64)
     order = np.empty(BLOCK, dtype=np.int64)
     n_bins = table.shape[0]
@@ -529,8 +567,10 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
         cmd = min(max(i_cmd[n], 0.0), i_max) if model != PASSIVE else 0.0
         i_high = max(cmd, state[n, COIL_CURRENT]) if tau > 0.0 else cmd
         b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
-        ns = table[min(max(b, 0), n_bins - 1)]
+        b = min(max(b, 0), n_bins - 1)
+        ns = table[b]
         nsub_of[m] = ns
+        bin_of[m] = b
         lo_sub, hi_sub = min(lo_sub, ns), max(hi_sub, ns)
     # counting sort by substeps (stable), so substep s loops over a contiguous tail
     if hi_sub - lo_sub < 64:
@@ -548,64 +588,57 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
         for m in range(nb):
             order[m] = lo + ranks[m]
     last = profiles.shape[1] - 1.0
-    for l in range(nb):
-        n = order[l]
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
         ns = nsub_of[n - lo]
-        nsub[l] = ns
+        nsub[rank] = ns
         i_max, tau = dp[n, _I_MAX], dp[n, _COIL_TAU]
         cmd = min(max(i_cmd[n], 0.0), i_max) if model != PASSIVE else 0.0
         h = dt / ns
         for j in range(STATE_SIZE):
-            w[j * BLOCK + l] = state[n, j]
+            w[o + j * HALF] = state[n, j]
         if tau <= 0.0:
-            w[_W_I * BLOCK + l] = cmd
-        w[_W_H * BLOCK + l] = h
-        w[_W_ICMD * BLOCK + l] = cmd
-        w[_W_EHALF * BLOCK + l] = math.exp(-0.5 * h / tau) if tau > 0.0 else 0.0
-        w[_W_INV_MC * BLOCK + l] = 1.0 / vp[n, 0]
-        w[_W_INV_MB * BLOCK + l] = 1.0 / vp[n, 1]
-        w[_W_KS * BLOCK + l] = vp[n, 2]
-        w[_W_KP * BLOCK + l] = vp[n, 3]
-        w[_W_ZG0 * BLOCK + l] = gain[n] * _guideway_fast(
-            profiles, idx[n], spacing, last, x0[n] + speed[n] * w[_W_T * BLOCK + l]
-        )
+            w[o + _W_I * HALF] = cmd
+        w[o + _W_H * HALF] = h
+        w[o + _W_ICMD * HALF] = cmd
+        w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
+        w[o + _W_INV_MC * HALF] = 1.0 / vp[n, 0]
+        w[o + _W_INV_MB * HALF] = 1.0 / vp[n, 1]
+        w[o + _W_KS * HALF] = vp[n, 2]
+        w[o + _W_KP * HALF] = vp[n, 3]
+        position = x0[n] + speed[n] * w[o + _W_T * HALF]
+        w[o + _W_ZG0 * HALF] = gain[n] * _guideway_fast(profiles, idx[n], spacing, last, position)
         for j in range(16):
-            w[(_W_P + j) * BLOCK + l] = dp[n, j]
-        if model == REFERENCE:
-            a, gamma, beta = dp[n, 11], dp[n, 9], dp[n, 10]
-            w[_W_A * BLOCK + l], w[_W_INV_A * BLOCK + l] = a, 1.0 / a
-            w[_W_RL * BLOCK + l] = math.sqrt(a / (gamma + beta))
-            w[_W_INV_RL * BLOCK + l] = 1.0 / w[_W_RL * BLOCK + l]
-            w[_W_KL * BLOCK + l] = math.sqrt(a * (gamma + beta))
-            pu = beta - gamma if mode == KERNEL_BLOCK_TANH_UNLOAD else 1.0
-            w[_W_RU * BLOCK + l] = math.sqrt(a / pu)
-            w[_W_INV_RU * BLOCK + l] = 1.0 / w[_W_RU * BLOCK + l]
-            w[_W_KU * BLOCK + l] = math.sqrt(a * pu)
-            w[_W_INV_KU * BLOCK + l] = 1.0 / w[_W_KU * BLOCK + l]
-        else:
-            for j in range(_W_A, _W_INV_KU + 1):
-                w[j * BLOCK + l] = 1.0
+            w[o + (_W_P + j) * HALF] = dp[n, j]
+        for j in range(_D_EHALF):  # hysteresis constants, computed once per batch
+            w[o + (_W_A + j) * HALF] = derived[n, j]
+    if nb & 1:  # the odd half's last column has no vehicle: give it real numbers to chew on
+        src, dst = _slot(nb - 1), _slot(nb)
+        for j in range(_W_ROWS):
+            w[dst + j * HALF] = w[src + j * HALF]
     _integrate_block(model, mode, w, nb, nsub, order, profiles, idx, spacing, x0, speed, gain)
-    for l in range(nb):
-        n = order[l]
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
         for j in range(STATE_SIZE):
-            state[n, j] = w[j * BLOCK + l]
-        out[n, 0] = w[_W_ZGH * BLOCK + l]
-        out[n, 1] = w[_W_ZG1 * BLOCK + l]
-        out[n, 2] = w[_W_H * BLOCK + l]
-        out[n, 3] = w[_W_ZG0 * BLOCK + l]
+            state[n, j] = w[o + j * HALF]
+        out[n, 0] = w[o + _W_ZGH * HALF]
+        out[n, 1] = w[o + _W_ZG1 * HALF]
+        out[n, 2] = w[o + _W_H * HALF]
+        out[n, 3] = w[o + _W_ZG0 * HALF]
 
 
 @njit(cache=True)
 def _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed,
-                gain, dt, table, out):  # fmt: skip
+                gain, dt, table, derived, out):  # fmt: skip
     if mode == KERNEL_SCALAR:
         _step_range(lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain,
                     dt, table, out)  # fmt: skip
         return
     for b in range(lo, hi, BLOCK):
         _plant_block(model, mode, b, min(hi, b + BLOCK), dp, vp, state, i_cmd, profiles, idx,
-                     spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+                     spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
 
 
 def _make_step_kernels(mode: int, model: int):
@@ -617,16 +650,19 @@ def _make_step_kernels(mode: int, model: int):
     """
 
     @njit(cache=True)
-    def serial(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, out):
+    def serial(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, derived,
+               out):  # fmt: skip
         _step_chunk(mode, 0, state.shape[0], model, dp, vp, state, i_cmd, profiles, idx,
-                    spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+                    spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
 
     @njit(cache=True, parallel=True)
-    def parallel(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, out):
+    def parallel(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
+                 derived, out):  # fmt: skip
         n = state.shape[0]
         for c in prange((n + BLOCK - 1) // BLOCK):
             _step_chunk(mode, c * BLOCK, min(n, (c + 1) * BLOCK), model, dp, vp, state, i_cmd,
-                        profiles, idx, spacing, x0, speed, gain, dt, table, out)  # fmt: skip
+                        profiles, idx, spacing, x0, speed, gain, dt, table, derived,
+                        out)  # fmt: skip
 
     return serial, parallel
 
@@ -688,9 +724,10 @@ def step_batch(
     table = _as_table(substeps)
     serial, parallel = step_kernels(block_kernel_mode(damper_code, damper_params), damper_code)
     kernel = parallel if state.shape[0] >= PARALLEL_THRESHOLD else serial
+    derived = block_constants(damper_code, damper_params, dt_s, table)
     kernel(
-        damper_params, vehicle_params, state, current_command_a, profiles,
-        profile_index, spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, out,
+        damper_params, vehicle_params, state, current_command_a, profiles, profile_index,
+        spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, derived, out,
     )  # fmt: skip
 
 

@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
+from capsule_env._fastmath import fast_exp, fast_tanh_nonneg
 from capsule_env._validation import check_choice
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
@@ -76,6 +77,38 @@ def invert_affine(f_desired, f0, slope, v, i_max):
         return 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
     i = (f_desired - f0) / slope
     return min(max(i, 0.0), i_max)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def affine_in_current_fast(model, p, x, v):
+    """:func:`affine_in_current` for the algebraic models (Bi-exponential, tanh) without
+    branches or library calls (capsule_env._fastmath), so that a loop over vehicles
+    vectorises; the same values up to rounding."""
+    if model == BI_EXPONENTIAL:
+        up = x >= 0.0
+        d = p[6] if up else p[13]
+        mag = 1.0 - fast_exp(-d * abs(v))
+        s_d = mag if v >= 0.0 else -mag
+        f0 = (p[0] if up else p[7]) * s_d + (p[2] if up else p[9]) * v + (p[4] if up else p[11])
+        slope = (p[1] if up else p[8]) * s_d + (p[3] if up else p[10]) * v
+        return f0, slope + (p[5] if up else p[12])
+    if model == TANH:
+        arg = p[8] * v + (p[9] if x >= 0.0 else -p[9])
+        th = fast_tanh_nonneg(abs(arg))
+        th = th if arg >= 0.0 else -th
+        return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
+    return 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def invert_affine_fast(f_desired, f0, slope, v, i_max):
+    """:func:`invert_affine` as selects (no branches): the same result."""
+    f_max = f0 + slope * i_max
+    flat = abs(slope) * i_max <= 1e-9 * (abs(f0) + abs(f_desired) + 1.0)
+    nearer = 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
+    i = min(max((f_desired - f0) / slope, 0.0), i_max)
+    i = nearer if flat else i
+    return 0.0 if f_desired * v < 0.0 else i
 
 
 @njit(cache=True)

@@ -544,13 +544,14 @@ def _block_inputs(damper, n: int, seed: int = 4):
     )
 
 
-def _run_kernel(kernel, inp, n):
+def _run_kernel(kernel, inp, n, code):
     state, out = initial_state(n), np.empty((n, N_OUTPUTS))
+    derived = dynamics.block_constants(code, inp["dp"], DT, inp["table"])
     states = np.empty((BATCH_STEPS, n, STATE_SIZE))
     for k in range(BATCH_STEPS):
         kernel(inp["dp"], inp["vp"], state, np.ascontiguousarray(inp["cmd"][k]), inp["profiles"],
                inp["idx"], inp["spacing"], inp["x0"], inp["speed"], inp["gain"], DT,
-               inp["table"], out)  # fmt: skip
+               inp["table"], derived, out)  # fmt: skip
         states[k] = state
     return states
 
@@ -579,8 +580,8 @@ def test_vectorised_block_kernel_matches_scalar_kernel(case):
     assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode
     scalar = dynamics.step_kernels(dynamics.KERNEL_SCALAR, damper.code)[0]
     vectorised = dynamics.step_kernels(mode, damper.code)[0]
-    s_ref = _run_kernel(scalar, inp, n)
-    s_vec = _run_kernel(vectorised, inp, n)
+    s_ref = _run_kernel(scalar, inp, n, damper.code)
+    s_vec = _run_kernel(vectorised, inp, n, damper.code)
     assert np.all(np.isfinite(s_vec))
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
@@ -608,9 +609,9 @@ def test_adaptive_substeps_batch_equals_each_vehicle_alone():
     inp = _block_inputs(damper, n, seed=8)
     mode = dynamics.block_kernel_mode(damper.code, inp["dp"])
     serial, parallel = dynamics.step_kernels(mode, damper.code)
-    s_all = _run_kernel(parallel, inp, n)
+    s_all = _run_kernel(parallel, inp, n, damper.code)
     for row in (0, 5, 33, 63, 64, n - 1):
         one = {k: (v[row : row + 1] if isinstance(v, np.ndarray) and k != "profiles"
                    and k != "table" else v) for k, v in inp.items()}  # fmt: skip
         one["cmd"] = np.ascontiguousarray(inp["cmd"][:, row : row + 1])
-        np.testing.assert_array_equal(_run_kernel(serial, one, 1)[:, 0], s_all[:, row])
+        np.testing.assert_array_equal(_run_kernel(serial, one, 1, damper.code)[:, 0], s_all[:, row])

@@ -300,3 +300,42 @@ def test_guideway_window_is_scaled_to_peak():
         z = batch.gain[k] * np.interp(pos / batch.spacing, np.arange(prof.size), prof)
         peaks.append(np.abs(z).max())
     np.testing.assert_allclose(peaks, 0.008, rtol=0.01)
+
+
+def test_sensor_noise_is_white_gaussian_with_the_documented_std():
+    # hils, full_state: every observed channel = its true signal + noise of std
+    # SENSOR_NOISE_STD * sensor_noise. The residuals must have that std, zero mean, a Gaussian
+    # kurtosis (3) and no correlation between channels (noise comes in Box-Muller pairs) or
+    # from one step to the next.
+    from capsule_env.core import SENSOR_NOISE_STD
+
+    config = EnvConfig(setting="hils", observation="full_state")
+    batch = CapsuleBatch(config, 64)
+    batch.seed(3)
+    batch.reset()
+    rng = np.random.default_rng(0)
+    truth_rows = {  # observation column -> signal row
+        0: "car_body_displacement_m", 1: "car_body_velocity_m_s", 2: "bogie_displacement_m",
+        3: "bogie_velocity_m_s", 4: "guideway_elevation_m", 5: "car_body_acceleration_m_s2",
+        6: "bogie_acceleration_m_s2", 7: "stroke_m", 8: "stroke_rate_m_s",
+    }  # fmt: skip
+    channel_of_column = {0: 4, 1: 5, 2: 6, 3: 7, 4: 8, 5: 0, 6: 1, 7: 2, 8: 3}
+    residuals = []
+    for _ in range(300):
+        batch.step(rng.uniform(-1.0, 1.0, 64))
+        obs = batch.obs.astype(np.float64)
+        res = np.empty((64, 9))
+        for col, name in truth_rows.items():
+            res[:, channel_of_column[col]] = obs[:, col] - batch.signals[SIGNAL_NAMES.index(name)]
+        residuals.append(res)
+    r = np.stack(residuals)  # (steps, vehicles, channels)
+    std = SENSOR_NOISE_STD * config.effective_sensor_noise
+    z = (r / std).reshape(-1, 9)  # 19200 samples per channel
+    assert np.all(np.abs(z.mean(axis=0)) < 0.05)
+    np.testing.assert_allclose(z.std(axis=0), 1.0, atol=0.03)
+    kurtosis = np.mean(z**4, axis=0) / np.mean(z**2, axis=0) ** 2
+    np.testing.assert_allclose(kurtosis, 3.0, atol=0.15)
+    corr = np.corrcoef(z.T)
+    assert np.max(np.abs(corr - np.eye(9))) < 0.04
+    lag1 = np.mean(r[1:] * r[:-1], axis=(0, 1)) / np.mean(r**2, axis=(0, 1))
+    assert np.max(np.abs(lag1)) < 0.04

@@ -280,7 +280,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         batch = self._batch
-        a = np.asarray(actions, dtype=np.float64)
+        a = np.asarray(actions)
         if a.size != self.num_envs:
             raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
         batch.step(a.reshape(self.num_envs))
@@ -297,7 +297,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         return batch.obs.copy(), reward, terminated, truncated, self._infos()
 
     def _infos(self) -> dict[str, Any]:
-        columns = self._batch.signals.copy()
+        columns = self._batch.signals  # a fresh buffer every step: rows need no copy
         infos: dict[str, Any] = {}
         for j, name in enumerate(SIGNAL_NAMES):
             infos[name] = columns[j]
