@@ -50,6 +50,7 @@ from capsule_env.dynamics import (
     block_constants,
     block_kernel_mode,
     substep_table,
+    work_item_size,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
 from capsule_env.hysteresis import hysteresis_update
@@ -537,10 +538,6 @@ def _env_step_block(
         sig[16, n] = c_vel
 
 
-#: Vehicles per work item of the multi-threaded kernel (one block of the vectorised kernel).
-CHUNK = BLOCK
-
-
 def _make_env_kernels(model: int, mode: int):
     """Serial and multi-threaded env kernels for one plant model and kernel mode (closure
     constants, so each pair compiles separately and only when used; see
@@ -567,9 +564,10 @@ def _make_env_kernels(model: int, mode: int):
         plant_out,
     ):  # fmt: skip
         n = actions.shape[0]
-        for c in prange((n + CHUNK - 1) // CHUNK):
+        chunk = work_item_size(n)
+        for c in prange((n + chunk - 1) // chunk):
             _env_step_block(
-                model, mode, c * CHUNK, min(n, (c + 1) * CHUNK), actions, cfg_f, cfg_i, inv_p,
+                model, mode, c * chunk, min(n, (c + 1) * chunk), actions, cfg_f, cfg_i, inv_p,
                 noise_std, obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state,
                 profiles, sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
             )  # fmt: skip
@@ -588,6 +586,7 @@ def env_kernels(model: int, mode: int) -> tuple:
     return _ENV_KERNELS[key]
 
 
+#: Batches at least this large are stepped by the multi-threaded kernel.
 PARALLEL_THRESHOLD = 64
 
 

@@ -641,6 +641,14 @@ def _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacin
                      spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
 
 
+@njit(cache=True)
+def work_item_size(n):
+    """Vehicles per work item of the multi-threaded kernels: one block (BLOCK) for large
+    batches, smaller (a multiple of 8, at least 4 items) for small ones so that every core gets
+    work. A vehicle's result does not depend on its block mates, so this changes no number."""
+    return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
+
+
 def _make_step_kernels(mode: int, model: int):
     """Serial and multi-threaded kernels for one (kernel mode, damper model).
 
@@ -659,8 +667,9 @@ def _make_step_kernels(mode: int, model: int):
     def parallel(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
                  derived, out):  # fmt: skip
         n = state.shape[0]
-        for c in prange((n + BLOCK - 1) // BLOCK):
-            _step_chunk(mode, c * BLOCK, min(n, (c + 1) * BLOCK), model, dp, vp, state, i_cmd,
+        chunk = work_item_size(n)
+        for c in prange((n + chunk - 1) // chunk):
+            _step_chunk(mode, c * chunk, min(n, (c + 1) * chunk), model, dp, vp, state, i_cmd,
                         profiles, idx, spacing, x0, speed, gain, dt, table, derived,
                         out)  # fmt: skip
 
