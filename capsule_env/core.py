@@ -475,7 +475,7 @@ def _env_step_block(
     )  # fmt: skip
     # 3. sensor noise, one channel at a time across the block
     nb = hi - lo
-    noise = np.zeros((N_NOISE_CHANNELS + 1, BLOCK))
+    noise = np.zeros((N_NOISE_CHANNELS + 1, hi - lo))
     if cfg_i[I_NOISE]:
         n_pairs = (N_NOISE_CHANNELS + 1) // 2 if cfg_i[I_FULL_OBS] else 2
         keys = noise_key[lo:hi]

@@ -552,9 +552,16 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
                  gain, dt, table, derived, out):  # fmt: skip
     """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt``: the vectorised kernel."""
     nb = hi - lo
-    # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD lanes;
-    # zeros, so that no lane ever computes on denormal garbage (slow on x86)
-    w = np.zeros(2 * _W_HALF_SIZE + 8)
+    # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD lanes.
+    # The columns that only masked lanes read are zeroed, so that no lane ever computes on
+    # denormal garbage (slow on x86); the rest is written below.
+    w = np.empty(2 * _W_HALF_SIZE + 8)
+    w[2 * _W_HALF_SIZE :] = 0.0
+    end = (nb + 1) >> 1
+    for col in range(end, min(end + 3, HALF)):
+        for r in range(_W_ROWS):
+            w[r * HALF + col] = 0.0
+            w[_W_HALF_SIZE + r * HALF + col] = 0.0
     nsub_of = np.empty(BLOCK, dtype=np.int64)
     bin_of = np.empty(BLOCK, dtype=np.int64)
     nsub = np.empty(BLOCK, dtype=np.int64)
