@@ -424,12 +424,20 @@ def _current_lanes(actions, i_max, i_command, f_desired):
 
 
 @njit(cache=True, error_model="numpy")
-def _inverse_lanes(inv_code, inv_p, actions, meas, max_force, i_max, i_command, f_desired):
-    """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop)."""
+def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
+    """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop).
+
+    The parameters are read into a tuple first: ``p[6] if up else p[13]`` on an array is a
+    conditional load, which LLVM does not vectorise (the loop ran 3x slower); on a tuple it is
+    a select between two values."""
+    p = (
+        inv_p[0], inv_p[1], inv_p[2], inv_p[3], inv_p[4], inv_p[5], inv_p[6], inv_p[7],
+        inv_p[8], inv_p[9], inv_p[10], inv_p[11], inv_p[12], inv_p[13], inv_p[14], inv_p[15],
+    )  # fmt: skip
     for j in range(actions.shape[0]):
         f_d = actions[j] * max_force
-        f0, slope = affine_in_current_fast(inv_code, inv_p, meas[j, 2], meas[j, 3])
-        i_command[j] = invert_affine_fast(f_d, f0, slope, meas[j, 3], i_max)
+        f0, slope = affine_in_current_fast(inv_code, p, stroke[j], rate[j])
+        i_command[j] = invert_affine_fast(f_d, f0, slope, rate[j], i_max)
         f_desired[j] = f_d
 
 
@@ -451,7 +459,7 @@ def _env_step_block(
     elif inv_code == BOUC_WEN:
         for n in range(lo, hi):
             f_d = actions[n] * cfg_f[F_MAX_FORCE]
-            x_m, v_m = meas[n, 2], meas[n, 3]
+            x_m, v_m = meas[2, n], meas[3, n]
             z_est = hysteresis_update(
                 env_f[E_CSDC_Z, n], x_m - env_f[E_CSDC_X, n], inv_p[8], inv_p[6], inv_p[7]
             )
@@ -461,7 +469,8 @@ def _env_step_block(
             sig[9, n] = f_d
             sig[10, n] = invert_affine(f_d, f0, slope, v_m, i_max)
     else:
-        _inverse_lanes(inv_code, inv_p, actions[lo:hi], meas[lo:hi], cfg_f[F_MAX_FORCE], i_max,
+        _inverse_lanes(inv_code, inv_p, actions[lo:hi], meas[2, lo:hi], meas[3, lo:hi],
+                       cfg_f[F_MAX_FORCE], i_max,
                        i_command, f_desired)  # fmt: skip
     for n in range(lo, hi):
         delay_buf[n, delay_write] = sig[10, n]  # ring buffer of delay + 1 commands
@@ -475,14 +484,22 @@ def _env_step_block(
     )  # fmt: skip
     # 3. sensor noise, one channel at a time across the block
     nb = hi - lo
-    noise = np.zeros((N_NOISE_CHANNELS + 1, hi - lo))
-    if cfg_i[I_NOISE]:
+    noise = np.empty((N_NOISE_CHANNELS + 1, hi - lo))  # rows that are read get written
+    if not cfg_i[I_NOISE]:
+        noise[:] = 0.0
+    else:
         n_pairs = (N_NOISE_CHANNELS + 1) // 2 if cfg_i[I_FULL_OBS] else 2
         keys = noise_key[lo:hi]
         steps = env_i[E_STEP, lo:hi]
         for j in range(n_pairs):
             _noise_lanes(keys, steps, j, nb, noise[2 * j], noise[2 * j + 1])
-    # 4. sensors, observation, reward, signals
+    # 4. sensors, reward, signals: one SIMD loop over the block (rows of meas and sig are
+    # contiguous; every parameter is read into a local first, so no load is conditional)
+    s_acc_c, s_acc_b, s_stroke, s_rate = noise_std[0], noise_std[1], noise_std[2], noise_std[3]
+    acc_ref, stroke_ref, vel_ref = cfg_f[F_ACC_REF], cfg_f[F_STROKE_REF], cfg_f[F_VEL_REF]
+    w_acc, w_stroke, w_energy = cfg_f[F_W_ACC], cfg_f[F_W_STROKE], cfg_f[F_W_ENERGY]
+    w_vel, stroke_limit, penalty = cfg_f[F_W_VEL], cfg_f[F_STROKE_LIMIT], cfg_f[F_PENALTY]
+    has_current = i_max > 0.0
     for n in range(lo, hi):
         m = n - lo
         zc, vc = state[n, BODY_DISP], state[n, BODY_VEL]
@@ -490,37 +507,23 @@ def _env_step_block(
         stroke = zc - zb
         rate = vc - vb
         force, acc_c, acc_b, zg = plant_out[n, 0], plant_out[n, 1], plant_out[n, 2], plant_out[n, 3]
-        meas[n, 0] = acc_c + noise_std[0] * noise[0, m]
-        meas[n, 1] = acc_b + noise_std[1] * noise[1, m]
-        meas[n, 2] = stroke + noise_std[2] * noise[2, m]
-        meas[n, 3] = rate + noise_std[3] * noise[3, m]
-        meas[n, 4] = sig[10, n]
-        if cfg_i[I_FULL_OBS]:
-            obs[n, 0] = zc + noise_std[4] * noise[4, m]
-            obs[n, 1] = vc + noise_std[5] * noise[5, m]
-            obs[n, 2] = zb + noise_std[6] * noise[6, m]
-            obs[n, 3] = vb + noise_std[7] * noise[7, m]
-            obs[n, 4] = zg + noise_std[8] * noise[8, m]
-            for j in range(4):  # the same (noisy) measurements the inverse model uses
-                obs[n, 5 + j] = meas[n, j]
-            obs[n, 9] = state[n, COIL_CURRENT]
-        else:
-            for j in range(5):
-                obs[n, j] = meas[n, j]
-        for j in range(obs.shape[1]):  # sensors saturate at the observation-space bounds
-            obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
+        meas[0, n] = acc_c + s_acc_c * noise[0, m]
+        meas[1, n] = acc_b + s_acc_b * noise[1, m]
+        meas[2, n] = stroke + s_stroke * noise[2, m]
+        meas[3, n] = rate + s_rate * noise[3, m]
+        meas[4, n] = sig[10, n]
         # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
-        acc_rel = acc_c / cfg_f[F_ACC_REF]
-        stroke_rel = stroke / cfg_f[F_STROKE_REF]
-        current_rel = applied[n] / i_max if i_max > 0.0 else 0.0
-        c_acc = cfg_f[F_W_ACC] * acc_rel * acc_rel
-        c_stroke = cfg_f[F_W_STROKE] * stroke_rel * stroke_rel
-        c_energy = cfg_f[F_W_ENERGY] * current_rel * current_rel
-        vel_rel = vc / cfg_f[F_VEL_REF]
-        c_vel = cfg_f[F_W_VEL] * vel_rel * vel_rel
-        hit = abs(stroke) > cfg_f[F_STROKE_LIMIT]
+        acc_rel = acc_c / acc_ref
+        stroke_rel = stroke / stroke_ref
+        current_rel = applied[n] / i_max if has_current else 0.0
+        c_acc = w_acc * acc_rel * acc_rel
+        c_stroke = w_stroke * stroke_rel * stroke_rel
+        c_energy = w_energy * current_rel * current_rel
+        vel_rel = vc / vel_ref
+        c_vel = w_vel * vel_rel * vel_rel
+        hit = abs(stroke) > stroke_limit
         terminated[n] = hit
-        reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (cfg_f[F_PENALTY] if hit else 0.0)
+        reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (penalty if hit else 0.0)
         sig[0, n] = zc
         sig[1, n] = zb
         sig[2, n] = vc
@@ -536,6 +539,25 @@ def _env_step_block(
         sig[14, n] = c_stroke
         sig[15, n] = c_energy
         sig[16, n] = c_vel
+    # 5. observations (float32 rows; sensors saturate at the observation-space bounds)
+    if cfg_i[I_FULL_OBS]:
+        for n in range(lo, hi):
+            m = n - lo
+            obs[n, 0] = state[n, BODY_DISP] + noise_std[4] * noise[4, m]
+            obs[n, 1] = state[n, BODY_VEL] + noise_std[5] * noise[5, m]
+            obs[n, 2] = state[n, BOGIE_DISP] + noise_std[6] * noise[6, m]
+            obs[n, 3] = state[n, BOGIE_VEL] + noise_std[7] * noise[7, m]
+            obs[n, 4] = sig[12, n] + noise_std[8] * noise[8, m]
+            for j in range(4):  # the same (noisy) measurements the inverse model uses
+                obs[n, 5 + j] = meas[j, n]
+            obs[n, 9] = state[n, COIL_CURRENT]
+    else:
+        for n in range(lo, hi):
+            for j in range(5):
+                obs[n, j] = meas[j, n]
+    for n in range(lo, hi):
+        for j in range(obs.shape[1]):
+            obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
 
 
 def _make_env_kernels(model: int, mode: int):
@@ -638,7 +660,7 @@ class CapsuleBatch:
         self.speed[:] = config.speed_kmh / 3.6
         self.gain[:] = 1.0
         self.noise_key = np.zeros(n, dtype=np.uint64)
-        self.measured = np.zeros((n, 5))
+        self.measured = np.zeros((5, n))  # one row per channel
         self.delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
         self.obs = np.zeros((n, self.obs_dim), dtype=np.float32)
         self.reward = np.zeros(n)
@@ -749,7 +771,7 @@ class CapsuleBatch:
             self.step_count[n] = 0
             self.csdc_z[n] = 0.0
             self.csdc_x[n] = 0.0
-            self.measured[n] = 0.0
+            self.measured[:, n] = 0.0
             self.delay_buf[n] = 0.0
             self.terminated[n] = False
             self.signals[:, n] = 0.0

@@ -574,18 +574,44 @@ def test_vectorised_block_kernel_matches_scalar_kernel(case):
     # hysteresis update of capsule_env.hysteresis) and the vectorised one (call-free exp/log,
     # selects, lanes sorted by substep count). 10 vehicles with different vehicles, currents,
     # guideway windows and speeds, adaptive substeps, 1 s.
+    # Both variants of the block kernel: damper parameters read as constants (KERNEL_UNIFORM,
+    # all rows equal) and copied per vehicle (the rows may differ).
     damper, mode = BLOCK_CASES[case]
     n = 10
     inp = _block_inputs(damper, n)
-    assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode
+    assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode | dynamics.KERNEL_UNIFORM
     scalar = dynamics.step_kernels(dynamics.KERNEL_SCALAR, damper.code)[0]
-    vectorised = dynamics.step_kernels(mode, damper.code)[0]
     s_ref = _run_kernel(scalar, inp, n, damper.code)
-    s_vec = _run_kernel(vectorised, inp, n, damper.code)
-    assert np.all(np.isfinite(s_vec))
+    scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
+    for variant in (mode | dynamics.KERNEL_UNIFORM, mode):
+        s_vec = _run_kernel(dynamics.step_kernels(variant, damper.code)[0], inp, n, damper.code)
+        assert np.all(np.isfinite(s_vec))
+        assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
+    assert np.ptp(s_vec[-1, :, 0]) > 0.0  # the vehicles really differ
+
+
+def test_block_kernel_honours_per_vehicle_damper_rows():
+    # Rows with different damper parameters (domain randomisation of the damper): the per-row
+    # block kernel against each vehicle stepped alone by the scalar kernel.
+    base = ReferenceDamper()
+    n = 6
+    inp = _block_inputs(base, n, seed=3)
+    factors = np.linspace(0.7, 1.3, n)
+    dp = inp["dp"].copy()
+    for col in (0, 2, 4):  # c0a, c1a, alpha_a
+        dp[:, col] *= factors
+    inp["dp"] = np.ascontiguousarray(dp)
+    mode = dynamics.block_kernel_mode(base.code, dp)
+    assert mode == dynamics.KERNEL_BLOCK  # not uniform
+    s_vec = _run_kernel(dynamics.step_kernels(mode, base.code)[0], inp, n, base.code)
+    s_ref = _run_kernel(dynamics.step_kernels(dynamics.KERNEL_SCALAR, base.code)[0], inp, n,
+                        base.code)  # fmt: skip
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
-    assert np.ptp(s_vec[-1, :, 0]) > 0.0  # the vehicles really differ
+    # and the rows matter: the same vehicles with the base damper end elsewhere
+    uniform = dict(inp, dp=np.ascontiguousarray(np.tile(base.as_array(), (n, 1))))
+    s_base = _run_kernel(dynamics.step_kernels(mode, base.code)[0], uniform, n, base.code)
+    assert np.max(np.abs(s_base - s_vec) / scale) > 1e-3
 
 
 def test_block_kernel_mode_falls_back_to_scalar_where_it_must():
@@ -596,7 +622,9 @@ def test_block_kernel_mode_falls_back_to_scalar_where_it_must():
     rows = np.stack([ref.as_array(), unload_tan.as_array()])
     assert dynamics.block_kernel_mode(ref.code, rows[1:]) == dynamics.KERNEL_SCALAR
     assert dynamics.block_kernel_mode(ref.code, rows) == dynamics.KERNEL_SCALAR  # rows disagree
-    assert dynamics.block_kernel_mode(ref.code, rows[:1]) == dynamics.KERNEL_BLOCK
+    uniform = dynamics.KERNEL_BLOCK | dynamics.KERNEL_UNIFORM
+    assert dynamics.block_kernel_mode(ref.code, rows[:1]) == uniform
+    assert dynamics.block_kernel_mode(ref.code, np.stack([rows[0], rows[0]])) == uniform
 
 
 @pytest.mark.slow
