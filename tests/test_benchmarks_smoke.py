@@ -29,3 +29,4 @@ def test_bench_training_runs(tmp_path):
     )  # fmt: skip
     data = json.loads(out.read_text())
     assert data["timesteps"] >= 512 and 0.0 < data["env_share_of_wall"] < 1.0
+    assert data["first_step_s"] > 0.0  # the one-time kernel load, reported apart
