@@ -493,8 +493,8 @@ def _env_step_block(
         steps = env_i[E_STEP, lo:hi]
         for j in range(n_pairs):
             _noise_lanes(keys, steps, j, nb, noise[2 * j], noise[2 * j + 1])
-    # 4. sensors, reward, signals: one SIMD loop over the block (rows of meas and sig are
-    # contiguous; every parameter is read into a local first, so no load is conditional)
+    # 4. sensors, reward, signals: one loop over the block (one contiguous row of meas and sig
+    # per channel; every parameter is read into a local first, so no load is conditional)
     s_acc_c, s_acc_b, s_stroke, s_rate = noise_std[0], noise_std[1], noise_std[2], noise_std[3]
     acc_ref, stroke_ref, vel_ref = cfg_f[F_ACC_REF], cfg_f[F_STROKE_REF], cfg_f[F_VEL_REF]
     w_acc, w_stroke, w_energy = cfg_f[F_W_ACC], cfg_f[F_W_STROKE], cfg_f[F_W_ENERGY]

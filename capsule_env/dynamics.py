@@ -538,7 +538,7 @@ def _substep_lanes(model, mode, w, first, nb, p_uniform, hc_uniform):
     With ``KERNEL_UNIFORM`` in ``mode`` the damper parameters and hysteresis constants are
     ``p_uniform`` and ``hc_uniform`` (loop constants) instead of scratch rows.
     """
-    tanh_unload = (mode & 3) == KERNEL_BLOCK_TANH_UNLOAD  # constants: ``mode`` is a literal
+    tanh_unload = (mode & ~KERNEL_UNIFORM) == KERNEL_BLOCK_TANH_UNLOAD  # ``mode``: a literal
     uniform = (mode & KERNEL_UNIFORM) != 0
     col0 = first >> 1
     first_a = (first + 1) >> 1  # first active column of the even half
