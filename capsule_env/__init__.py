@@ -53,7 +53,8 @@ def _register() -> None:
             id="CapsuleSuspension-v0",
             entry_point="capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv",
             vector_entry_point="capsule_env.envs.capsule_suspension:CapsuleSuspensionVectorEnv",
-            max_episode_steps=2000,
+            # no max_episode_steps: the env ends its episodes itself after episode_length_s *
+            # control_rate_hz steps, an argument (a fixed number here would override it)
         )
 
 

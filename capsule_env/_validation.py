@@ -3,17 +3,63 @@
 from __future__ import annotations
 
 import math
+import numbers
+import os
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
 
+def check_real(name: str, value: Any) -> float:
+    """Return ``value`` as float, or raise ``TypeError`` unless it is a real number (an int or
+    float, numpy's too; not a bool, a string or None)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
+    return float(value)
+
+
 def check_finite(name: str, value: float) -> float:
-    """Return ``value`` as float, or raise if it is NaN or infinite."""
-    value = float(value)
+    """Return ``value`` as float, or raise if it is not a real number or is NaN or infinite."""
+    value = check_real(name, value)
     if not math.isfinite(value):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
     return value
+
+
+def check_integer(name: str, value: Any, low: int, high: int) -> int:
+    """Return ``value`` as int, or raise ``TypeError`` unless it is an integer (not a bool or a
+    float) and ``ValueError`` unless ``low <= value <= high``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise TypeError(
+            f"{name} must be an integer in [{low}, {high}], got {value!r} ({type(value).__name__})"
+        )
+    if not low <= int(value) <= high:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def available_memory_bytes() -> int:
+    """Memory this machine can still give (``MemAvailable`` on Linux; else the physical size)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:  # pragma: no cover - not Linux
+        pass
+    try:  # pragma: no cover - not Linux
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover
+        return 8 * 2**30
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes as a short string (KiB, MiB, GiB)."""
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n:.0f} B"
 
 
 def check_positive(name: str, value: float) -> float:
@@ -54,8 +100,13 @@ def check_array_in_range(name: str, values: np.ndarray, low: float, high: float)
 
 
 def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
-    """Raise unless ``value`` is one of ``choices``."""
+    """Raise unless ``value`` is one of ``choices`` (``TypeError`` if it is not a string)."""
     choices = tuple(choices)
+    if not isinstance(value, str):
+        raise TypeError(
+            f"{name} must be one of {', '.join(choices)} (a string), got {value!r} "
+            f"({type(value).__name__})"
+        )
     if value not in choices:
         raise ValueError(f"unknown {name} {value!r}; accepted values: {', '.join(choices)}")
     return value

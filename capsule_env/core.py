@@ -7,8 +7,8 @@ inverse model in force mode), applies the control delay, advances the plant
 The single Gymnasium env is a batch of one; the native vector env and the SB3 ``VecEnv`` are
 batches of ``N``: same kernel, same numbers.
 
-Randomness is per vehicle: vehicle ``n`` owns a ``numpy.random.Generator`` (seeded ``seed + n``)
-used only at reset (guideway window, domain randomisation, the noise key), and sensor noise is a
+Randomness is per vehicle: vehicle ``n`` owns a ``numpy.random.Generator`` (stream ``n`` of
+``numpy.random.SeedSequence(seed)``, :func:`vehicle_streams`) used only at reset (guideway window, domain randomisation, the noise key), and sensor noise is a
 counter-based hash of ``(noise key, step, channel)``. So a trajectory depends only on the seed
 and the actions, never on the batch size, the batch position or threading.
 """
@@ -20,14 +20,18 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from capsule_env._fastmath import FAST, fast_cos_2pi, fast_log
+from capsule_env._threads import run_batched
 from capsule_env._validation import (
+    available_memory_bytes,
     check_choice,
     check_in_range,
+    check_integer,
     check_nonnegative,
     check_positive,
+    format_bytes,
 )
 from capsule_env.dampers import (
     BOUC_WEN,
@@ -44,15 +48,21 @@ from capsule_env.dynamics import (
     BOGIE_DISP,
     BOGIE_VEL,
     COIL_CURRENT,
+    MAX_AUTO_SUBSTEPS,
     STATE_SIZE,
     SUBSTEP_BINS,
     _step_chunk,
     block_constants,
     block_kernel_mode,
-    substep_table,
-    work_item_size,
+    substep_tables,
 )
-from capsule_env.guideway import GuidewayParams, make_profile, random_profile
+from capsule_env.guideway import (
+    GUIDEWAY_KINDS,
+    GuidewayParams,
+    fft_length,
+    make_profile,
+    random_profile,
+)
 from capsule_env.hysteresis import hysteresis_update
 from capsule_env.inverse import (
     INVERSE_NAMES,
@@ -183,19 +193,24 @@ class EnvConfig:
         if self.damper is not None:
             check_choice("damper", self.damper, PLANT_DAMPERS)
         if self.coil_time_constant_s is not None:
-            check_nonnegative("coil_time_constant_s", self.coil_time_constant_s)
+            check_in_range("coil_time_constant_s", self.coil_time_constant_s, 0.0, 10.0)
         if self.sensor_noise is not None:
-            check_nonnegative("sensor_noise", self.sensor_noise)
+            check_in_range("sensor_noise", self.sensor_noise, 0.0, 1e3)
         if self.control_delay_steps is not None:
-            if int(self.control_delay_steps) != self.control_delay_steps:
-                raise ValueError("control_delay_steps must be an integer >= 0")
-            check_in_range("control_delay_steps", self.control_delay_steps, 0, 100)
-        check_positive("speed_kmh", self.speed_kmh)
-        check_in_range("guideway_bank_size", self.guideway_bank_size, 1, 4096)
+            check_integer("control_delay_steps", self.control_delay_steps, 0, 100)
+        check_choice("guideway", self.guideway, GUIDEWAY_KINDS)
+        check_in_range("speed_kmh", self.speed_kmh, 1e-3, 1e4)
+        check_seed("guideway_seed", self.guideway_seed)
+        check_integer("guideway_bank_size", self.guideway_bank_size, 1, 4096)
         check_in_range("control_rate_hz", self.control_rate_hz, 1.0, 10_000.0)
         check_positive("episode_length_s", self.episode_length_s)
+        if self.episode_length_s * self.control_rate_hz < 0.5:
+            raise ValueError(
+                f"episode_length_s must be at least one control step (1 / control_rate_hz = "
+                f"{1.0 / self.control_rate_hz:g} s), got {self.episode_length_s!r}"
+            )
         if self.substeps is not None:
-            check_in_range("substeps", self.substeps, 1, 10_000)
+            check_integer("substeps", self.substeps, 1, 10_000)
         check_choice("observation", self.observation, OBSERVATION_SETS)
         check_positive("max_force_n", self.max_force_n)
         for name in (
@@ -212,17 +227,20 @@ class EnvConfig:
         check_positive("stroke_limit_m", self.stroke_limit_m)
         check_in_range("vehicle_randomization", self.vehicle_randomization, 0.0, 0.9)
         if self.speed_range_kmh is not None:
-            lo, hi = self.speed_range_kmh
-            check_positive("speed_range_kmh[0]", lo)
-            if not hi >= lo:
-                raise ValueError(
-                    f"speed_range_kmh must be (low, high) with high >= low, got {self.speed_range_kmh!r}"
-                )
+            _check_speed_range(self.speed_range_kmh)
         for name in ("guideway_params", "vehicle_params", "damper_params", "inverse_params"):
             if not isinstance(getattr(self, name), dict):
-                raise ValueError(f"{name} must be a dict of parameter overrides")
+                raise TypeError(f"{name} must be a dict of parameter overrides")
+        for key, arg in (("speed_kmh", "speed_kmh"), ("kind", "guideway")):
+            if key in self.guideway_params:
+                raise ValueError(
+                    f"guideway_params[{key!r}] is not accepted: the env argument {arg!r} sets it "
+                    "(one source of truth for the guideway and the vehicle)"
+                )
         # Build everything once so that bad overrides fail here, with the parameter named.
         _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+        self._check_substeps()
+        self.check_memory(1)
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
@@ -233,8 +251,8 @@ class EnvConfig:
                 raise ValueError(
                     f"unknown environment argument {key!r}; accepted: {', '.join(sorted(known))}"
                 )
-        if kwargs.get("speed_range_kmh") is not None:
-            kwargs["speed_range_kmh"] = tuple(float(v) for v in kwargs["speed_range_kmh"])
+        if isinstance(kwargs.get("speed_range_kmh"), list):  # e.g. from JSON
+            kwargs["speed_range_kmh"] = tuple(kwargs["speed_range_kmh"])
         return cls(**kwargs)
 
     # ---- derived values (properties, not stored copies) ----
@@ -307,28 +325,103 @@ class EnvConfig:
         damper = self.plant_damper
         return float(getattr(damper, "max_current_a", self.inverse_damper.max_current_a))
 
-    @property
-    def substep_table(self) -> np.ndarray:
-        """Substeps per control step by coil-current bin (``dynamics.substep_table``)."""
+    def substep_tables(self, vehicle_params: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
+        """Substeps per control step, per vehicle (rows of packed ``vehicle_params``, each at its
+        own ``speed_mps``) and coil-current bin (:func:`capsule_env.dynamics.substep_tables`),
+        or the fixed ``substeps``."""
+        n = np.atleast_2d(vehicle_params).shape[0]
         if self.substeps is not None:
-            return np.full(SUBSTEP_BINS, int(self.substeps), dtype=np.int64)
-        return substep_table(
-            self.plant_damper, self.dt_s, self.vehicle, input_rate_rad_s=self.input_rate_rad_s
-        )
+            return np.full((n, SUBSTEP_BINS), int(self.substeps), dtype=np.int64)
+        rate = self.input_rate_rad_s(np.asarray(speed_mps, dtype=float))
+        return substep_tables(self.plant_damper, self.dt_s, vehicle_params, rate)
 
-    @property
-    def input_rate_rad_s(self) -> float:
-        """Highest angular frequency of the guideway input at the highest speed (rad/s)."""
+    def input_rate_rad_s(self, speed_mps: np.ndarray | float) -> np.ndarray:
+        """Highest angular frequency of the guideway input at ``speed_mps`` (rad/s)."""
         gw = self.guideway_spec
-        speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
+        speed = np.asarray(speed_mps, dtype=float)
+        if gw.kind == "sine":
+            return np.full_like(speed, 2.0 * math.pi * gw.frequency_hz)
+        if gw.kind == "swept_sine":
+            return np.full_like(speed, 2.0 * math.pi * max(gw.start_hz, gw.stop_hz))
         shortest = {
             "random": gw.min_wavelength_m,
-            "sine": speed / gw.frequency_hz,
-            "swept_sine": speed / max(gw.start_hz, gw.stop_hz),
             "bump": gw.bump_length_m,
             "step": max(2.0 * gw.ramp_length_m, 4.0 * gw.spacing_m),
         }[gw.kind]
         return 2.0 * math.pi * speed / shortest
+
+    @property
+    def speed_range_mps(self) -> tuple[float, float]:
+        """Lowest and highest vehicle speed (m/s)."""
+        lo, hi = self.speed_range_kmh or (self.speed_kmh, self.speed_kmh)
+        return float(lo) / 3.6, float(hi) / 3.6
+
+    @property
+    def window_m(self) -> float:
+        """Guideway one episode covers at the highest speed, plus a margin (m)."""
+        return self.speed_range_mps[1] * self.episode_length_s + 4 * self.guideway_spec.spacing_m
+
+    @property
+    def bank_samples(self) -> int:
+        """Samples per guideway profile of the bank (four windows for a random guideway, so
+        that episodes start at random places; one window otherwise)."""
+        gw = self.guideway_spec
+        length = (4.0 if gw.kind == "random" else 1.0) * self.window_m
+        return int(round(length / gw.spacing_m)) + 1 + 8
+
+    def memory_bytes(self, num_envs: int = 1) -> int:
+        """Memory a batch of ``num_envs`` vehicles needs at its peak (bytes): the guideway
+        bank (its profiles, twice while they are stacked, and the FFT that makes one), and
+        about 2 KiB per vehicle."""
+        gw = self.guideway_spec
+        profiles = self.guideway_bank_size if gw.kind == "random" else 1
+        bank = 2 * profiles * self.bank_samples * 8
+        if gw.kind == "random":
+            n_fft = fft_length(4.0 * self.window_m, gw.spacing_m, gw.max_wavelength_m)
+            bank += 40 * n_fft
+        delay = (self.effective_control_delay_steps + 1) * 8
+        return bank + num_envs * (2048 + delay)
+
+    def check_memory(self, num_envs: int = 1) -> None:
+        """Refuse (``ValueError`` naming the arguments to change) a batch that would need more
+        than 80 % of the memory available now."""
+        need, free = self.memory_bytes(num_envs), available_memory_bytes()
+        if need > 0.8 * free:
+            gw = self.guideway_spec
+            raise ValueError(
+                f"this configuration needs about {format_bytes(need)} of memory "
+                f"(num_envs={num_envs}; a guideway bank of {self.guideway_bank_size} profiles "
+                f"of {self.bank_samples} samples), more than 80 % of the {format_bytes(free)} "
+                f"available: lower episode_length_s ({self.episode_length_s:g} s), "
+                f"guideway_bank_size ({self.guideway_bank_size}) or num_envs, or raise "
+                f"guideway_params['spacing_m'] ({gw.spacing_m:g} m)"
+            )
+
+    @property
+    def randomizes_substeps(self) -> bool:
+        """Whether vehicles differ in what sets their substeps (randomised parameters or
+        speed): then each vehicle's table is computed at its reset."""
+        lo, hi = self.speed_range_mps
+        return self.substeps is None and (self.vehicle_randomization > 0.0 or hi > lo)
+
+    def _check_substeps(self) -> None:
+        """Refuse a configuration whose stiffest vehicle (the randomisation corner with the
+        lightest masses, stiffest springs and highest speed) needs more than
+        ``MAX_AUTO_SUBSTEPS`` substeps per control step."""
+        if self.substeps is not None:
+            return
+        r = self.vehicle_randomization
+        corner = self.vehicle.as_array() * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r])
+        speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
+        need = int(self.substep_tables(corner, np.array([speed])).max())
+        if need > MAX_AUTO_SUBSTEPS:
+            raise ValueError(
+                f"this configuration needs {need} RK4 substeps per control step (more than "
+                f"{MAX_AUTO_SUBSTEPS}): the damper or the vehicle is too stiff for "
+                f"control_rate_hz={self.control_rate_hz:g} (check vehicle_params masses and "
+                "stiffnesses, damper_params, vehicle_randomization, speed_kmh); raise "
+                "control_rate_hz, or set substeps explicitly"
+            )
 
     @property
     def observation_names(self) -> tuple[str, ...]:
@@ -347,6 +440,58 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
         high = [1.0, 10.0, 1.0, 10.0, 1.0, 100.0, 100.0, x_lim, 10.0, i_max]
         low = [-1.0, -10.0, -1.0, -10.0, -1.0, -100.0, -100.0, -x_lim, -10.0, 0.0]
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+def _check_speed_range(value: Any) -> None:
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise TypeError(f"speed_range_kmh must be None or (low, high) in km/h, got {value!r}")
+    lo = check_in_range("speed_range_kmh[0]", value[0], 1e-3, 1e4)
+    hi = check_in_range("speed_range_kmh[1]", value[1], 1e-3, 1e4)
+    if hi < lo:
+        raise ValueError(f"speed_range_kmh must be (low, high) with high >= low, got {value!r}")
+
+
+def check_seed(name: str, seed: Any) -> int:
+    """``seed`` as an int, or a ``TypeError``/``ValueError`` naming ``name``: seeds are integers
+    in ``[0, 2**63)`` (not bools, not floats)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer in [0, 2**63), got {seed!r}")
+    if not 0 <= int(seed) < 2**63:
+        raise ValueError(f"{name} must be an integer in [0, 2**63), got {seed!r}")
+    return int(seed)
+
+
+def check_num_envs(num_envs: Any) -> int:
+    """``num_envs`` as an int >= 1, or a ``TypeError``/``ValueError`` saying so."""
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
+        raise TypeError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    return int(num_envs)
+
+
+def vehicle_streams(seed: Any, num_envs: int) -> list[np.random.Generator]:
+    """One random generator per vehicle, used at its resets.
+
+    - ``seed`` an int: ``numpy.random.SeedSequence(seed).spawn(num_envs)``: independent streams,
+      and two batches seeded differently share none (vehicle ``n`` of seed ``s`` is *not*
+      vehicle ``n - 1`` of seed ``s + 1``). Vehicle 0 is the single env seeded ``s``.
+    - a sequence of ``num_envs`` ints: vehicle ``n`` gets the stream of the single env seeded
+      ``seed[n]`` (to reproduce individual episodes).
+    - None: fresh entropy.
+    """
+    if seed is None:
+        return [np.random.default_rng(s) for s in np.random.SeedSequence().spawn(num_envs)]
+    if isinstance(seed, (list, tuple, np.ndarray)):
+        seeds = list(np.asarray(seed, dtype=object).reshape(-1))
+        if len(seeds) != num_envs:
+            raise ValueError(f"seed must be an int or a list of {num_envs} ints, got {len(seeds)}")
+        return [
+            np.random.default_rng(np.random.SeedSequence(check_seed(f"seed[{k}]", s)).spawn(1)[0])
+            for k, s in enumerate(seeds)
+        ]
+    root = np.random.SeedSequence(check_seed("seed", seed))
+    return [np.random.default_rng(s) for s in root.spawn(num_envs)]
 
 
 def _build(name: str, cls: type, overrides: dict) -> Any:
@@ -433,6 +578,7 @@ def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_c
     p = (
         inv_p[0], inv_p[1], inv_p[2], inv_p[3], inv_p[4], inv_p[5], inv_p[6], inv_p[7],
         inv_p[8], inv_p[9], inv_p[10], inv_p[11], inv_p[12], inv_p[13], inv_p[14], inv_p[15],
+        inv_p[16],
     )  # fmt: skip
     for j in range(actions.shape[0]):
         f_d = actions[j] * max_force
@@ -560,56 +706,36 @@ def _env_step_block(
             obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
 
 
-def _make_env_kernels(model: int, mode: int):
-    """Serial and multi-threaded env kernels for one plant model and kernel mode (closure
-    constants, so each pair compiles separately and only when used; see
-    :func:`capsule_env.dynamics.step_kernels`)."""
+def _make_env_kernel(model: int, mode: int):
+    """The env kernel for one plant model and kernel mode: steps vehicles ``lo .. hi-1``
+    (closure constants, so each compiles separately and only when used; ``nogil``, so that
+    :func:`capsule_env._threads.run_batched` runs chunks of a large batch in parallel)."""
 
-    @njit(cache=True)
-    def serial(
-        actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-        delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated, sig, applied,
-        plant_out,
+    @njit(cache=True, nogil=True)
+    def kernel(
+        lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
+        meas, delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated,
+        sig, applied, plant_out,
     ):  # fmt: skip
-        n = actions.shape[0]
-        for lo in range(0, n, BLOCK):
+        for b in range(lo, hi, BLOCK):
             _env_step_block(
-                model, mode, lo, min(n, lo + BLOCK), actions, cfg_f, cfg_i, inv_p, noise_std,
+                model, mode, b, min(hi, b + BLOCK), actions, cfg_f, cfg_i, inv_p, noise_std,
                 obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state, profiles,
                 sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
             )  # fmt: skip
 
-    @njit(cache=True, parallel=True)
-    def parallel(
-        actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key, meas,
-        delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated, sig, applied,
-        plant_out,
-    ):  # fmt: skip
-        n = actions.shape[0]
-        chunk = work_item_size(n)
-        for c in prange((n + chunk - 1) // chunk):
-            _env_step_block(
-                model, mode, c * chunk, min(n, (c + 1) * chunk), actions, cfg_f, cfg_i, inv_p,
-                noise_std, obs_bounds, env_f, env_i, noise_key, meas, delay_buf, dp, vp, state,
-                profiles, sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
-            )  # fmt: skip
-
-    return serial, parallel
+    return kernel
 
 
-_ENV_KERNELS: dict[tuple[int, int], tuple] = {}
+_ENV_KERNELS: dict[tuple[int, int], Any] = {}
 
 
-def env_kernels(model: int, mode: int) -> tuple:
-    """``(serial, parallel)`` env kernels for a plant model and kernel mode (memoised)."""
+def env_kernel(model: int, mode: int) -> Any:
+    """The env kernel for a plant model and kernel mode (memoised)."""
     key = (int(model), int(mode))
     if key not in _ENV_KERNELS:
-        _ENV_KERNELS[key] = _make_env_kernels(*key)
+        _ENV_KERNELS[key] = _make_env_kernel(*key)
     return _ENV_KERNELS[key]
-
-
-#: Batches at least this large are stepped by the multi-threaded kernel.
-PARALLEL_THRESHOLD = 64
 
 
 class CapsuleBatch:
@@ -622,24 +748,20 @@ class CapsuleBatch:
     """
 
     def __init__(self, config: EnvConfig, num_envs: int = 1) -> None:
-        if int(num_envs) != num_envs or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = config
-        self.num_envs = n = int(num_envs)
+        self.num_envs = n = check_num_envs(num_envs)
         self.vehicle = config.vehicle
         self.plant = config.plant_damper
         self.inverse = config.inverse_damper
         self.i_max = config.max_current_a
         self.dt = config.dt_s
-        self.sub_table = config.substep_table
         self.max_steps = config.max_episode_steps
         self.full_obs = config.observation == "full_state"
         self.obs_dim = len(config.observation_names)
         gw = config.guideway_spec
         self.guideway = gw
-        speeds = config.speed_range_kmh or (config.speed_kmh, config.speed_kmh)
-        self._speed_range_mps = (speeds[0] / 3.6, speeds[1] / 3.6)
-        self._window_m = self._speed_range_mps[1] * config.episode_length_s + 4 * gw.spacing_m
+        config.check_memory(n)  # before anything large is allocated
+        self._window_m = config.window_m
         self.profiles = self._build_bank()
         self.spacing = gw.spacing_m
         self.max_steps = config.max_episode_steps
@@ -673,7 +795,7 @@ class CapsuleBatch:
         self.plant_out = np.zeros((n, 4))
         self.noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
         self.obs_bounds = np.array(observation_bounds(config, self.i_max))
-        self.rngs = [np.random.default_rng(None) for _ in range(n)]
+        self.rngs = vehicle_streams(None, n)
         self._inv_params = self.inverse.as_array()
         self.cfg_f = np.array(
             [
@@ -697,11 +819,15 @@ class CapsuleBatch:
             dtype=np.int64,
         )
         self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
+        # substeps per vehicle and current bin, and the block kernel's per-vehicle constants;
+        # recomputed at each vehicle's reset when vehicles differ (config.randomizes_substeps)
+        self.sub_table = np.ascontiguousarray(
+            np.tile(config.substep_tables(self.vehicle_params[:1], self.speed[:1]), (n, 1))
+        )
         self.block_constants = block_constants(
             self.plant.code, self.damper_params, self.dt, self.sub_table
         )
-        serial, parallel = env_kernels(self.plant.code, self.kernel_mode)
-        self._kernel = parallel if n >= PARALLEL_THRESHOLD else serial
+        self._kernel = env_kernel(self.plant.code, self.kernel_mode)
         self._nominal_vehicle = self.vehicle.as_array()
         self._action_buf = np.zeros(n)
         self._delay_pos = 0
@@ -729,17 +855,14 @@ class CapsuleBatch:
         return np.ascontiguousarray(make_profile(gw, duration)[None, :])
 
     # ---------------------------------------------------------------- seeding / reset
-    def seed(self, seed: int | None) -> None:
-        """Re-seed every vehicle's generator: vehicle n gets ``seed + n`` (None: fresh entropy)."""
-        if seed is None:
-            self.rngs = [np.random.default_rng(None) for _ in range(self.num_envs)]
-        else:
-            self.rngs = [np.random.default_rng(int(seed) + k) for k in range(self.num_envs)]
+    def seed(self, seed: int | list[int] | None) -> None:
+        """Re-seed every vehicle's generator (:func:`vehicle_streams`)."""
+        self.rngs = vehicle_streams(seed, self.num_envs)
 
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Start new episodes for the vehicles in ``mask`` (all if None)."""
         ids = range(self.num_envs) if mask is None else np.flatnonzero(mask)
-        if mask is None and self.num_envs > 1:  # see _run: info arrays handed out stay intact
+        if mask is None:  # see _run: info arrays handed out stay intact
             self._signals_buf = np.zeros((N_SIGNALS, self.num_envs + 8))
             self.signals = self._signals_buf[:, : self.num_envs]
         cfg, gw = self.config, self.guideway
@@ -751,7 +874,7 @@ class CapsuleBatch:
             u_offset, u_speed = rng.random(2)
             factors = 1.0 + cfg.vehicle_randomization * rng.uniform(-1.0, 1.0, 4)
             self.noise_key[n] = np.uint64(rng.integers(0, 2**63 - 1))
-            lo, hi = self._speed_range_mps
+            lo, hi = cfg.speed_range_mps
             self.speed[n] = lo + (hi - lo) * u_speed
             self.vehicle_params[n] = self._nominal_vehicle * factors
             self.profile_index[n] = k
@@ -781,6 +904,12 @@ class CapsuleBatch:
                 self.obs[n, 0] = self.obs[n, 2] = self.obs[n, 4] = zg0
             else:
                 self.obs[n] = 0.0
+        if cfg.randomizes_substeps:
+            rows = np.fromiter(ids, dtype=np.int64)
+            self.sub_table[rows] = cfg.substep_tables(self.vehicle_params[rows], self.speed[rows])
+            self.block_constants[rows] = block_constants(
+                self.plant.code, self.damper_params[rows], self.dt, self.sub_table[rows]
+            )
 
     # ---------------------------------------------------------------- step
     def step(self, actions: np.ndarray) -> None:
@@ -808,18 +937,18 @@ class CapsuleBatch:
         self._run()
 
     def _run(self) -> None:
-        if self.num_envs > 1:
-            # A fresh signals buffer every step (the kernel writes every entry): the vector
-            # envs hand its rows out as ``info`` arrays without copying them.
-            self._signals_buf = np.empty((N_SIGNALS, self.num_envs + 8))
-            self.signals = self._signals_buf[:, : self.num_envs]
+        # A fresh signals buffer every step (the kernel writes every entry): the vector envs
+        # hand its rows out as ``info`` arrays without copying them, so infos kept from
+        # earlier steps keep their values (for any number of vehicles, one included).
+        self._signals_buf = np.empty((N_SIGNALS, self.num_envs + 8))
+        self.signals = self._signals_buf[:, : self.num_envs]
         # ring buffer of delay + 1 commands: write this step's, apply the oldest
         self._delay_pos += 1
         n_buf = self.delay_buf.shape[1]
         self.cfg_i[I_DELAY_WRITE] = self._delay_pos % n_buf
         self.cfg_i[I_DELAY_READ] = (self._delay_pos + 1) % n_buf
-        self._kernel(
-            self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
+        run_batched(
+            self._kernel, self.num_envs, self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
             self.sub_table, self.block_constants, self.obs, self.reward, self.terminated,

@@ -59,9 +59,12 @@ __all__ = [
 # Integer codes used by the compiled kernels.
 PASSIVE, REFERENCE, BOUC_WEN, TANH, BI_EXPONENTIAL = 0, 1, 2, 3, 4
 DAMPER_NAMES = ("passive", "reference", "bouc_wen", "tanh", "bi_exponential")
-#: Length of the packed parameter vector; the last two slots are i_max and the coil time constant.
-N_DAMPER_PARAMS = 16
-_I_MAX, _COIL_TAU = 14, 15
+#: Length of the packed parameter vector: model parameters, then i_max, the coil time constant
+#: and the branch-blend width of the sign-of-stroke models (Bi-exponential, tanh).
+N_DAMPER_PARAMS = 17
+_I_MAX, _COIL_TAU, _BLEND = 14, 15, 16
+#: Fields packed into their own slots rather than in declaration order.
+_SLOTTED = ("max_current_a", "coil_time_constant_s", "branch_blend_m")
 
 
 class _DamperBase:
@@ -74,7 +77,7 @@ class _DamperBase:
         return [
             getattr(self, f.name)
             for f in fields(self)  # type: ignore[arg-type]
-            if f.name not in ("max_current_a", "coil_time_constant_s")
+            if f.name not in _SLOTTED
         ]
 
     def as_array(self) -> np.ndarray:
@@ -84,6 +87,7 @@ class _DamperBase:
         out[: len(values)] = values
         out[_I_MAX] = getattr(self, "max_current_a", 0.0)
         out[_COIL_TAU] = getattr(self, "coil_time_constant_s", 0.0)
+        out[_BLEND] = getattr(self, "branch_blend_m", 0.0)
         return out
 
     def _validate_common(self) -> None:
@@ -193,8 +197,12 @@ class BoucWenDamper(_DamperBase):
 class TanhDamper(_DamperBase):
     """Hyperbolic-tangent hysteresis model (paper eq. 3, Kwok et al. 2006, MODEL.md 4.3)::
 
-        F = c v + k x + alpha tanh(beta v + delta sign(x)) + f0
+        F = c v + k x + alpha tanh(beta v + delta sgn_w(x)) + f0
         c, k, alpha, f0 linear in current (p = p_a + p_b i); beta, delta constant
+
+    ``sgn_w`` is ``sign(x)`` made continuous over ``|x| < branch_blend_m`` (see
+    :func:`branch_weight`): the literal sign makes the force jump at x = 0, where a vehicle at
+    rest starts, and no fixed-step integrator converges there.
 
     Default values: identified from the reference damper's loops (variable projection over
     beta, delta; ``python -m capsule_env.identify --emit-defaults``).
@@ -212,12 +220,14 @@ class TanhDamper(_DamperBase):
     delta: float = -0.072137
     max_current_a: float = 1.5
     coil_time_constant_s: float = 0.0
+    branch_blend_m: float = 1e-4
     code: ClassVar[int] = TANH
     name: ClassVar[str] = "tanh"
 
     def __post_init__(self) -> None:
         self._validate_common()
         check_positive("beta", self.beta)
+        _check_blend(self.branch_blend_m)
 
 
 @dataclass(frozen=True)
@@ -229,6 +239,10 @@ class BiExponentialDamper(_DamperBase):
         a(i) = a0 + a1 i,  b(i) = b0 + b1 i,  c(i) = c0 + c1 i,  d constant per branch (s/m)
 
     a: yield force (N), b: post-yield viscous slope (N s/m), c: hysteresis offset (N).
+    Within ``|x| < branch_blend_m`` the seven parameters pass smoothly from the lower set to
+    the upper one (:func:`branch_weight`) [reconstructed regularisation, default 0.1 mm]: the
+    literal switch makes the force jump by ``c_upper - c_lower`` (about 700 N) at x = 0, where
+    a vehicle at rest starts, and no fixed-step integrator converges there.
     Default values: identified from the reference damper's loops by the paper's procedure
     (per branch and current fits; d = mean over currents; a, b, c refitted and made linear in
     current; ``python -m capsule_env.identify --emit-defaults``).
@@ -250,6 +264,7 @@ class BiExponentialDamper(_DamperBase):
     lower_d: float = 119.0
     max_current_a: float = 1.5
     coil_time_constant_s: float = 0.0
+    branch_blend_m: float = 1e-4
     code: ClassVar[int] = BI_EXPONENTIAL
     name: ClassVar[str] = "bi_exponential"
 
@@ -257,6 +272,15 @@ class BiExponentialDamper(_DamperBase):
         self._validate_common()
         check_positive("upper_d", self.upper_d)
         check_positive("lower_d", self.lower_d)
+        _check_blend(self.branch_blend_m)
+
+
+def _check_blend(width_m: float) -> None:
+    if not 1e-7 <= width_m <= 1e-2:
+        raise ValueError(
+            f"branch_blend_m must be in [1e-07, 0.01] m (the stroke band over which the "
+            f"sign-of-stroke branch switches), got {width_m!r}"
+        )
 
 
 DamperParams = LinearDamper | ReferenceDamper | BoucWenDamper | TanhDamper | BiExponentialDamper
@@ -302,6 +326,40 @@ def make_damper(name: str, **overrides: float) -> DamperParams:
 # --------------------------------------------------------------------------- compiled core
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def branch_weight(x: float, width_m: float) -> float:
+    """Weight of the upper (x >= 0) branch of a sign-of-stroke model: 0 for ``x <= -width_m``,
+    1 for ``x >= width_m``, the smoothstep ``s^2 (3 - 2 s)`` of ``s = (1 + x / width_m) / 2`` in
+    between (continuous force and slope; no branch, so loops over vehicles vectorise)."""
+    s = min(max(0.5 + 0.5 * x / width_m, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True)
+def branch_weights(x: np.ndarray, width_m: float) -> np.ndarray:
+    """:func:`branch_weight` of every element of a 1-D array (numpy callers: identification)."""
+    out = np.empty(x.shape[0])
+    for k in range(x.shape[0]):
+        out[k] = branch_weight(x[k], width_m)
+    return out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def bi_exponential_branch(p, x: float):
+    """The Bi-exponential parameters ``(a0, a1, b0, b1, c0, c1, d)`` at stroke ``x``: the lower
+    set plus :func:`branch_weight` times (upper - lower)."""
+    w = branch_weight(x, p[_BLEND])
+    return (
+        p[7] + w * (p[0] - p[7]),
+        p[8] + w * (p[1] - p[8]),
+        p[9] + w * (p[2] - p[9]),
+        p[10] + w * (p[3] - p[10]),
+        p[11] + w * (p[4] - p[11]),
+        p[12] + w * (p[5] - p[12]),
+        p[13] + w * (p[6] - p[13]),
+    )
+
+
 @njit(cache=True, inline="always")
 def damper_eval(model: int, p: np.ndarray, x: float, v: float, y: float, z: float, i: float):
     """Force and internal rates of one damper.
@@ -320,7 +378,7 @@ def damper_eval(model: int, p: np.ndarray, x: float, v: float, y: float, z: floa
         force = (p[0] + p[1] * i) * v + p[4] * (x - p[5]) + (p[2] + p[3] * i) * z
         return force, 0.0, v
     if model == TANH:
-        sx = 1.0 if x >= 0.0 else -1.0
+        sx = 2.0 * branch_weight(x, p[_BLEND]) - 1.0
         force = (
             (p[0] + p[1] * i) * v
             + (p[2] + p[3] * i) * x
@@ -330,12 +388,9 @@ def damper_eval(model: int, p: np.ndarray, x: float, v: float, y: float, z: floa
         )
         return force, 0.0, 0.0
     if model == BI_EXPONENTIAL:
-        o = 0 if x >= 0.0 else 7
-        s_d = math.copysign(1.0 - math.exp(-p[o + 6] * abs(v)), v)
-        force = (
-            (p[o] + p[o + 1] * i) * s_d + (p[o + 2] + p[o + 3] * i) * v + p[o + 4] + p[o + 5] * i
-        )
-        return force, 0.0, 0.0
+        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
+        s_d = math.copysign(1.0 - math.exp(-d * abs(v)), v)
+        return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i, 0.0, 0.0
     return p[0] * v, 0.0, 0.0
 
 

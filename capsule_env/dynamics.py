@@ -27,24 +27,29 @@ for the reference damper at 1.5 A) and the plant's modes set the substep:
 1.5 A: 5 substeps of 1 ms at 200 Hz; at low current fewer).
 
 One kernel serves a single vehicle and thousands: :func:`step_batch` advances every row by one
-control interval, in parallel threads for large batches. Pure numba/numpy, no Gym import.
+control interval, in parallel threads for large batches (:mod:`capsule_env._threads`). Pure numba/numpy, no Gym import.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from capsule_env._fastmath import FAST, fast_exp, fast_log, fast_tanh_nonneg
+from capsule_env._threads import run_batched
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
+    N_DAMPER_PARAMS,
     PASSIVE,
     REFERENCE,
     TANH,
     DamperParams,
+    bi_exponential_branch,
+    branch_weight,
     damper_eval,
     hysteresis_params,
 )
@@ -56,7 +61,8 @@ __all__ = [
     "OUTPUT_NAMES",
     "default_substeps",
     "substep_table",
-    "stiffness_bound",
+    "substep_tables",
+    "stiffness_rates",
     "step_batch",
     "initial_state",
     "simulate",
@@ -69,7 +75,7 @@ BODY_DISP, BODY_VEL, BOGIE_DISP, BOGIE_VEL, HYST_Z, DAMPER_Y, COIL_CURRENT, TIME
 #: Columns of the per-step output array written by :func:`step_batch`.
 OUTPUT_NAMES = ("damper_force_n", "body_acc_m_s2", "bogie_acc_m_s2", "guideway_m")
 N_OUTPUTS = len(OUTPUT_NAMES)
-_I_MAX, _COIL_TAU = 14, 15
+_I_MAX, _COIL_TAU, _BLEND = 14, 15, 16
 
 
 @njit(cache=True, inline="always")
@@ -95,23 +101,23 @@ def _derivs(model, dp, mc, mb, ks, kp, zc, vc, zb, vb, y, z, i, zg):
 
 @njit(cache=True, inline="always")
 def _row16(a, n):
-    """Row ``n`` of a (N, 16) array as a tuple: a value, so no array view is created (views in
-    the per-vehicle loop cost reference-count updates)."""
+    """Row ``n`` of a (N, N_DAMPER_PARAMS) array as a tuple: a value, so no array view is
+    created (views in the per-vehicle loop cost reference-count updates)."""
     return (
         a[n, 0], a[n, 1], a[n, 2], a[n, 3], a[n, 4], a[n, 5], a[n, 6], a[n, 7], a[n, 8], a[n, 9],
-        a[n, 10], a[n, 11], a[n, 12], a[n, 13], a[n, 14], a[n, 15],
+        a[n, 10], a[n, 11], a[n, 12], a[n, 13], a[n, 14], a[n, 15], a[n, 16],
     )  # fmt: skip
 
 
 @njit(cache=True, inline="always")
 def _advance(model, dp, mc, mb, ks, kp, s, i_cmd, profiles, k, spacing, x_start, speed, gain, dt,
-             sub_table):  # fmt: skip
+             sub_table, row):  # fmt: skip
     """Advance one vehicle by ``dt`` with RK4 substeps; pure function of values.
 
     ``dp``: the packed damper parameters as a tuple; ``s``: the 8-tuple state row. Returns
     ``(new_state, (force, body_acc, bogie_acc, guideway))``. The guideway elevation is
-    ``gain * profiles[k](x_start + speed * t)``. The number of substeps is ``sub_table[bin]``
-    for the bin of the highest current in the interval (the damper's stiffness grows with
+    ``gain * profiles[k](x_start + speed * t)``. The number of substeps is
+    ``sub_table[row, bin]`` for the bin of the highest current in the interval (the damper's stiffness grows with
     current; see :func:`substep_table`). Values in and out, no array rows: handing arrays to an
     inlined function costs numba reference-count updates per vehicle.
     """
@@ -120,10 +126,10 @@ def _advance(model, dp, mc, mb, ks, kp, s, i_cmd, profiles, k, spacing, x_start,
     i_max = dp[_I_MAX]
     i_cmd = min(max(i_cmd, 0.0), i_max) if model != PASSIVE else 0.0
     tau = dp[_COIL_TAU]
-    n_bins = sub_table.shape[0]
+    n_bins = sub_table.shape[1]
     i_high = max(i_cmd, s[6]) if tau > 0.0 else i_cmd
     b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
-    n_sub = sub_table[min(max(b, 0), n_bins - 1)]
+    n_sub = sub_table[row, min(max(b, 0), n_bins - 1)]
     h = dt / n_sub
     if tau > 0.0:
         e_half = math.exp(-0.5 * h / tau)
@@ -192,7 +198,7 @@ def _step_range(lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0,
     for n in range(lo, hi):
         new, outputs = _advance(
             model, _row16(dp, n), vp[n, 0], vp[n, 1], vp[n, 2], vp[n, 3], _row8(state, n),
-            i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n], gain[n], dt, table,
+            i_cmd[n], profiles, idx[n], spacing, x0[n], speed[n], gain[n], dt, table, n,
         )  # fmt: skip
         for j in range(8):
             state[n, j] = new[j]
@@ -230,8 +236,8 @@ KERNEL_UNIFORM = 4
 (_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
  _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1, _W_A, _W_INV_A, _W_RL, _W_INV_RL, _W_KL,
  _W_RU, _W_INV_RU, _W_KU, _W_INV_KU) = range(27)  # fmt: skip
-_W_P = 27  # 16 packed damper parameters
-_W_ROWS = _W_P + 16
+_W_P = 27  # N_DAMPER_PARAMS packed damper parameters
+_W_ROWS = _W_P + N_DAMPER_PARAMS
 #: The scratch array holds two halves (even and odd sorted ranks), rows HALF apart.
 HALF = BLOCK // 2
 _W_HALF_SIZE = _W_ROWS * HALF
@@ -279,9 +285,9 @@ def block_constants(
     Riccati constants of the Spencer hysteresis (``r = sqrt(A/p)``, ``k = sqrt(A p)`` of the
     loading ``p = gamma + beta`` and unloading ``p = beta - gamma`` branches; 1 where unused)
     and the coil-lag factor ``exp(-h / (2 tau))`` at each table bin's substep ``h = dt / n``
-    (0 without coil lag)."""
+    (0 without coil lag). ``table``: one (bins,) table for every row, or (N, bins)."""
     p = np.atleast_2d(np.asarray(damper_params, dtype=float))
-    out = np.ones((p.shape[0], _D_EHALF + len(table)))
+    out = np.ones((p.shape[0], _D_EHALF + np.shape(table)[-1]))
     if damper_code == REFERENCE:
         a, gamma, beta = p[:, 11], p[:, 9], p[:, 10]
         load = gamma + beta
@@ -291,7 +297,7 @@ def block_constants(
         cols = (a, 1.0 / a, r_l, 1.0 / r_l, k_l, r_u, 1.0 / r_u, k_u, 1.0 / k_u)
         out[:, :_D_EHALF] = np.stack(cols, axis=1)
     tau = p[:, _COIL_TAU][:, None]
-    h = dt_s / np.asarray(table, dtype=float)[None, :]
+    h = dt_s / np.broadcast_to(np.asarray(table, dtype=float), (p.shape[0], np.shape(table)[-1]))
     lag = tau > 0.0
     out[:, _D_EHALF:] = np.where(lag, np.exp(-0.5 * h / np.where(lag, tau, 1.0)), 0.0)
     return np.ascontiguousarray(out)
@@ -348,19 +354,12 @@ def _force_fast(model, p, x, v, y, z, i, inv_c):
         y_dot = (alpha * z + c0 * v + p[6] * (x - y)) * inv_c
         return c1 * y_dot + p[7] * (x - p[8]), y_dot
     if model == BI_EXPONENTIAL:
-        up = x >= 0.0
-        a0 = p[0] if up else p[7]
-        a1 = p[1] if up else p[8]
-        b0 = p[2] if up else p[9]
-        b1 = p[3] if up else p[10]
-        c0 = p[4] if up else p[11]
-        c1 = p[5] if up else p[12]
-        d = p[6] if up else p[13]
+        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
         mag = 1.0 - fast_exp(-d * abs(v))
         s_d = mag if v >= 0.0 else -mag
         return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i, 0.0
     if model == TANH:
-        sx = 1.0 if x >= 0.0 else -1.0
+        sx = 2.0 * branch_weight(x, p[_BLEND]) - 1.0
         arg = p[8] * v + p[9] * sx
         th = fast_tanh_nonneg(abs(arg))
         th = th if arg >= 0.0 else -th
@@ -413,6 +412,7 @@ def _row_params(dp, n):
     return (
         dp[n, 0], dp[n, 1], dp[n, 2], dp[n, 3], dp[n, 4], dp[n, 5], dp[n, 6], dp[n, 7],
         dp[n, 8], dp[n, 9], dp[n, 10], dp[n, 11], dp[n, 12], dp[n, 13], dp[n, 14], dp[n, 15],
+        dp[n, 16],
     )  # fmt: skip
 
 
@@ -433,7 +433,7 @@ def _lane_params(wv, j):
         wv[b], wv[b + HALF], wv[b + 2 * HALF], wv[b + 3 * HALF], wv[b + 4 * HALF],
         wv[b + 5 * HALF], wv[b + 6 * HALF], wv[b + 7 * HALF], wv[b + 8 * HALF],
         wv[b + 9 * HALF], wv[b + 10 * HALF], wv[b + 11 * HALF], wv[b + 12 * HALF],
-        wv[b + 13 * HALF], wv[b + 14 * HALF], wv[b + 15 * HALF],
+        wv[b + 13 * HALF], wv[b + 14 * HALF], wv[b + 15 * HALF], wv[b + 16 * HALF],
     )  # fmt: skip
 
 
@@ -613,8 +613,8 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
     bin_of = np.empty(BLOCK, dtype=np.int64)
     nsub = np.empty(BLOCK, dtype=np.int64)
     order = np.empty(BLOCK, dtype=np.int64)
-    n_bins = table.shape[0]
-    lo_sub, hi_sub = table.max(), 1
+    n_bins = table.shape[1]
+    lo_sub, hi_sub = 1 << 62, 1
     for m in range(nb):  # substeps per vehicle (from the highest current of the interval)
         n = lo + m
         i_max, tau = dp[n, _I_MAX], dp[n, _COIL_TAU]
@@ -622,7 +622,7 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
         i_high = max(cmd, state[n, COIL_CURRENT]) if tau > 0.0 else cmd
         b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
         b = min(max(b, 0), n_bins - 1)
-        ns = table[b]
+        ns = table[n, b]
         nsub_of[m] = ns
         bin_of[m] = b
         lo_sub, hi_sub = min(lo_sub, ns), max(hi_sub, ns)
@@ -664,7 +664,7 @@ def _plant_block(model, mode, lo, hi, dp, vp, state, i_cmd, profiles, idx, spaci
         position = x0[n] + speed[n] * w[o + _W_T * HALF]
         w[o + _W_ZG0 * HALF] = gain[n] * _guideway_fast(profiles, idx[n], spacing, last, position)
         if (mode & KERNEL_UNIFORM) == 0:  # else read as constants (_substep_lanes)
-            for j in range(16):
+            for j in range(N_DAMPER_PARAMS):
                 w[o + (_W_P + j) * HALF] = dp[n, j]
             for j in range(_D_EHALF):  # hysteresis constants, computed once per batch
                 w[o + (_W_A + j) * HALF] = derived[n, j]
@@ -697,54 +697,32 @@ def _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacin
                      spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
 
 
-@njit(cache=True)
-def work_item_size(n):
-    """Vehicles per work item of the multi-threaded kernels: one block (BLOCK) for large
-    batches, smaller (a multiple of 8, at least 4 items) for small ones so that every core gets
-    work. A vehicle's result does not depend on its block mates, so this changes no number."""
-    return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
-
-
-def _make_step_kernels(mode: int, model: int):
-    """Serial and multi-threaded kernels for one (kernel mode, damper model).
+def _make_step_kernel(mode: int, model: int):
+    """The plant kernel for one (kernel mode, damper model): advances vehicles ``lo .. hi-1``.
 
     ``mode`` and ``model`` are closure constants: numba compiles each pair separately (the
-    branches for other models are pruned), so only the models in use are compiled. A vectorised
-    variant takes ~25 s to compile the first time; numba caches it on disk.
+    branches for other models are pruned), so only the models in use are compiled. ``nogil``:
+    :func:`capsule_env._threads.run_batched` runs chunks of a large batch in parallel.
     """
 
-    @njit(cache=True)
-    def serial(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table, derived,
-               out):  # fmt: skip
-        _step_chunk(mode, 0, state.shape[0], model, dp, vp, state, i_cmd, profiles, idx,
-                    spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
+    @njit(cache=True, nogil=True)
+    def kernel(lo, hi, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
+               derived, out):  # fmt: skip
+        _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0,
+                    speed, gain, dt, table, derived, out)  # fmt: skip
 
-    @njit(cache=True, parallel=True)
-    def parallel(dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
-                 derived, out):  # fmt: skip
-        n = state.shape[0]
-        chunk = work_item_size(n)
-        for c in prange((n + chunk - 1) // chunk):
-            _step_chunk(mode, c * chunk, min(n, (c + 1) * chunk), model, dp, vp, state, i_cmd,
-                        profiles, idx, spacing, x0, speed, gain, dt, table, derived,
-                        out)  # fmt: skip
-
-    return serial, parallel
+    return kernel
 
 
-_STEP_KERNELS: dict[tuple[int, int], tuple] = {}
+_STEP_KERNELS: dict[tuple[int, int], Any] = {}
 
 
-def step_kernels(mode: int, model: int) -> tuple:
-    """``(serial, parallel)`` compiled kernels for a kernel mode and damper model (memoised)."""
+def step_kernel(mode: int, model: int) -> Any:
+    """The compiled plant kernel for a kernel mode and damper model (memoised)."""
     key = (int(mode), int(model))
     if key not in _STEP_KERNELS:
-        _STEP_KERNELS[key] = _make_step_kernels(*key)
+        _STEP_KERNELS[key] = _make_step_kernel(*key)
     return _STEP_KERNELS[key]
-
-
-#: Batches at least this large are stepped by the multi-threaded kernel.
-PARALLEL_THRESHOLD = 64
 
 
 def step_batch(
@@ -777,8 +755,9 @@ def step_batch(
     profile_index, start_position_m, speed_mps : (N,) which profile, where on it at t = 0 (m)
         and the vehicle speed (m/s).
     dt_s : control interval (s).
-    substeps : RK4 substeps per interval: an int, or a :func:`substep_table` (int64 array) that
-        picks the number from the highest coil current in the interval.
+    substeps : RK4 substeps per interval: an int, or a :func:`substep_table` (bins,) shared by
+        every vehicle, or :func:`substep_tables` (N, bins), that picks the number from the
+        highest coil current in the interval.
     out : (N, N_OUTPUTS) written with :data:`OUTPUT_NAMES` at the end of the interval.
     guideway_gain : (N,) factor on each vehicle's profile (default 1).
 
@@ -786,12 +765,11 @@ def step_batch(
     """
     if guideway_gain is None:
         guideway_gain = np.ones(state.shape[0])
-    table = _as_table(substeps)
-    serial, parallel = step_kernels(block_kernel_mode(damper_code, damper_params), damper_code)
-    kernel = parallel if state.shape[0] >= PARALLEL_THRESHOLD else serial
+    table = _as_table(substeps, state.shape[0])
+    kernel = step_kernel(block_kernel_mode(damper_code, damper_params), damper_code)
     derived = block_constants(damper_code, damper_params, dt_s, table)
-    kernel(
-        damper_params, vehicle_params, state, current_command_a, profiles, profile_index,
+    run_batched(
+        kernel, state.shape[0], damper_params, vehicle_params, state, current_command_a, profiles, profile_index,
         spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, derived, out,
     )  # fmt: skip
 
@@ -799,105 +777,176 @@ def step_batch(
 #: Highest angular frequency of the default guideway input (rad/s): the 2 m shortest
 #: wavelength of the random profile at 810 km/h (225 m/s).
 DEFAULT_INPUT_RATE = 2.0 * math.pi * 225.0 / 2.0
+#: Current bins of a :func:`substep_table`.
+SUBSTEP_BINS = 16
+#: Largest ``|Re lambda| h`` for the decay rates of the linearised plant (Spencer's pre-yield
+#: relaxation, the damper's dashpot on the relative mass). RK4 is stable to 2.785 on the real
+#: axis, but the transient that every current change kicks is followed accurately only well
+#: inside that: the force is sampled right after it.
+MAX_LAMBDA_H = 1.0
+#: Largest ``omega h`` for the oscillations of the linearised plant (its modes, the pre-yield
+#: springs of Spencer's and Bouc-Wen's models on light vehicles, the branch blend of the
+#: sign-of-stroke models).
+MAX_OMEGA_H = 0.15
+#: Largest ``omega h`` for the guideway input's highest angular frequency (the plant filters it:
+#: this bound only keeps the stages sampling the profile).
+MAX_INPUT_OMEGA_H = 2.0
+#: Most substeps per control interval the automatic rule may choose; a configuration that needs
+#: more is refused (``EnvConfig`` says which parameters make it so stiff).
+MAX_AUTO_SUBSTEPS = 1024
 
 
-def stiffness_bound(
-    damper: DamperParams,
-    vehicle: VehicleParams | None = None,
-    current_a: float | None = None,
-    input_rate_rad_s: float = DEFAULT_INPUT_RATE,
-) -> float:
-    """Upper bound (1/s) on the rates the RK4 stages must resolve.
-
-    The plant's fastest mode, the damper's pre-yield rate ``(alpha A + k0)/(c0 + c1)`` (Spencer)
-    or its pre-yield stiffness ``alpha A`` acting on the relative mass (Bouc-Wen), and the
-    slope ``dF/dv`` at ``v = 0`` on the relative mass (algebraic models), at ``current_a``
-    (default: the maximum current); and the highest frequency of the guideway input
-    ``input_rate_rad_s`` (2 pi speed / shortest wavelength).
-    """
-    vehicle = vehicle or VehicleParams()
-    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
-    relative_mass = mc * mb / (mc + mb)
-    rates = [math.sqrt((ks + kp) / mb), math.sqrt(ks / relative_mass), input_rate_rad_s]
+def _linearised_damper(damper: DamperParams, i: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+    """The damper near ``x = v = 0`` in each of its regimes, as ``(c, k, K, C)`` arrays over the
+    currents ``i``: ``F = c x' + k x`` for the algebraic models (``C = 0``); for Spencer's
+    model ``y' = (K (x - y) + c x') / C`` and ``F = (C - c) y' + k x``. Regimes: pre-yield (the
+    hysteretic variable follows the deformation, ``z = A u``: the stiffest) and yielded (``z``
+    saturated)."""
     p = damper.as_array()
-    i = p[_I_MAX] if current_a is None else float(current_a)
+    zero = 0.0 * i
     code = damper.code
     if code == REFERENCE:
         c0, c1, alpha = p[0] + p[1] * i, p[2] + p[3] * i, p[4] + p[5] * i
-        rates.append((alpha * p[11] + p[6]) / (c0 + c1))
-        rates.append(c0 * c1 / (c0 + c1) / relative_mass)
-    elif code == BOUC_WEN:
-        alpha, c0 = p[2] + p[3] * i, p[0] + p[1] * i
-        rates.append(math.sqrt(abs(alpha) * p[8] / relative_mass) + abs(c0) / relative_mass)
-    elif code == TANH:
-        slope = abs(p[0] + p[1] * i) + abs(p[4] + p[5] * i) * p[8]
-        rates.append(slope / relative_mass)
-    elif code == BI_EXPONENTIAL:
-        for o in (0, 7):
-            slope = abs(p[o] + p[o + 1] * i) * p[o + 6] + abs(p[o + 2] + p[o + 3] * i)
-            rates.append(slope / relative_mass)
-    elif code == PASSIVE:
-        rates.append(p[0] / relative_mass)
-    return max(rates)
+        pre_yield = (c0, p[7] + zero, alpha * p[11] + p[6], c0 + c1)
+        return [pre_yield, (c0, p[7] + zero, p[6] + zero, c0 + c1)]
+    if code == BOUC_WEN:
+        c0, alpha = p[0] + p[1] * i, p[2] + p[3] * i
+        return [(c0, p[4] + np.abs(alpha) * p[8], zero, zero), (c0, p[4] + zero, zero, zero)]
+    if code == TANH:
+        alpha = np.abs(p[4] + p[5] * i)
+        c = np.abs(p[0] + p[1] * i) + alpha * p[8]
+        # the branch blend: d/dx of alpha tanh(beta v + delta sgn_w(x)), sgn_w' <= 1.5 / width
+        k = np.abs(p[2] + p[3] * i) + alpha * abs(p[9]) * 1.5 / p[_BLEND]
+        return [(c, k, zero, zero)]
+    if code == BI_EXPONENTIAL:
+        slopes = [
+            np.abs(p[o] + p[o + 1] * i) * p[o + 6] + np.abs(p[o + 2] + p[o + 3] * i) for o in (0, 7)
+        ]
+        # the force step between the branches (at |v| <= 1 m/s) over the blend, whose weight
+        # rises with slope at most 0.75 / width
+        step = (
+            np.abs((p[4] - p[11]) + (p[5] - p[12]) * i)
+            + np.abs((p[0] - p[7]) + (p[1] - p[8]) * i)
+            + np.abs((p[2] - p[9]) + (p[3] - p[10]) * i)
+        )
+        return [(np.maximum(*slopes), step * 0.75 / p[_BLEND], zero, zero)]
+    return [(p[0] + zero, zero, zero, zero)]  # passive
 
 
-#: Current bins of a :func:`substep_table`.
-SUBSTEP_BINS = 16
+def stiffness_rates(
+    damper: DamperParams, vehicle_params: np.ndarray, current_a: np.ndarray | float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(rate, omega)``: per vehicle (rows of the packed ``vehicle_params``, ``[m_c, m_b, k_s,
+    k_p]``) and current (columns), the largest ``|Re lambda|`` (1/s) and ``|Im lambda|``
+    (rad/s) over the eigenvalues of the plant with its damper linearised near rest in each of
+    its regimes (:func:`_linearised_damper`). A light vehicle turns Spencer's pre-yield
+    relaxation into a lightly damped oscillation: hence two numbers and two bounds."""
+    vp = np.atleast_2d(np.asarray(vehicle_params, dtype=float))
+    mc, mb, ks, kp = (vp[:, j, None] for j in range(4))
+    i = np.atleast_1d(np.asarray(current_a, dtype=float))[None, :]
+    shape = np.broadcast_shapes(mc.shape, i.shape)
+    rate, omega = np.zeros(shape), np.zeros(shape)
+    for c, k, big_k, big_c in _linearised_damper(damper, i):
+        # states [z_c, z_c', z_b, z_b', y]; the damper force F = fx x + fv x' + fy y
+        spencer = big_c > 0.0
+        inv_c = np.where(spencer, 1.0 / np.where(spencer, big_c, 1.0), 0.0)
+        c1 = big_c - c
+        fx = k + c1 * big_k * inv_c
+        fv = np.where(spencer, c1 * c * inv_c, c)
+        fy = -c1 * big_k * inv_c
+        m = np.zeros((*shape, 5, 5))
+        m[..., 0, 1] = m[..., 2, 3] = 1.0
+        for row, sign, mass in ((1, -1.0, mc), (3, 1.0, mb)):
+            m[..., row, 0] = sign * (ks + fx) / mass
+            m[..., row, 2] = -sign * (ks + fx) / mass
+            m[..., row, 1] = sign * fv / mass
+            m[..., row, 3] = -sign * fv / mass
+            m[..., row, 4] = sign * fy / mass
+        m[..., 3, 2] -= kp / mb
+        m[..., 4, 0] = big_k * inv_c
+        m[..., 4, 2] = -big_k * inv_c
+        m[..., 4, 1] = c * inv_c
+        m[..., 4, 3] = -c * inv_c
+        m[..., 4, 4] = np.where(spencer, -big_k * inv_c, 0.0)  # y unused: an eigenvalue 0
+        lam = np.linalg.eigvals(m)
+        rate = np.maximum(rate, np.abs(lam.real).max(axis=-1))
+        omega = np.maximum(omega, np.abs(lam.imag).max(axis=-1))
+    return rate, omega
+
+
+def substep_tables(
+    damper: DamperParams,
+    dt_s: float,
+    vehicle_params: np.ndarray,
+    input_rate_rad_s: np.ndarray | float = DEFAULT_INPUT_RATE,
+    bins: int = SUBSTEP_BINS,
+) -> np.ndarray:
+    """Substeps per control interval, per vehicle (rows of the packed ``vehicle_params``) and
+    coil-current bin (columns), from each vehicle's own parameters: ``rate h <= MAX_LAMBDA_H``
+    and ``omega h <= MAX_OMEGA_H`` (:func:`stiffness_rates`) at the highest current of the bin
+    and of every lower bin, and ``input_rate h <= MAX_INPUT_OMEGA_H`` for the guideway input
+    (``input_rate_rad_s``: 2 pi speed / shortest wavelength, per vehicle or shared).
+
+    ``tests/test_substeps.py`` checks that this keeps the damper force within 0.5 % RMS of a
+    run 10 times finer (at least 100 substeps) for every vehicle, for every damper model, both
+    settings, control rates 50-1000 Hz and vehicle randomisation up to 0.9. The kernels pick the
+    bin from ``max(command, current at the start)`` (with coil lag), not from the highest current
+    the lag actually reaches in the interval, which would save substeps at a measured cost in
+    accuracy under bang-bang commands. Entries above :data:`MAX_AUTO_SUBSTEPS` are returned as
+    they are; ``EnvConfig`` refuses them.
+    """
+    i_max = float(getattr(damper, "max_current_a", 0.0))
+    currents = i_max * np.arange(1, bins + 1) / bins
+    rate, omega = stiffness_rates(damper, vehicle_params, currents)
+    input_rate = np.asarray(input_rate_rad_s, dtype=float).reshape(-1, 1)
+    need = np.maximum.reduce(
+        [
+            np.ceil(rate * dt_s / MAX_LAMBDA_H),
+            np.ceil(omega * dt_s / MAX_OMEGA_H),
+            np.ceil(input_rate * dt_s / MAX_INPUT_OMEGA_H) + 0.0 * rate,
+            np.ones_like(rate),
+        ]
+    )
+    need = np.maximum.accumulate(need, axis=1)
+    return np.ascontiguousarray(np.minimum(need, np.iinfo(np.int32).max).astype(np.int64))
 
 
 def substep_table(
     damper: DamperParams,
     dt_s: float,
     vehicle: VehicleParams | None = None,
-    max_lambda_h: float = 2.0,
     bins: int = SUBSTEP_BINS,
     input_rate_rad_s: float = DEFAULT_INPUT_RATE,
 ) -> np.ndarray:
-    """Substeps per control interval for each current bin, so that ``stiffness_bound * h <=
-    max_lambda_h`` at the highest current of the bin (and of every lower bin).
-
-    The default 2.0 stays inside RK4's real-axis stability interval (2.785); on the reference
-    damper it keeps the force within 0.5 % RMS of a 10x finer step (``tests/test_dynamics.py``;
-    measured 0.03-0.4 % over 10 s of random guideway at constant and random currents).
-    A vehicle whose coil current stays low is integrated with fewer, longer substeps.
-
-    The kernels pick the bin from ``max(command, current at the start)`` (with coil lag), not
-    from the highest current the lag actually reaches in the interval: that exact, smaller
-    value saves substeps but lets the force error under bang-bang commands grow from 0.12-0.18
-    % to 0.33-0.53 % RMS (4 guideway seeds; above 0.5 % on one), so the conservative choice
-    stays. Likewise ``max_lambda_h = 2.05`` (4 instead of 5 substeps at 1.5 A, about 6 %
-    faster in ``hils``) raised that error to about 0.25 %: not taken either.
-    """
-    i_max = float(getattr(damper, "max_current_a", 0.0))
-    table = np.empty(bins, dtype=np.int64)
-    worst = 0
-    for b in range(bins):
-        bound = stiffness_bound(damper, vehicle, i_max * (b + 1) / bins, input_rate_rad_s)
-        worst = max(worst, math.ceil(bound * dt_s / max_lambda_h))
-        table[b] = max(1, worst)
-    return table
+    """:func:`substep_tables` of one vehicle (default :class:`VehicleParams`): a (bins,) array."""
+    vehicle = vehicle or VehicleParams()
+    return substep_tables(damper, dt_s, vehicle.as_array(), input_rate_rad_s, bins)[0]
 
 
 def default_substeps(
     damper: DamperParams,
     dt_s: float,
     vehicle: VehicleParams | None = None,
-    max_lambda_h: float = 2.0,
     input_rate_rad_s: float = DEFAULT_INPUT_RATE,
 ) -> int:
     """The largest entry of :func:`substep_table`: substeps at the maximum current."""
-    return int(
-        substep_table(damper, dt_s, vehicle, max_lambda_h, input_rate_rad_s=input_rate_rad_s).max()
-    )
+    return int(substep_table(damper, dt_s, vehicle, input_rate_rad_s=input_rate_rad_s).max())
 
 
-def _as_table(substeps: int | np.ndarray) -> np.ndarray:
+def _as_table(substeps: int | np.ndarray, n: int) -> np.ndarray:
+    """``substeps`` (an int, a (bins,) table or an (n, bins) table) as an (n, bins) table."""
     if np.ndim(substeps) == 0:
-        if int(substeps) < 1:
-            raise ValueError(f"substeps must be >= 1, got {substeps!r}")
-        return np.full(SUBSTEP_BINS, int(substeps), dtype=np.int64)
-    return np.ascontiguousarray(substeps, dtype=np.int64)
+        if int(substeps) != substeps or int(substeps) < 1:
+            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+        return np.full((n, SUBSTEP_BINS), int(substeps), dtype=np.int64)
+    table = np.asarray(substeps)
+    if table.ndim == 1:
+        table = np.broadcast_to(table, (n, table.shape[0]))
+    if table.ndim != 2 or table.shape[0] != n or np.any(table < 1):
+        raise ValueError(
+            f"substeps must be an int >= 1 or a table of them, got shape {table.shape}"
+        )
+    return np.ascontiguousarray(table, dtype=np.int64)
 
 
 def initial_state(n: int = 1) -> np.ndarray:
@@ -931,7 +980,8 @@ def simulate(
     vehicle = vehicle or VehicleParams()
     n_steps = int(round(duration_s / dt_s))
     commands = np.broadcast_to(np.asarray(current_command_a, float), (n_steps,))
-    table = substep_table(damper, dt_s, vehicle) if substeps is None else _as_table(substeps)
+    table = substep_table(damper, dt_s, vehicle) if substeps is None else substeps
+    table = _as_table(table, 1)
     state = initial_state(1) if state0 is None else np.array(state0, float).reshape(1, STATE_SIZE)
     dp = damper.as_array()[None, :]
     vp = vehicle.as_array()[None, :]

@@ -48,6 +48,7 @@ __all__ = [
     "GuidewayParams",
     "bump_profile",
     "elevation_at",
+    "fft_length",
     "fra_psd",
     "kmh_to_mps",
     "make_profile",
@@ -171,6 +172,14 @@ def _fast_fft_length(minimum: int) -> int:
     return best
 
 
+def fft_length(length_m: float, spacing_m: float, max_wavelength_m: float) -> int:
+    """FFT length :func:`random_profile` uses for a profile of ``length_m``: at least its
+    samples, and a period of at least 20 longest wavelengths (``_MIN_PERIOD_IN_MAX_WAVELENGTHS``)."""
+    n = _n_samples(length_m, spacing_m)
+    min_period = max(float(length_m), _MIN_PERIOD_IN_MAX_WAVELENGTHS * max_wavelength_m)
+    return _fast_fft_length(max(n, math.ceil(min_period / spacing_m - 1e-9)))
+
+
 def random_profile(
     length_m: float,
     spacing_m: float = 0.25,
@@ -243,8 +252,7 @@ def random_profile(
     if not isinstance(psd, FraPsdParams):
         raise ValueError(f"psd must be a FraPsdParams, got {type(psd).__name__}")
 
-    min_period = max(float(length_m), _MIN_PERIOD_IN_MAX_WAVELENGTHS * max_wavelength_m)
-    n_fft = _fast_fft_length(max(n, math.ceil(min_period / spacing_m - 1e-9)))
+    n_fft = fft_length(length_m, spacing_m, max_wavelength_m)
     period = n_fft * spacing_m
     d_w = 2.0 * math.pi / period
 

@@ -57,6 +57,7 @@ from capsule_env.dampers import (
     DamperParams,
     ReferenceDamper,
     TanhDamper,
+    branch_weights,
     damper_force,
 )
 from capsule_env.dynamics import simulate_damper, sinusoidal_stroke
@@ -589,9 +590,10 @@ def fit_bi_exponential(
             raise ValueError(f"d_bounds must be (low, high) with high > low > 0, got {d_bounds}")
     currents, groups = _group_by_current(loops)
     data = {b: [] for b in _BRANCHES}
+    blend = BiExponentialDamper.branch_blend_m  # samples inside the blend belong to neither
     for i_group, group in zip(currents, groups):
         x, v, f, _ = _stack(group)
-        for branch, mask in zip(_BRANCHES, (x >= 0.0, x < 0.0)):
+        for branch, mask in zip(_BRANCHES, (x >= blend, x <= -blend)):
             if np.count_nonzero(mask) < 4:
                 raise ValueError(
                     f"the {branch} branch ({'x >= 0' if branch == 'upper' else 'x < 0'}) of the "
@@ -667,8 +669,8 @@ def _line(currents: np.ndarray, values: np.ndarray) -> tuple[float, float]:
 
 
 # ------------------------------------------------------------------------------------ tanh
-def _tanh_design(x, v, i, beta, delta, with_current: bool) -> np.ndarray:
-    t = np.tanh(beta * v + delta * np.where(x >= 0.0, 1.0, -1.0))
+def _tanh_design(sign_x, v, i, x, beta, delta, with_current: bool) -> np.ndarray:
+    t = np.tanh(beta * v + delta * sign_x)
     one = np.ones_like(v)
     if with_current:
         return np.column_stack([v, i * v, x, i * x, t, i * t, one, i])
@@ -688,13 +690,15 @@ def fit_tanh(loops: Sequence[Loop], starts: int = 3) -> TanhDamper:
     loops = _check_loops(loops)
     starts = _check_int("starts", starts, 1)
     x, v, f, i = _stack(loops)
+    # the model's sign(x), blended over its branch_blend_m (TanhDamper)
+    sign_x = 2.0 * branch_weights(np.ascontiguousarray(x), TanhDamper.branch_blend_m) - 1.0
     with_current = np.unique(i).size > 1
     v_ref = _velocity_scale(loops)
     lb = np.array([math.log(0.01 / v_ref), -20.0])
     ub = np.array([math.log(1e4 / v_ref), 20.0])
 
     def residual(p: np.ndarray) -> np.ndarray:
-        phi = _tanh_design(x, v, i, math.exp(p[0]), p[1], with_current)
+        phi = _tanh_design(sign_x, v, i, x, math.exp(p[0]), p[1], with_current)
         return _lstsq(phi, f)[1]
 
     grid = [
@@ -710,7 +714,7 @@ def fit_tanh(loops: Sequence[Loop], starts: int = 3) -> TanhDamper:
         if best is None or sol.cost < best.cost:
             best = sol
     beta, delta = math.exp(best.x[0]), float(best.x[1])
-    coef, _ = _lstsq(_tanh_design(x, v, i, beta, delta, with_current), f)
+    coef, _ = _lstsq(_tanh_design(sign_x, v, i, x, beta, delta, with_current), f)
     if not with_current:
         coef = np.array([coef[0], 0.0, coef[1], 0.0, coef[2], 0.0, coef[3], 0.0])
     names = ("c_a", "c_b", "k_a", "k_b", "alpha_a", "alpha_b", "f0_a", "f0_b")

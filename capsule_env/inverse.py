@@ -7,7 +7,9 @@ closed-form Bi-exponential inverse (eqs. 5-11), the tanh-model inverse and the a
 the CSDC algorithm (Wang & Liao 2005) for Bouc-Wen. Shared rules:
 
 - semi-active rule: a request whose sign is opposite to the stroke rate (``F_d v < 0``) cannot
-  be produced by a passive device, so the current is 0;
+  be produced by a passive device, so the current is 0; so is a request for 0 N (or at
+  ``v = 0``): near ``v = 0`` the hysteresis offset alone can make ``i_max`` the "nearest"
+  force to 0 N, and the lowest current is what a zero request means;
 - a request outside the achievable band ``[F(0), F(i_max)]`` is clipped to the nearest
   achievable force (0 A or ``i_max``);
 - where the slope vanishes (e.g. ``v = 0`` with no hysteresis offset) nothing is divided: the
@@ -34,6 +36,8 @@ from capsule_env.dampers import (
     BiExponentialDamper,
     BoucWenDamper,
     TanhDamper,
+    bi_exponential_branch,
+    branch_weight,
 )
 from capsule_env.hysteresis import hysteresis_update
 
@@ -47,18 +51,18 @@ __all__ = [
 ]
 
 INVERSE_NAMES = ("bi_exponential", "csdc", "tanh")
-_I_MAX = 14
+_I_MAX, _BLEND = 14, 16
 
 
 @njit(cache=True, inline="always")
 def affine_in_current(model, p, x, v, z):
     """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)``."""
     if model == BI_EXPONENTIAL:
-        o = 0 if x >= 0.0 else 7
-        s_d = math.copysign(1.0 - math.exp(-p[o + 6] * abs(v)), v)
-        return p[o] * s_d + p[o + 2] * v + p[o + 4], p[o + 1] * s_d + p[o + 3] * v + p[o + 5]
+        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
+        s_d = math.copysign(1.0 - math.exp(-d * abs(v)), v)
+        return a0 * s_d + b0 * v + c0, a1 * s_d + b1 * v + c1
     if model == TANH:
-        sx = 1.0 if x >= 0.0 else -1.0
+        sx = 2.0 * branch_weight(x, p[_BLEND]) - 1.0
         th = math.tanh(p[8] * v + p[9] * sx)
         return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
     if model == BOUC_WEN:
@@ -68,8 +72,12 @@ def affine_in_current(model, p, x, v, z):
 
 @njit(cache=True, inline="always")
 def invert_affine(f_desired, f0, slope, v, i_max):
-    """Current for ``F0 + slope * i = F_d`` with the semi-active rule and clipping."""
-    if f_desired * v < 0.0:
+    """Current for ``F0 + slope * i = F_d`` with the semi-active rule and clipping.
+
+    A request that does not push the way the stroke moves (``F_d v <= 0``: opposite signs, a
+    zero request, or no stroke rate) gets 0 A: a semi-active damper cannot help there, and a
+    request for no force is a request for the lowest current."""
+    if f_desired * v <= 0.0:
         return 0.0
     f_max = f0 + slope * i_max
     if abs(slope) * i_max <= 1e-9 * (abs(f0) + abs(f_desired) + 1.0):
@@ -85,15 +93,12 @@ def affine_in_current_fast(model, p, x, v):
     branches or library calls (capsule_env._fastmath), so that a loop over vehicles
     vectorises; the same values up to rounding."""
     if model == BI_EXPONENTIAL:
-        up = x >= 0.0
-        d = p[6] if up else p[13]
+        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
         mag = 1.0 - fast_exp(-d * abs(v))
         s_d = mag if v >= 0.0 else -mag
-        f0 = (p[0] if up else p[7]) * s_d + (p[2] if up else p[9]) * v + (p[4] if up else p[11])
-        slope = (p[1] if up else p[8]) * s_d + (p[3] if up else p[10]) * v
-        return f0, slope + (p[5] if up else p[12])
+        return a0 * s_d + b0 * v + c0, a1 * s_d + b1 * v + c1
     if model == TANH:
-        arg = p[8] * v + (p[9] if x >= 0.0 else -p[9])
+        arg = p[8] * v + p[9] * (2.0 * branch_weight(x, p[_BLEND]) - 1.0)
         th = fast_tanh_nonneg(abs(arg))
         th = th if arg >= 0.0 else -th
         return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
@@ -108,7 +113,7 @@ def invert_affine_fast(f_desired, f0, slope, v, i_max):
     nearer = 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
     i = min(max((f_desired - f0) / slope, 0.0), i_max)
     i = nearer if flat else i
-    return 0.0 if f_desired * v < 0.0 else i
+    return 0.0 if f_desired * v <= 0.0 else i
 
 
 @njit(cache=True)

@@ -4,8 +4,10 @@ SB3's vector-env conventions differ from Gymnasium's: episodes reset in the *sam
 ends them; the last observation of the finished episode is in ``infos[n]["terminal_observation"]``
 and ``infos[n]["TimeLimit.truncated"]`` tells a time limit from a termination. This class
 implements them directly on :class:`capsule_env.core.CapsuleBatch` (no per-env Python objects),
-so a step of N vehicles costs one kernel call. ``seed(s)`` gives vehicle n the seed ``s + n``,
-exactly as the native vector env and the single env with seed ``s + n``.
+so a step of N vehicles costs one kernel call. ``seed(s)`` gives the vehicles the streams of the
+native vector env's ``reset(seed=s)`` (``numpy.random.SeedSequence(s).spawn(num_envs)``, not
+SB3's usual ``s + n``, so that training seeds never share a vehicle's stream); the same seed
+gives the same trajectories as the native vector env, bit for bit.
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig
+from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig, check_num_envs, check_seed
 from capsule_env.envs.capsule_suspension import _render_one, _spaces
 
 __all__ = ["CapsuleSuspensionSB3VecEnv", "make_sb3_vec_env"]
@@ -42,23 +45,38 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         **kwargs: Any,
     ) -> None:
         self.config = EnvConfig.from_kwargs(**kwargs)
+        num_envs = check_num_envs(num_envs)
         self.batch = CapsuleBatch(self.config, num_envs)
         action_space, observation_space = _spaces(self.config)
         self.render_mode = render_mode
         super().__init__(num_envs, observation_space, action_space)
         self.info_signals = bool(info_signals)
         self._actions = np.zeros(num_envs)
+        self._seed: int | None = None
+        self._needs_reset = True
+
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """Seed the next ``reset``: the vehicles get ``SeedSequence(seed).spawn(num_envs)``."""
+        self._seed = None if seed is None else check_seed("seed", seed)
+        return [self._seed] * self.num_envs
 
     def reset(self) -> np.ndarray:
-        if self._seeds[0] is not None:
-            self.batch.rngs = [np.random.default_rng(int(s)) for s in self._seeds]
+        if self._seed is not None:
+            self.batch.seed(self._seed)
+            self._seed = None
         self._reset_seeds()
         self._reset_options()
         self.batch.reset()
+        self._needs_reset = False
         return self.batch.obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs)
+        if self._needs_reset:
+            raise ResetNeeded("call reset() before step()")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape not in ((self.num_envs, 1), (self.num_envs,)):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
+        self._actions = a.reshape(self.num_envs)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         batch = self.batch

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_nonnegative, check_positive
+from capsule_env._validation import check_in_range, check_nonnegative
 
 __all__ = [
     "VehicleParams",
@@ -27,6 +27,16 @@ __all__ = [
     "state_space",
     "frequency_response",
 ]
+
+
+#: Accepted range of each :class:`VehicleParams` field (SI units).
+_RANGES = {
+    "car_body_mass_kg": (1.0, 1e6),
+    "bogie_mass_kg": (1.0, 1e6),
+    "secondary_stiffness_n_per_m": (1.0, 1e10),
+    "levitation_stiffness_n_per_m": (1.0, 1e10),
+    "passive_damping_n_s_per_m": (0.0, 1e9),
+}
 
 
 @dataclass(frozen=True)
@@ -46,6 +56,9 @@ class VehicleParams:
         2.25e6; the paper models the primary suspension as this spring with no damping.
     passive_damping_n_s_per_m : c_s, the passive secondary damper of the passive baseline
         (N s/m), default 1.5e4. It is *not* part of the MR-damped plant.
+
+    Accepted ranges: masses 1 kg to 1e6 kg, stiffnesses 1 to 1e10 N/m, damping 0 to 1e9 N s/m
+    (``ValueError`` naming the field otherwise).
     """
 
     car_body_mass_kg: float = 6000.0
@@ -55,11 +68,10 @@ class VehicleParams:
     passive_damping_n_s_per_m: float = 1.5e4
 
     def __post_init__(self) -> None:
-        check_positive("car_body_mass_kg", self.car_body_mass_kg)
-        check_positive("bogie_mass_kg", self.bogie_mass_kg)
-        check_positive("secondary_stiffness_n_per_m", self.secondary_stiffness_n_per_m)
-        check_positive("levitation_stiffness_n_per_m", self.levitation_stiffness_n_per_m)
-        check_nonnegative("passive_damping_n_s_per_m", self.passive_damping_n_s_per_m)
+        # Physically plausible ranges, wide enough for scaled test rigs and other vehicles; an
+        # absurd value (a 1e-9 kg bogie) would otherwise ask the integrator for 1e12 substeps.
+        for name, (low, high) in _RANGES.items():
+            check_in_range(name, getattr(self, name), low, high)
 
     @property
     def mass_matrix(self) -> np.ndarray:

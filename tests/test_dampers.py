@@ -232,19 +232,27 @@ def test_reference_force_and_state_derivative_formula():
     np.testing.assert_allclose(ds[:, 0], zd, rtol=1e-9, atol=1e-12)
 
 
+def _upper_weight(x: np.ndarray, width: float) -> np.ndarray:
+    """The documented branch blend: 1 above +width, 0 below -width, a smoothstep between."""
+    s = np.clip((1.0 + x / width) / 2.0, 0.0, 1.0)
+    return 3.0 * s**2 - 2.0 * s**3
+
+
 def test_algebraic_models_force_formula():
     rng = np.random.default_rng(5)
     n = 200
     x, v = rng.uniform(-0.05, 0.05, n), rng.uniform(-2.0, 2.0, n)
     i = rng.uniform(0.0, 1.5, n)
-    x[:3], v[:3] = 0.0, [0.0, 1e-9, -1e-9]  # edge cases: x = 0 is the upper branch
+    x[:3], v[:3] = 0.0, [0.0, 1e-9, -1e-9]  # edge cases: x = 0 is half-way between the branches
+    x[3:9] = [1e-4, -1e-4, 3e-5, -7e-5, 2e-4, -2e-4]  # inside, at and outside the 0.1 mm blend
     # Passive: F = c v.
     f, ds = damper_force(LinearDamper(2.2e4), x, v, i)
     np.testing.assert_allclose(f, 2.2e4 * v, rtol=1e-14)
     np.testing.assert_array_equal(ds, 0.0)
-    # tanh, MODEL.md 4.3 with c, k, alpha, f0 linear in i.
+    # tanh, MODEL.md 4.3 with c, k, alpha, f0 linear in i; sign(x) blended over 0.1 mm.
     d = TanhDamper(f0_a=30.0, f0_b=-12.0, k_b=400.0)
-    sx = np.where(x >= 0.0, 1.0, -1.0)
+    sx = 2.0 * _upper_weight(x, 1e-4) - 1.0
+    assert np.all(sx[np.abs(x) >= 1e-4] == np.sign(x[np.abs(x) >= 1e-4]))
     expected = (
         (d.c_a + d.c_b * i) * v
         + (d.k_a + d.k_b * i) * x
@@ -255,12 +263,14 @@ def test_algebraic_models_force_formula():
     f, ds = damper_force(d, x, v, i)
     np.testing.assert_allclose(f, expected, rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(ds, 0.0)
-    # Bi-exponential, MODEL.md 4.4 with upper set for x >= 0, lower set for x < 0.
+    # Bi-exponential, MODEL.md 4.4: upper set for x >= 0.1 mm, lower set for x <= -0.1 mm,
+    # every parameter blended in between.
     d = BiExponentialDamper(upper_d=30.0, lower_d=45.0, lower_a0=900.0)
-    upper = x >= 0.0
+    w = _upper_weight(x, 1e-4)
 
     def pick(name):
-        return np.where(upper, getattr(d, "upper_" + name), getattr(d, "lower_" + name))
+        lower = getattr(d, "lower_" + name)
+        return lower + w * (getattr(d, "upper_" + name) - lower)
 
     s_d = np.sign(v) * (1.0 - np.exp(-pick("d") * np.abs(v)))
     expected = (
@@ -272,6 +282,10 @@ def test_algebraic_models_force_formula():
     f, ds = damper_force(d, x, v, i)
     np.testing.assert_allclose(f, expected, rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(ds, 0.0)
+    # Continuity at x = 0: the literal sign-of-stroke switch would jump by about 700 N.
+    default = BiExponentialDamper()
+    f_pm, _ = damper_force(default, [1e-9, -1e-9], 0.0, 0.0)
+    assert abs(f_pm[0] - f_pm[1]) < 0.1
 
 
 def test_simulate_damper_state_is_consistent_with_damper_force(stroke):

@@ -18,6 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from capsule_env import dynamics
+from capsule_env._threads import PARALLEL_THRESHOLD, run_batched
 from capsule_env.dampers import (
     DAMPER_NAMES,
     N_DAMPER_PARAMS,
@@ -27,17 +28,15 @@ from capsule_env.dampers import (
 )
 from capsule_env.dynamics import (
     N_OUTPUTS,
-    PARALLEL_THRESHOLD,
     STATE_SIZE,
     default_substeps,
     initial_state,
     simulate,
     simulate_damper,
     step_batch,
-    substep_table,
 )
 from capsule_env.guideway import random_profile, sine_profile
-from capsule_env.vehicle import VehicleParams, frequency_response
+from capsule_env.vehicle import VehicleParams, frequency_response, state_space
 
 SPEED = 225.0  # m/s (810 km/h)
 DT = 0.005  # control interval, s
@@ -174,23 +173,36 @@ def test_default_substeps_within_1pct_of_10x_finer(accuracy_runs, case):
 
 def test_default_substeps_meet_documented_accuracy(accuracy_runs):
     # substep_table's docstring: "within 0.5 % RMS of a 10x finer step" on the reference
-    # damper. Measured: about 0.38 % (0 A), 0.03 % (1.5 A), 0.19 % (random current).
+    # damper (tests/test_substeps.py checks every model and randomised vehicles).
     for coarse, fine in accuracy_runs.values():
         f_c, f_f = coarse["damper_force_n"][1:], fine["damper_force_n"][1:]
         assert rms(f_c - f_f) / rms(f_f) < 0.005
 
 
 def test_default_substeps_of_reference_damper():
-    # Documented rule: stiffness_bound * h <= 2 (RK4 real-axis stability is 2.785).
+    # RK4 is stable only for |lambda| h <= 2.785: Spencer's pre-yield rate
+    # (alpha A + k0) / (c0 + c1) at 1.5 A, from MODEL.md 4.1, bounds the substeps from below.
     damper = ReferenceDamper()
     n = default_substeps(damper, DT)
-    assert dynamics.stiffness_bound(damper) * DT / n <= 2.0
-    # Spencer's pre-yield rate (alpha A + k0) / (c0 + c1) at 1.5 A, from MODEL.md 4.1.
     p = SPENCER
     rate = ((p["aa"] + 1.5 * p["ab"]) * p["A"] + p["k0"]) / (
         p["c0a"] + 1.5 * p["c0b"] + p["c1a"] + 1.5 * p["c1b"]
     )
     assert n >= math.ceil(rate * DT / 2.785)
+
+
+def test_stiffness_rates_of_passive_plant_match_state_space_eigenvalues():
+    # The linearised plant of the substep rule, for the linear damper, is the passive plant:
+    # its eigenvalues come from vehicle.state_space (independent code), per vehicle.
+    rng = np.random.default_rng(0)
+    c = 1.5e4
+    for _ in range(5):
+        params = VehicleParams(*(rng.uniform(0.3, 1.7, 4) * [MC, MB, KS, KP]))
+        a, _, _ = state_space(params, c)
+        lam = np.linalg.eigvals(a)
+        rate, omega = dynamics.stiffness_rates(LinearDamper(c), params.as_array(), 0.0)
+        assert rate[0, 0] == pytest.approx(np.abs(lam.real).max(), rel=1e-9)
+        assert omega[0, 0] == pytest.approx(np.abs(lam.imag).max(), rel=1e-9)
 
 
 def reference_plant_rhs(profile: np.ndarray, spacing: float, i_cmd: float):
@@ -481,7 +493,6 @@ def run_batch(code: int, inp: dict, rows: slice | None = None, substeps: int = 5
     return states, outs
 
 
-# The parallel kernel costs 10-20 s of numba compilation on a cold cache: marked slow.
 @pytest.mark.parametrize("n", [3, pytest.param(PARALLEL_THRESHOLD + 3, marks=pytest.mark.slow)])
 def test_identical_rows_give_identical_results_equal_to_simulate(n):
     damper, inp = batch_inputs(n, identical=True)
@@ -511,7 +522,7 @@ def test_identical_rows_give_identical_results_equal_to_simulate(n):
 def test_parallel_kernel_equals_serial_bit_for_bit():
     n = PARALLEL_THRESHOLD + 5
     damper, inp = batch_inputs(n, identical=False, seed=9)
-    states, outs = run_batch(damper.code, inp)  # n >= threshold: parallel kernel
+    states, outs = run_batch(damper.code, inp)  # n >= threshold: chunks on threads
     assert np.all(np.isfinite(states))
     assert np.ptp(states[-1, :, 0]) > 0.0  # the rows really differ
     for row in range(n):  # each row alone: a batch of 1, the serial kernel
@@ -540,18 +551,23 @@ def _block_inputs(damper, n: int, seed: int = 4):
         speed=rng.uniform(150.0, 225.0, n),
         gain=np.ones(n),
         cmd=rng.uniform(0.0, I_MAX, (BATCH_STEPS, n)),
-        table=substep_table(damper, DT),
+        table=dynamics.substep_tables(damper, DT, vp),  # each vehicle its own table
     )
 
 
-def _run_kernel(kernel, inp, n, code):
+def _run_kernel(kernel, inp, n, code, threaded=False):
+    """Step the compiled kernel over ``n`` vehicles: one call, or chunks on threads."""
     state, out = initial_state(n), np.empty((n, N_OUTPUTS))
     derived = dynamics.block_constants(code, inp["dp"], DT, inp["table"])
     states = np.empty((BATCH_STEPS, n, STATE_SIZE))
     for k in range(BATCH_STEPS):
-        kernel(inp["dp"], inp["vp"], state, np.ascontiguousarray(inp["cmd"][k]), inp["profiles"],
-               inp["idx"], inp["spacing"], inp["x0"], inp["speed"], inp["gain"], DT,
-               inp["table"], derived, out)  # fmt: skip
+        args = (inp["dp"], inp["vp"], state, np.ascontiguousarray(inp["cmd"][k]),
+                inp["profiles"], inp["idx"], inp["spacing"], inp["x0"], inp["speed"],
+                inp["gain"], DT, inp["table"], derived, out)  # fmt: skip
+        if threaded:
+            run_batched(kernel, n, *args)
+        else:
+            kernel(0, n, *args)
         states[k] = state
     return states
 
@@ -580,11 +596,11 @@ def test_vectorised_block_kernel_matches_scalar_kernel(case):
     n = 10
     inp = _block_inputs(damper, n)
     assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode | dynamics.KERNEL_UNIFORM
-    scalar = dynamics.step_kernels(dynamics.KERNEL_SCALAR, damper.code)[0]
+    scalar = dynamics.step_kernel(dynamics.KERNEL_SCALAR, damper.code)
     s_ref = _run_kernel(scalar, inp, n, damper.code)
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     for variant in (mode | dynamics.KERNEL_UNIFORM, mode):
-        s_vec = _run_kernel(dynamics.step_kernels(variant, damper.code)[0], inp, n, damper.code)
+        s_vec = _run_kernel(dynamics.step_kernel(variant, damper.code), inp, n, damper.code)
         assert np.all(np.isfinite(s_vec))
         assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     assert np.ptp(s_vec[-1, :, 0]) > 0.0  # the vehicles really differ
@@ -603,14 +619,14 @@ def test_block_kernel_honours_per_vehicle_damper_rows():
     inp["dp"] = np.ascontiguousarray(dp)
     mode = dynamics.block_kernel_mode(base.code, dp)
     assert mode == dynamics.KERNEL_BLOCK  # not uniform
-    s_vec = _run_kernel(dynamics.step_kernels(mode, base.code)[0], inp, n, base.code)
-    s_ref = _run_kernel(dynamics.step_kernels(dynamics.KERNEL_SCALAR, base.code)[0], inp, n,
+    s_vec = _run_kernel(dynamics.step_kernel(mode, base.code), inp, n, base.code)
+    s_ref = _run_kernel(dynamics.step_kernel(dynamics.KERNEL_SCALAR, base.code), inp, n,
                         base.code)  # fmt: skip
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     # and the rows matter: the same vehicles with the base damper end elsewhere
     uniform = dict(inp, dp=np.ascontiguousarray(np.tile(base.as_array(), (n, 1))))
-    s_base = _run_kernel(dynamics.step_kernels(mode, base.code)[0], uniform, n, base.code)
+    s_base = _run_kernel(dynamics.step_kernel(mode, base.code), uniform, n, base.code)
     assert np.max(np.abs(s_base - s_vec) / scale) > 1e-3
 
 
@@ -636,10 +652,10 @@ def test_adaptive_substeps_batch_equals_each_vehicle_alone():
     n = PARALLEL_THRESHOLD + 7
     inp = _block_inputs(damper, n, seed=8)
     mode = dynamics.block_kernel_mode(damper.code, inp["dp"])
-    serial, parallel = dynamics.step_kernels(mode, damper.code)
-    s_all = _run_kernel(parallel, inp, n, damper.code)
+    kernel = dynamics.step_kernel(mode, damper.code)
+    s_all = _run_kernel(kernel, inp, n, damper.code, threaded=True)
     for row in (0, 5, 33, 63, 64, n - 1):
         one = {k: (v[row : row + 1] if isinstance(v, np.ndarray) and k != "profiles"
-                   and k != "table" else v) for k, v in inp.items()}  # fmt: skip
+                   else v) for k, v in inp.items()}  # fmt: skip
         one["cmd"] = np.ascontiguousarray(inp["cmd"][:, row : row + 1])
-        np.testing.assert_array_equal(_run_kernel(serial, one, 1, damper.code)[:, 0], s_all[:, row])
+        np.testing.assert_array_equal(_run_kernel(kernel, one, 1, damper.code)[:, 0], s_all[:, row])

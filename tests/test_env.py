@@ -102,31 +102,42 @@ def test_single_native_vector_and_sb3_vec_env_agree(setting):
     n, steps, seed = 3, 250, 11
     rng = np.random.default_rng(1)
     actions = rng.uniform(-1, 1, (steps, n, 1)).astype(np.float32)
+    # The native vector env and the SB3 VecEnv seeded with the same int: the same vehicles.
     vec = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting)
     sb3 = CapsuleSuspensionSB3VecEnv(num_envs=n, setting=setting)
     sb3.seed(seed)
     v_obs, _ = vec.reset(seed=seed)
     s_obs = sb3.reset()
     np.testing.assert_array_equal(v_obs, s_obs)
+    # Single envs seeded s_k against a vector env seeded with the list [s_0, s_1, ...];
+    # and vehicle 0 of the int-seeded vector env is the single env seeded ``seed``.
+    listed = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting)
+    l_obs, _ = listed.reset(seed=[seed + 100 * k for k in range(n)])
     singles = [CapsuleSuspensionEnv(setting=setting) for _ in range(n)]
-    single_obs = [env.reset(seed=seed + k)[0] for k, env in enumerate(singles)]
-    np.testing.assert_array_equal(np.stack(single_obs), v_obs)
+    single_obs = [env.reset(seed=seed + 100 * k)[0] for k, env in enumerate(singles)]
+    np.testing.assert_array_equal(np.stack(single_obs), l_obs)
+    first = CapsuleSuspensionEnv(setting=setting)
+    first.reset(seed=seed)
     for t in range(steps):
         v_obs, v_rew, *_ = vec.step(actions[t])
         s_obs, s_rew, _, _ = sb3.step(actions[t])
+        l_obs, l_rew, *_ = listed.step(actions[t])
         for k, env in enumerate(singles):
             o, r, *_ = env.step(actions[t, k])
-            np.testing.assert_array_equal(o, v_obs[k])
-            assert r == v_rew[k]
+            np.testing.assert_array_equal(o, l_obs[k])
+            assert r == l_rew[k]
+        o, r, *_ = first.step(actions[t, 0])
+        np.testing.assert_array_equal(o, v_obs[0])
+        assert r == v_rew[0]
         np.testing.assert_array_equal(v_obs, s_obs)
         np.testing.assert_allclose(v_rew, s_rew, rtol=1e-6)  # SB3 rewards are float32
 
 
 def test_parallel_kernel_matches_serial_bit_for_bit():
     config = EnvConfig(setting="hils")
-    big = CapsuleBatch(config, 80)  # parallel kernel
+    big = CapsuleBatch(config, 80)  # chunks on threads
     small = [CapsuleBatch(config, 1) for _ in range(3)]
-    big.seed(3)
+    big.seed([3 + k for k in range(80)])
     big.reset()
     for k, b in enumerate(small):
         b.seed(3 + k)
@@ -275,7 +286,7 @@ def test_bad_arguments_name_the_parameter():
         gym.make(ENV_ID, speed=3)
     with pytest.raises(ValueError, match="car_body_mass_kg"):
         gym.make(ENV_ID, vehicle_params={"car_body_mass_kg": -1.0})
-    with pytest.raises(ValueError, match="guideway kind"):
+    with pytest.raises(ValueError, match="unknown guideway 'cobblestones'"):
         gym.make(ENV_ID, guideway="cobblestones")
 
 

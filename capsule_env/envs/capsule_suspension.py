@@ -6,23 +6,58 @@ The single environment and its native vector environment. Both are thin shells o
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 from gymnasium import Env, spaces
+from gymnasium.envs.registration import EnvSpec
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig, observation_bounds
+from capsule_env.core import (
+    SIGNAL_NAMES,
+    CapsuleBatch,
+    EnvConfig,
+    check_num_envs,
+    check_seed,
+    observation_bounds,
+)
 from capsule_env.render import draw_quarter_car
 
 __all__ = ["CapsuleSuspensionEnv", "CapsuleSuspensionVectorEnv"]
+
+
+#: Keys ``reset(options=...)`` accepts (none yet: every option is a constructor argument).
+RESET_OPTIONS: tuple[str, ...] = ()
 
 
 def _spaces(config: EnvConfig) -> tuple[spaces.Box, spaces.Box]:
     action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
     low, high = observation_bounds(config, config.max_current_a)
     return action_space, spaces.Box(low, high, dtype=np.float32)
+
+
+def _check_options(options: dict[str, Any] | None) -> None:
+    if options is None:
+        return
+    if not isinstance(options, dict):
+        raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise ValueError(
+            f"unknown reset option(s) {unknown}; accepted: {list(RESET_OPTIONS) or 'none'}"
+        )
+
+
+def _spec_with_length(spec: EnvSpec | None, config: EnvConfig) -> EnvSpec | None:
+    """The spec ``gymnasium.make`` gave, with ``max_episode_steps`` the env's own length when
+    the registration leaves it open (it does: the length is ``episode_length_s *
+    control_rate_hz``, an argument, so a fixed registered number would be wrong)."""
+    if spec is None or spec.max_episode_steps is not None:
+        return spec
+    return dataclasses.replace(spec, max_episode_steps=config.max_episode_steps)
 
 
 class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
@@ -52,9 +87,12 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
     ## Observation Space
 
-    ``Box(-inf, inf, (n,), float32)`` in SI units (no scaling: wrap in ``VecNormalize`` or
-    ``NormalizeObservation`` for learning). ``observation="sensors"`` (default), what a real
-    vehicle measures (with noise in ``hils``):
+    ``Box(low, high, (n,), float32)`` in SI units (no scaling: wrap in ``VecNormalize`` or
+    ``NormalizeObservation`` for learning), bounded by generous physical limits at which the
+    sensors saturate (observations are clipped to them): accelerations +-100 m/s^2, stroke +-2 x
+    ``stroke_limit_m``, rates +-10 m/s, displacements and elevation +-1 m, current
+    ``[0, i_max]``. ``observation="sensors"`` (default), what a real vehicle measures (with noise
+    in ``hils``):
 
     | index | observation | unit |
     |-------|-------------|------|
@@ -104,9 +142,14 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
     ## Episode End
 
-    - Truncation: ``episode_length_s`` (10 s = 2000 steps by default; registered
-      ``max_episode_steps=2000``, the env also truncates itself at its own length).
+    - Truncation: after ``episode_length_s * control_rate_hz`` steps (10 s = 2000 steps by
+      default); the env truncates itself, so the length follows its arguments in
+      ``gymnasium.make``, ``make_vec`` and the SB3 ``VecEnv`` alike (``env.spec.max_episode_steps``
+      reports it; a ``max_episode_steps`` passed to ``gymnasium.make`` adds a ``TimeLimit``
+      and the earlier of the two ends the episode).
     - Termination: the stroke passes the bump stop ``|x| > stroke_limit_m`` (60 mm default).
+    - ``step`` before ``reset``, or after an episode ended, raises
+      ``gymnasium.error.ResetNeeded``.
 
     ## Info
 
@@ -161,6 +204,16 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         self._needs_reset = True
 
     @property
+    def spec(self) -> EnvSpec | None:
+        return _spec_with_length(self._spec, self.config)
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = value
+
+    _spec: EnvSpec | None = None
+
+    @property
     def batch(self) -> CapsuleBatch:
         """The underlying one-vehicle simulation (state, parameters, signals)."""
         return self._batch
@@ -168,27 +221,26 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is not None:
+            check_seed("seed", seed)
+        _check_options(options)
         super().reset(seed=seed)
         if seed is not None:
             self._batch.seed(seed)
-        elif self._needs_reset and self._batch.rngs[0] is None:  # pragma: no cover
-            self._batch.seed(None)
         self._batch.reset()
         self._needs_reset = False
         return self._batch.obs[0].copy(), self._info()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        try:
-            value = float(action[0])
-        except (TypeError, IndexError):
-            value = np.asarray(action, dtype=np.float64)
-            if value.size != 1:
-                raise ValueError(f"action must have shape (1,), got shape {value.shape}") from None
-            value = float(value.reshape(-1)[0])
+        if self._needs_reset:
+            raise ResetNeeded(
+                "call reset() before step(): the episode has not started or has ended"
+            )
         batch = self._batch
-        batch.step_one(value)
+        batch.step_one(_single_action(action))
         terminated = bool(batch.terminated[0])
         truncated = bool(batch.step_count[0] >= batch.max_steps)
+        self._needs_reset = terminated or truncated
         return (
             batch.obs[0].copy(),
             float(batch.reward[0]),
@@ -204,6 +256,21 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         if self.render_mode != "rgb_array":
             return None
         return _render_one(self._batch, 0)
+
+
+def _single_action(action: Any) -> float:
+    """The one number of a single env's action: shape (1,) (the action space) or a scalar."""
+    if isinstance(action, (float, int, np.floating, np.integer)) and not isinstance(action, bool):
+        return float(action)
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(
+            f"action must be a number or an array of shape (1,), got {type(action).__name__}"
+        ) from None
+    if a.shape not in ((1,), ()):
+        raise ValueError(f"action must have shape (1,), got shape {a.shape}")
+    return float(a.reshape(-1)[0])
 
 
 def _render_one(batch: CapsuleBatch, n: int) -> np.ndarray:
@@ -226,10 +293,13 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     Same dynamics, spaces, reward and arguments as :class:`CapsuleSuspensionEnv`. Autoreset is
     ``NEXT_STEP`` (Gymnasium's default): the step after an episode ends resets that vehicle and
     returns its first observation with reward 0 and ``terminated = truncated = False``; the
-    action given for it in that step is ignored. ``reset(seed=s)`` seeds vehicle ``n`` with
-    ``s + n``, so vehicle ``n`` reproduces the single env reset with seed ``s + n`` step for
-    step. ``info`` is a dict of arrays (one entry per vehicle) with Gymnasium's ``_key`` masks.
-    Batches of 64 or more run on all cores (numba threads).
+    action given for it in that step is ignored. ``reset(seed=s)`` gives the vehicles the
+    independent streams ``numpy.random.SeedSequence(s).spawn(num_envs)`` (vehicle 0 is the single
+    env seeded ``s``; two different seeds share no stream); ``reset(seed=[s_0, ..., s_{N-1}])``
+    gives vehicle ``n`` the stream of the single env seeded ``s_n``. ``info`` is a dict of
+    arrays (one entry per vehicle, fresh arrays every step) with Gymnasium's ``_key`` masks.
+    Actions: shape ``(num_envs, 1)`` (the action space) or ``(num_envs,)``. Batches of 64 or
+    more are split across threads (:mod:`capsule_env._threads`).
     """
 
     metadata = {
@@ -248,10 +318,16 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.config = EnvConfig.from_kwargs(**kwargs)
-        self.num_envs = int(num_envs)
+        self.num_envs = check_num_envs(num_envs)
         self.render_mode = render_mode
         self._batch = CapsuleBatch(self.config, self.num_envs)
         if max_episode_steps is not None:
+            if isinstance(max_episode_steps, bool) or not isinstance(
+                max_episode_steps, (int, np.integer)
+            ) or max_episode_steps < 1:  # fmt: skip
+                raise ValueError(
+                    f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}"
+                )
             # As Gymnasium's TimeLimit on the single env: the earlier of the two limits.
             self._batch.max_steps = min(self._batch.max_steps, int(max_episode_steps))
         self.single_action_space, self.single_observation_space = _spaces(self.config)
@@ -259,6 +335,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._mask = np.ones(self.num_envs, dtype=bool)
+        self._needs_reset = True
 
     @property
     def batch(self) -> CapsuleBatch:
@@ -267,21 +344,23 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        super().reset(seed=seed)
-        if isinstance(seed, (list, tuple, np.ndarray)):
-            self._batch.rngs = [np.random.default_rng(int(s)) for s in seed]
-        elif seed is not None:
-            self._batch.seed(seed)
+        _check_options(options)
+        if seed is not None:
+            self._batch.seed(seed)  # validates an int or a list of num_envs ints
+        super().reset(seed=seed if isinstance(seed, (int, np.integer)) else None)
         self._batch.reset()
         self._autoreset[:] = False
+        self._needs_reset = False
         return self._batch.obs.copy(), self._infos()
 
     def step(
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        if self._needs_reset:
+            raise ResetNeeded("call reset() before step()")
         batch = self._batch
         a = np.asarray(actions)
-        if a.size != self.num_envs:
+        if a.shape not in ((self.num_envs, 1), (self.num_envs,)):
             raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
         batch.step(a.reshape(self.num_envs))
         reward = batch.reward.copy()
