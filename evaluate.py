@@ -4,9 +4,18 @@
     python evaluate.py --setting hils --episodes 20 --json out/eval.json --plots out/plots
     python evaluate.py --policy runs/ppo/best_model.zip   # add a trained SB3 policy
 
-Read top to bottom: arguments; controllers; for each setting the passive run and every
-controller on the same guideway seeds; metrics; the tables (Tables 5 and 6 analogues) with the
-paper's published figures beside ours; optional JSON and figures.
+Read top to bottom: arguments; controllers; the checks made before anything runs; for each
+setting the passive run and every controller on the same guideway seeds; metrics; the tables
+(Tables 5 and 6 analogues) with the paper's published figures beside ours; optional JSON and
+figures.
+
+Policy rows are named by the policy's metadata ``name`` (its file stem without a ``.json``);
+when that name is taken (by a classical controller or an earlier ``--policy``), ``#2``, ``#3``
+... is appended in command-line order, and the table's footer lists each policy row's file.
+Bad arguments or files (a missing, empty, corrupt or mismatched policy, a policy without its
+``.vecnormalize.pkl`` unless ``--allow-unnormalized``, an episode too short for the spectra,
+an unwritable ``--json``/``--plots`` path) stop the script before the run with one line on
+stderr and exit status 1 (2 for argument syntax).
 """
 
 from __future__ import annotations
@@ -16,12 +25,15 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
 from agents import classical_controllers
-from capsule_env.evaluation import episode_metrics, run_episodes
+from capsule_env.core import EnvConfig
+from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
+from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.vehicle import natural_frequencies_hz
 
 #: The paper's published vibration-reduction effects (per cent) that survived extraction
@@ -47,8 +59,18 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
 ]
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    """The command line (syntax only; :func:`check_args` checks the values)."""
+    p = _Parser(
+        prog="evaluate.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
     p.add_argument("--setting", choices=["sim", "hils", "both"], default="both",
                    help="sim: plant damper = inverted model; hils: reference damper with coil "
                    "lag, noise, delay (default: both)")  # fmt: skip
@@ -56,31 +78,61 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="comma-separated controller names, or 'all' (classical: "
                    + ", ".join(classical_controllers()) + ")")  # fmt: skip
     p.add_argument("--policy", action="append", default=[], metavar="PATH",
-                   help="a saved SB3 model (.zip; VecNormalize stats next to it are loaded); "
-                   "repeatable")  # fmt: skip
+                   help="a saved SB3 model (.zip; its .vecnormalize.pkl statistics next to it "
+                   "are required and loaded); repeatable")  # fmt: skip
+    p.add_argument("--allow-unnormalized", action="store_true",
+                   help="run a --policy without its .vecnormalize.pkl on raw observations "
+                   "(usually far worse than it was in training)")  # fmt: skip
     p.add_argument(
         "--no-shipped-policy",
         action="store_true",
         help="do not add the pretrained policy shipped with the package",
     )
-    p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller")
-    p.add_argument("--seed", type=int, default=1000, help="first episode seed")
-    p.add_argument("--episode-length", type=float, default=10.0, help="seconds per episode")
+    p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
+    p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
+    p.add_argument("--episode-length", type=float, default=10.0,
+                   help="seconds per episode (at least 0.335 s at the default 200 Hz control "
+                   "rate: the spectra need a line in each mode band)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder")
-    args = p.parse_args(argv)
+    return p.parse_args(argv)
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Check the values, and that the ``--json``/``--plots`` paths can be written, before
+    anything runs; raises ``ValueError`` naming the option."""
     if args.episodes < 1:
-        p.error("--episodes must be >= 1")
-    return args
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0 (episode k uses seed + k), got {args.seed}")
+    if args.json is not None:
+        check_writable_file(args.json, "--json")
+    if args.plots is not None:
+        check_writable_dir(args.plots, "--plots")
 
 
-def build_controllers(names: list[str], policies: list[str], shipped: bool) -> dict:
+def unique_name(name: str, taken: dict | set) -> str:
+    """``name``, or ``name#2``, ``name#3`` ... the first one not in ``taken``."""
+    if name not in taken:
+        return name
+    k = 2
+    while f"{name}#{k}" in taken:
+        k += 1
+    return f"{name}#{k}"
+
+
+def build_controllers(
+    names: list[str], policies: list[str], shipped: bool, allow_unnormalized: bool = False
+) -> dict:
+    """The named classical controllers (passive always first) and the policies loaded from
+    ``policies`` (after the shipped one when ``shipped``), each under a unique name
+    (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
     available = classical_controllers()
     if names == ["all"]:
         names = list(available)
     unknown = [n for n in names if n not in available]
     if unknown:
-        raise SystemExit(
+        raise ValueError(
             f"unknown controller(s) {unknown}; accepted: {', '.join(available)} or 'all'"
         )
     ctrls = {n: available[n] for n in names}
@@ -94,20 +146,73 @@ def build_controllers(names: list[str], policies: list[str], shipped: bool) -> d
     for path in paths:
         from agents.sb3_policy import SB3Policy
 
-        policy = SB3Policy.load(path)
+        policy = SB3Policy.load(path, require_normalization=not allow_unnormalized)
+        if policy.obs_rms is None:
+            print(f"evaluate.py: warning: {path} runs on raw observations (no normalisation "
+                  "statistics)", file=sys.stderr)  # fmt: skip
+        policy.name = unique_name(str(policy.name), ctrls)
         ctrls[policy.name] = policy
     return ctrls
 
 
-def evaluate(args: argparse.Namespace) -> dict:
-    settings = ["sim", "hils"] if args.setting == "both" else [args.setting]
+def check_controllers(ctrls: dict, settings: list[str], episode_length_s: float) -> None:
+    """Before the run: each controller's env arguments are valid in each setting, the episode
+    is long enough for the metrics at its control rate, and each policy's observation and
+    action sizes are the env's. Raises ``ValueError`` naming the controller (and file)."""
+    for name, ctrl in ctrls.items():
+        where = f"{name} ({ctrl.path})" if getattr(ctrl, "path", None) else name
+        for setting in settings:
+            try:
+                config = EnvConfig.from_kwargs(**{**ctrl.env_kwargs, "setting": setting})
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"{where}: bad env arguments {ctrl.env_kwargs}: {exc}") from None
+            check_episode_length(episode_length_s, config.dt_s, "--episode-length")
+            model = getattr(ctrl, "model", None)
+            if model is None:
+                continue
+            obs_size = (len(config.observation_names),)
+            if tuple(model.observation_space.shape) != obs_size:
+                raise ValueError(
+                    f"{where} takes observations of shape {tuple(model.observation_space.shape)}"
+                    f", but its env ({config.observation!r} observation) gives {obs_size}: the "
+                    "policy was trained on another observation set"
+                )
+            if tuple(model.action_space.shape) != (1,):
+                raise ValueError(
+                    f"{where} gives actions of shape {tuple(model.action_space.shape)}, the "
+                    "env takes (1,)"
+                )
+
+
+def prepare(args: argparse.Namespace) -> dict:
+    """Every check made before the run (:func:`check_args`, :func:`build_controllers`,
+    :func:`check_controllers`); returns the controllers."""
+    check_args(args)
     names = [n.strip() for n in args.controllers.split(",") if n.strip()]
-    ctrls = build_controllers(names, args.policy, shipped=not args.no_shipped_policy)
+    ctrls = build_controllers(
+        names, args.policy, shipped=not args.no_shipped_policy,
+        allow_unnormalized=args.allow_unnormalized,
+    )  # fmt: skip
+    check_controllers(ctrls, _settings(args), args.episode_length)
+    return ctrls
+
+
+def _settings(args: argparse.Namespace) -> list[str]:
+    return ["sim", "hils"] if args.setting == "both" else [args.setting]
+
+
+def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
+    """Run every controller (``ctrls``, default :func:`prepare`'s) in each setting; returns
+    the results (metrics per setting and controller, the policies' files)."""
+    settings = _settings(args)
+    if ctrls is None:
+        ctrls = prepare(args)
     results: dict = {
         "natural_frequencies_hz": [float(f) for f in natural_frequencies_hz()],
         "bands_hz": {k: list(v) for k, v in DEFAULT_BANDS_HZ.items()},
         "episodes": args.episodes,
         "seeds": [args.seed, args.seed + args.episodes - 1],
+        "policies": {n: str(c.path) for n, c in ctrls.items() if getattr(c, "path", None)},
         "settings": {},
     }
     rollouts: dict = {}
@@ -181,6 +286,9 @@ def format_tables(results: dict) -> str:
             cells.append(f"{trk:8.3f}" if trk is not None else f"{'-':>8}")
             lines.append("".join(cells))
         lines.append(PAPER_TEXT[setting])
+    if results.get("policies"):
+        lines.append("")
+        lines.append("policies: " + "; ".join(f"{n} = {p}" for n, p in results["policies"].items()))
     lines.append("")
     lines.append(
         "VRE: (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
@@ -191,12 +299,21 @@ def format_tables(results: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status. Bad arguments or files: ``SystemExit`` with one
+    line (``evaluate.py: error: ...``) before anything runs."""
     args = parse_args(argv)
-    results = evaluate(args)
+    try:
+        ctrls = prepare(args)
+    except (ValueError, OSError, TypeError) as exc:
+        sys.exit(f"evaluate.py: error: {exc}")
+    results = evaluate(args, ctrls)
     print(format_tables(results))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=2))
+        try:
+            atomic_write_text(args.json, json.dumps(results, indent=2))
+        except OSError as exc:
+            sys.exit(f"evaluate.py: error: cannot write --json {args.json} ({exc}); any "
+                     "previous file there is unchanged")  # fmt: skip
         print(f"\nwrote {args.json}")
     return 0
 

@@ -9,8 +9,9 @@
 Read top to bottom (CleanRL style): arguments; hyperparameters (RL-Zoo yml); the env (the
 batched numba kernel as an SB3 ``VecEnv`` + ``VecMonitor`` + ``VecNormalize``); the model (new
 or resumed from a checkpoint); callbacks (held-out evaluation keeping the best model by the
-ISO 2631 Wk-weighted RMS car-body acceleration, periodic checkpoints, throughput); training
-(Ctrl-C or SIGTERM saves a checkpoint); the final model.
+ISO 2631 Wk-weighted RMS car-body acceleration, checkpoints every ``--checkpoint-freq`` steps
+and every ``--checkpoint-minutes`` of wall time, throughput); training (Ctrl-C or SIGTERM saves
+a checkpoint); the final model and a last checkpoint.
 
 Environment: training uses ``setting="hils"`` (reference damper, coil lag, sensor noise,
 control delay), ``action_mode="force"`` and ``observation="sensors"`` unless the hyperparameter
@@ -30,7 +31,15 @@ Output folder (``--output-dir``, default ``runs/<algo>-seed<seed>``):
   evaluation metrics, the timesteps and the wall time.
 - ``final_model.*``: the same files for the policy at the end of training.
 - ``checkpoints/ckpt_<steps>.{zip,vecnormalize.pkl,json}`` (+ ``.replay_buffer.pkl`` for SAC and
-  TD3): what ``--resume`` needs. ``evaluations.jsonl``: one line per evaluation.
+  TD3, kept for the newest ``--keep-replay-buffers`` checkpoints only): what ``--resume`` needs;
+  ``--resume auto`` takes the newest intact one, saying which newer ones it skipped and why.
+  ``evaluations.jsonl``: one line per evaluation.
+
+Every save writes its files under temporary names and then renames them into place, the json
+last: a full disk or a kill during a save leaves the previous files intact, and the json's
+sizes and SHA-256 of the ``.zip`` and ``.pkl`` let the loaders refuse a mixed or truncated set.
+Bad arguments, and output folders that cannot be written, stop the script before training with
+one line on stderr (exit status 2 for the command line's own checks, 1 for the later ones).
 
 Hyperparameters: ``hyperparams/<algo>.yml`` is in RL-Zoo format keyed by the env id, so
 ``python -m rl_zoo3.train --algo ppo --env CapsuleSuspension-v0 --gym-packages capsule_env
@@ -54,12 +63,18 @@ import sys
 import time
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
 from capsule_env.core import EnvConfig
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, episode_metrics, run_episodes
+from capsule_env.evaluation import (
+    EVALUATION_GUIDEWAY_SEED,
+    check_episode_length,
+    episode_metrics,
+    run_episodes,
+)
+from capsule_env.safe_io import StagedFiles, check_writable_dir, digest_mismatch, file_digest
 
 ENV_ID = "CapsuleSuspension-v0"
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -121,8 +136,19 @@ class Args:
     )
     checkpoint_freq: int = field(
         default=500_000,
-        metadata={"help": "save a checkpoint every this many env steps (0: only on Ctrl-C)"},
-    )
+        metadata={"help": "save a checkpoint every this many env steps (0: off; checkpoints "
+                  "are also saved by wall time, on Ctrl-C/SIGTERM and at the end)"},
+    )  # fmt: skip
+    checkpoint_minutes: float = field(
+        default=5.0,
+        metadata={"help": "also save a checkpoint when this many minutes of wall time have "
+                  "passed since the last one (0: off)"},
+    )  # fmt: skip
+    keep_replay_buffers: int = field(
+        default=2,
+        metadata={"help": "SAC/TD3: keep the replay buffer (.replay_buffer.pkl) of only the "
+                  "newest this many checkpoints, deleting older ones (the models stay)"},
+    )  # fmt: skip
     resume: str | None = field(
         default=None,
         metadata={"help": "continue from a checkpoint .zip, or 'auto' for the latest one in "
@@ -149,9 +175,17 @@ def _integer(text: str) -> int:
     return int(value)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    """The command line as :class:`Args`; a bad value exits with one line on stderr."""
+    parser = _Parser(
+        prog="train.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     for f in fields(Args):
         flag = "--" + f.name.replace("_", "-")
@@ -197,9 +231,11 @@ def parse_args(argv: list[str] | None = None) -> Args:
         value = getattr(args, name)
         if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
-    for name in ("eval_freq", "checkpoint_freq"):
+    for name in ("eval_freq", "checkpoint_freq", "keep_replay_buffers"):
         if getattr(args, name) < 0:
-            parser.error(f"--{name.replace('_', '-')} must be >= 0")
+            parser.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
+        parser.error(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
     if "guideway_seed" in env_kwargs and env_kwargs["guideway_seed"] == EVALUATION_GUIDEWAY_SEED:
         parser.error(f"guideway_seed={EVALUATION_GUIDEWAY_SEED} is the held-out evaluation bank")
     return args
@@ -389,28 +425,128 @@ def policy_env_kwargs(env_kwargs: dict) -> dict:
     return {k: v for k, v in env_kwargs.items() if k not in EVALUATION_CHOSEN}
 
 
-def save_policy(model: Any, stem: Path, meta: dict) -> None:
-    """``stem.zip`` (model), ``stem.vecnormalize.pkl`` (statistics), ``stem.json`` (metadata)."""
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    model.save(str(stem) + ".zip")
-    model.get_vec_normalize_env().save(str(stem) + ".vecnormalize.pkl")
-    Path(str(stem) + ".json").write_text(json.dumps(meta, indent=2, default=str))
+def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False) -> None:
+    """``stem.zip`` (model), ``stem.vecnormalize.pkl`` (statistics), optionally
+    ``stem.replay_buffer.pkl`` (SAC/TD3), and ``stem.json`` (metadata), saved together.
+
+    Every file is written to a temporary name next to it first, then all are renamed into
+    place (statistics, replay buffer, model, and the metadata last): a failed save (a full
+    disk, a kill) leaves the previous files as they were. The json records the size and
+    SHA-256 of the model and statistics (``files``) and of the replay buffer
+    (``replay_buffer``), which the loaders check (:func:`checkpoint_problem`,
+    ``agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
+    """
+    stem = Path(stem)
+    zip_path = stem.with_name(stem.name + ".zip")
+    pkl_path = stem.with_name(stem.name + ".vecnormalize.pkl")
+    rb_path = stem.with_name(stem.name + ".replay_buffer.pkl")
+    with StagedFiles() as staged:
+        model.get_vec_normalize_env().save(str(staged.temp_for(pkl_path)))
+        if replay_buffer:
+            model.save_replay_buffer(str(staged.temp_for(rb_path)))
+        model.save(str(staged.temp_for(zip_path)))
+        temps = staged.staged
+        meta = {
+            **meta,
+            "files": {p.name: file_digest(temps[p]) for p in (zip_path, pkl_path)},
+        }
+        if replay_buffer:
+            meta["replay_buffer"] = {rb_path.name: file_digest(temps[rb_path])}
+        staged.write_text(
+            stem.with_name(stem.name + ".json"), json.dumps(meta, indent=2, default=str)
+        )
 
 
-def save_checkpoint(model: Any, ckpt_dir: Path, meta: dict) -> Path:
+def save_checkpoint(model: Any, ckpt_dir: Path, meta: dict, keep_replay_buffers: int = 2) -> Path:
+    """``ckpt_dir/ckpt_<steps>.*`` (:func:`save_policy`; SAC/TD3 with the replay buffer unless
+    ``keep_replay_buffers`` is 0), then :func:`prune_replay_buffers`. Returns the ``.zip``."""
     stem = ckpt_dir / f"ckpt_{model.num_timesteps:012d}"
-    save_policy(model, stem, {**meta, "num_timesteps": int(model.num_timesteps)})
-    if hasattr(model, "save_replay_buffer"):  # SAC, TD3
-        model.save_replay_buffer(str(stem) + ".replay_buffer.pkl")
+    with_buffer = hasattr(model, "save_replay_buffer") and keep_replay_buffers > 0
+    save_policy(model, stem, {**meta, "num_timesteps": int(model.num_timesteps)}, with_buffer)
+    if hasattr(model, "save_replay_buffer"):
+        prune_replay_buffers(ckpt_dir, keep_replay_buffers)
     return Path(str(stem) + ".zip")
 
 
+def prune_replay_buffers(ckpt_dir: Path, keep: int) -> list[Path]:
+    """Delete the ``.replay_buffer.pkl`` files of all but the newest ``keep`` checkpoints (by
+    their timesteps); the checkpoints' models stay. Returns the deleted paths."""
+    buffers = sorted(Path(ckpt_dir).glob("ckpt_*.replay_buffer.pkl"))  # zero-padded steps
+    doomed = buffers[: max(len(buffers) - keep, 0)]
+    for path in doomed:
+        path.unlink(missing_ok=True)
+    return doomed
+
+
+def checkpoint_problem(zip_path: Path) -> str | None:
+    """Why the checkpoint ``zip_path`` (with its ``.vecnormalize.pkl`` and ``.json``, and
+    ``.replay_buffer.pkl`` when present) cannot be resumed from, or None when it is intact.
+
+    Checked: the json (written last, the mark of a complete save) is readable; the files
+    exist and, when the json records their sizes and SHA-256 (``save_policy``), match them;
+    else (older checkpoints) the zip is a readable zip archive and the statistics unpickle.
+    """
+    zip_path = Path(zip_path)
+    stem = zip_path.with_suffix("")
+    meta_path = stem.with_suffix(".json")
+    pkl_path = Path(str(stem) + ".vecnormalize.pkl")
+    if not meta_path.is_file():
+        return f"no {meta_path.name} (the save did not finish)"
+    try:
+        meta = json.loads(meta_path.read_text())
+        steps = int(meta["num_timesteps"])
+    except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
+        return f"{meta_path.name} is not readable checkpoint metadata ({type(exc).__name__}: {exc})"
+    missing = [k for k in ("algo", "num_envs", "train_env_kwargs") if k not in meta]
+    if missing:
+        return f"{meta_path.name} lacks {', '.join(missing)}"
+    if f"ckpt_{steps:012d}" != stem.name and stem.name.startswith("ckpt_"):
+        return f"{meta_path.name} says {steps} timesteps, not those of its name"
+    for path in (zip_path, pkl_path):
+        if not path.is_file() or path.stat().st_size == 0:
+            return f"{path.name} is missing or empty"
+    if isinstance(meta.get("files"), dict):
+        problem = digest_mismatch(zip_path.parent, meta["files"])
+        if problem:
+            return problem
+    else:  # a checkpoint from before the digests: check that the files can be read
+        import pickle
+        import zipfile
+
+        try:
+            with zipfile.ZipFile(zip_path) as archive:
+                bad = archive.testzip()
+            if bad is not None:
+                return f"{zip_path.name}: member {bad} is corrupt"
+            with pkl_path.open("rb") as fh:
+                pickle.load(fh)
+        except Exception as exc:  # a corrupt archive or pickle raises many types
+            return f"cannot read it ({type(exc).__name__}: {exc})"
+    buffer = meta.get("replay_buffer")
+    if isinstance(buffer, dict):  # pruned buffers are allowed to be absent
+        present = {n: d for n, d in buffer.items() if (zip_path.parent / n).is_file()}
+        problem = digest_mismatch(zip_path.parent, present)
+        if problem:
+            return problem
+    return None
+
+
 def latest_checkpoint(output_dir: Path) -> Path:
-    metas = sorted((output_dir / "checkpoints").glob("ckpt_*.json"))
-    if not metas:
-        raise SystemExit(f"--resume auto: no checkpoint in {output_dir / 'checkpoints'}")
-    best = max(metas, key=lambda p: json.loads(p.read_text())["num_timesteps"])
-    return best.with_suffix(".zip")
+    """The newest intact checkpoint in ``output_dir/checkpoints`` (:func:`checkpoint_problem`);
+    each newer one that is not intact is reported on stderr, with the reason, and skipped."""
+    ckpt_dir = output_dir / "checkpoints"
+    stems = {p.name.split(".")[0] for p in ckpt_dir.glob("ckpt_*.*")}
+    if not stems:
+        raise ValueError(f"--resume auto: no checkpoint in {ckpt_dir}")
+    skipped = 0
+    for name in sorted(stems, reverse=True):  # zero-padded timesteps: newest first
+        zip_path = ckpt_dir / f"{name}.zip"
+        problem = checkpoint_problem(zip_path)
+        if problem is None:
+            return zip_path
+        skipped += 1
+        print(f"--resume auto: skipping {zip_path}: {problem}", file=sys.stderr, flush=True)
+    raise ValueError(f"--resume auto: no intact checkpoint in {ckpt_dir} ({skipped} skipped)")
 
 
 # ----------------------------------------------------------------------------- callbacks
@@ -419,7 +555,8 @@ def _callbacks():
 
     class TrainingMonitor(BaseCallback):
         """Held-out evaluation (best model by Wk-weighted RMS body acceleration), periodic
-        checkpoints and throughput, every ``eval_freq`` / ``checkpoint_freq`` env steps."""
+        checkpoints and throughput, every ``eval_freq`` / ``checkpoint_freq`` env steps, and a
+        checkpoint every ``checkpoint_minutes`` of wall time."""
 
         def __init__(self, run: Run) -> None:
             super().__init__()
@@ -433,9 +570,20 @@ def _callbacks():
                 self.run.evaluate(self.model, logger=self.logger)
             if self.num_timesteps >= self.next_ckpt:
                 self.next_ckpt = _next_multiple(self.num_timesteps, self.run.args.checkpoint_freq)
-                path = self.run.checkpoint(self.model)
-                print(f"[{self.num_timesteps:>10d}] checkpoint {path}", flush=True)
+                self._checkpoint("checkpoint")
             return True
+
+        def _on_rollout_start(self) -> None:
+            # Between rollouts the model has learned from every step it counts (PPO: the
+            # previous rollout; SAC/TD3: the gradient steps after the last env step).
+            minutes = self.run.args.checkpoint_minutes
+            due = time.monotonic() - self.run.last_checkpoint_clock >= 60.0 * minutes
+            if minutes > 0 and due and self.num_timesteps > self.run.last_checkpoint_timesteps:
+                self._checkpoint(f"checkpoint ({minutes:g} min)")
+
+        def _checkpoint(self, label: str) -> None:
+            path = self.run.checkpoint(self.model)
+            print(f"[{self.num_timesteps:>10d}] {label} {path}", flush=True)
 
         def _on_rollout_end(self) -> None:
             self.run.rollout_end_timesteps = self.num_timesteps
@@ -469,6 +617,8 @@ class Run:
         self.eval_kwargs = eval_kwargs
         self.passive = None
         self.references: dict = {}
+        self.last_checkpoint_clock = time.monotonic()  # for --checkpoint-minutes
+        self.last_checkpoint_timesteps = 0  # set to the checkpoint's on resume
 
     # -- clock
     def wall_time(self) -> float:
@@ -590,42 +740,74 @@ class Run:
         }
 
     def checkpoint(self, model: Any) -> Path:
-        return save_checkpoint(model, self.output_dir / "checkpoints", self.meta(model))
+        """Save a checkpoint of ``model`` now (:func:`save_checkpoint`)."""
+        path = save_checkpoint(
+            model, self.output_dir / "checkpoints", self.meta(model), self.args.keep_replay_buffers
+        )
+        self.last_checkpoint_clock = time.monotonic()
+        self.last_checkpoint_timesteps = int(model.num_timesteps)
+        return path
 
 
 # ----------------------------------------------------------------------------- main
-def train(args: Args, extra_callbacks: list | None = None) -> dict:
-    """Train as ``args`` says; returns a summary (paths, timesteps, best evaluation)."""
-    import stable_baselines3 as sb3
-    import torch
-    from stable_baselines3.common.callbacks import CallbackList
-    from stable_baselines3.common.utils import set_random_seed
+@dataclass
+class Plan:
+    """What :func:`prepare` checked and loaded before anything is trained."""
 
-    torch.set_num_threads(args.threads)
+    output_dir: Path
+    hp: dict
+    env_kwargs: dict
+    norm_kwargs: dict
+    algo_kwargs: dict
+    num_envs: int
+    total: int
+    ckpt: Path | None = None
+    ckpt_meta: dict = field(default_factory=dict)
+    tensorboard_log: str | None = None
+
+
+def prepare(args: Args) -> Plan:
+    """Check everything the run needs before it starts: the hyperparameters, the env
+    arguments, the evaluation episode length, the checkpoint to resume from (``auto``: the
+    newest intact one) and that the output and TensorBoard folders can be written. Raises
+    ``ValueError``/``OSError`` (or ``SystemExit``) with a one-line message."""
     output_dir = Path(args.output_dir or f"runs/{args.algo}-seed{args.seed}")
     hp_path = args.hyperparams or Path(__file__).resolve().parent / f"hyperparams/{args.algo}.yml"
     hp = load_hyperparams(hp_path)
     env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
     norm_kwargs = normalize_kwargs_from(hp)
     algo_kwargs = algo_kwargs_from(hp)
-    algo_cls = getattr(sb3, args.algo.upper())
+    dt_s = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs)).dt_s
+    check_episode_length(args.eval_episode_length, dt_s, "--eval-episode-length")
+
+    # Output folders: writable before any training time is spent.
+    check_writable_dir(output_dir, "--output-dir")
+    check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
+    if args.tensorboard:
+        check_writable_dir(args.tensorboard, "--tensorboard")
 
     # Resume: the checkpoint fixes the algorithm, the number of vehicles and the statistics.
-    ckpt = None
+    ckpt, ckpt_meta = None, {}
     if args.resume:
-        ckpt = latest_checkpoint(output_dir) if args.resume == "auto" else Path(args.resume)
-        if not ckpt.is_file():
-            raise SystemExit(f"--resume: no checkpoint {ckpt}")
+        if args.resume == "auto":
+            ckpt = latest_checkpoint(output_dir)
+        else:
+            ckpt = Path(args.resume)
+            if not ckpt.is_file():
+                raise ValueError(f"--resume: no checkpoint {ckpt}")
+            problem = checkpoint_problem(ckpt)
+            if problem:
+                raise ValueError(f"--resume: cannot resume from {ckpt}: {problem}")
         ckpt_meta = json.loads(ckpt.with_suffix(".json").read_text())
         if ckpt_meta["algo"] != args.algo:
-            raise SystemExit(f"--resume: {ckpt} is {ckpt_meta['algo']}, not {args.algo}")
+            raise ValueError(f"--resume: {ckpt} is {ckpt_meta['algo']}, not {args.algo}")
         if ckpt_meta["train_env_kwargs"] != env_kwargs:
             print(
                 f"note: env arguments differ from the checkpoint's {ckpt_meta['train_env_kwargs']}"
             )
         num_envs = args.num_envs or ckpt_meta["num_envs"]
         if args.algo != "ppo" and num_envs != ckpt_meta["num_envs"]:
-            raise SystemExit("--resume: SAC/TD3 replay buffers need the checkpoint's num_envs")
+            raise ValueError("--resume: SAC/TD3 replay buffers need the checkpoint's num_envs")
     else:
         num_envs = args.num_envs or int(hp.get("n_envs", 1))
 
@@ -644,9 +826,45 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
                   "(pip install tensorboard)", file=sys.stderr)  # fmt: skip
         else:
             tensorboard_log = args.tensorboard
+    return Plan(output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, num_envs, total, ckpt,
+                ckpt_meta, tensorboard_log)  # fmt: skip
 
-    output_dir.mkdir(parents=True, exist_ok=True)
-    run = Run(args, env_kwargs, hp, output_dir)
+
+def _best_so_far(output_dir: Path) -> dict | None:
+    """The ``best`` block of ``best_model.json`` (None when absent or unreadable)."""
+    path = output_dir / "best_model.json"
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())["best"]
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+        print(f"note: ignoring {path} ({exc!r}); the next evaluation writes a new best model",
+              file=sys.stderr)  # fmt: skip
+        return None
+
+
+def train(args: Args, extra_callbacks: list | None = None) -> dict:
+    """Train as ``args`` says; returns a summary (paths, timesteps, best evaluation).
+
+    Bad arguments or files found before training starts (:func:`prepare`) raise
+    ``SystemExit`` with one line, ``train.py: error: ...``.
+    """
+    import stable_baselines3 as sb3
+    import torch
+    from stable_baselines3.common.callbacks import CallbackList
+    from stable_baselines3.common.utils import set_random_seed
+
+    try:
+        plan = prepare(args)
+    except (ValueError, OSError, TypeError) as exc:
+        raise SystemExit(f"train.py: error: {exc}") from None
+    torch.set_num_threads(args.threads)
+    output_dir, env_kwargs, num_envs, total = (
+        plan.output_dir, plan.env_kwargs, plan.num_envs, plan.total
+    )  # fmt: skip
+    ckpt, ckpt_meta, tensorboard_log = plan.ckpt, plan.ckpt_meta, plan.tensorboard_log
+    algo_cls = getattr(sb3, args.algo.upper())
+    run = Run(args, env_kwargs, plan.hp, output_dir)
 
     # Seeds in one place: torch/numpy/random, and the vehicles (seed + n). A resumed run
     # continues with fresh streams (seed + timesteps done) instead of replaying the start.
@@ -655,19 +873,27 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         start = int(ckpt_meta["num_timesteps"])
     set_random_seed(args.seed + start)
     env = make_env(
-        num_envs, args.seed + start, env_kwargs, norm_kwargs,
+        num_envs, args.seed + start, env_kwargs, plan.norm_kwargs,
         vecnormalize=None if ckpt is None else str(ckpt.with_suffix("")) + ".vecnormalize.pkl",
     )  # fmt: skip
 
     if ckpt is None:
         model = algo_cls(env=env, seed=args.seed, device=args.device, verbose=args.verbose,
-                         tensorboard_log=tensorboard_log, **algo_kwargs)  # fmt: skip
+                         tensorboard_log=tensorboard_log, **plan.algo_kwargs)  # fmt: skip
     else:
-        model = algo_cls.load(str(ckpt), env=env, device=args.device, verbose=args.verbose,
-                              tensorboard_log=tensorboard_log)  # fmt: skip
+        try:
+            model = algo_cls.load(str(ckpt), env=env, device=args.device, verbose=args.verbose,
+                                  tensorboard_log=tensorboard_log)  # fmt: skip
+        except Exception as exc:  # e.g. the env's spaces differ from the checkpoint's
+            env.close()
+            raise SystemExit(f"train.py: error: --resume: cannot load {ckpt}: {exc}") from None
         rb = Path(str(ckpt.with_suffix("")) + ".replay_buffer.pkl")
-        if hasattr(model, "load_replay_buffer") and rb.is_file():
-            model.load_replay_buffer(str(rb))
+        if hasattr(model, "load_replay_buffer"):
+            if rb.is_file():
+                model.load_replay_buffer(str(rb))
+            else:
+                print(f"note: {ckpt} has no replay buffer (--keep-replay-buffers keeps only the "
+                      "newest ones): the replay buffer starts empty", file=sys.stderr)  # fmt: skip
         # First reset without updating the statistics, so training goes on from exactly the
         # checkpoint's (SB3's learn() would otherwise reset, and update them, itself).
         env.training = False
@@ -676,9 +902,9 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         model._last_episode_starts = np.ones(num_envs, dtype=bool)
         env.training = True
         run.start_timesteps = run.rollout_end_timesteps = model.num_timesteps
+        run.last_checkpoint_timesteps = model.num_timesteps
         run.wall_before = float(ckpt_meta.get("wall_time_s", 0.0))
-        best_meta = output_dir / "best_model.json"  # may be newer than the checkpoint
-        run.best = json.loads(best_meta.read_text())["best"] if best_meta.is_file() else None
+        run.best = _best_so_far(output_dir)  # best_model may be newer than the checkpoint
         print(f"resumed {ckpt} at {model.num_timesteps} timesteps")
 
     print(
@@ -706,8 +932,8 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         run.evaluate(model)  # the final policy is a candidate for the best one too
         final_meta = run.meta(model, name=f"{run.name}-final")  # its own row in evaluate.py
         save_policy(model, output_dir / "final_model", final_meta)
-        if args.checkpoint_freq > 0:
-            run.checkpoint(model)
+    if model.num_timesteps != run.last_checkpoint_timesteps:  # always resumable at the end
+        run.checkpoint(model)
     steps = model.num_timesteps - run.start_timesteps
     elapsed = time.perf_counter() - run.t0
     print(

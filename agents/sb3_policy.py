@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from agents.base import Controller
+from capsule_env.safe_io import digest_mismatch
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "capsule_env" / "pretrained"
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -24,8 +25,9 @@ class SB3Policy(Controller):
     """A trained SB3 policy with the observation normalisation it was trained with.
 
     Files: ``NAME.zip`` (the SB3 model), and next to it ``NAME.vecnormalize.pkl`` (SB3's
-    ``VecNormalize`` statistics, optional) and ``NAME.json`` (metadata written by
-    ``train.py``: algorithm and the env arguments it was trained with, optional).
+    ``VecNormalize`` statistics; required unless ``load(..., require_normalization=False)``)
+    and ``NAME.json`` (metadata written by ``train.py``: algorithm, the env arguments it was
+    trained with and the digests of the other two files; optional).
     """
 
     def __init__(self, model: Any, obs_rms: Any, clip_obs: float, epsilon: float, meta: dict):
@@ -34,6 +36,7 @@ class SB3Policy(Controller):
         self.clip_obs = clip_obs
         self.epsilon = epsilon
         self.meta = meta
+        self.path: Path | None = None  # the .zip, when loaded from a file
         self.name = meta.get("name", "policy")
         env_kwargs = dict(meta.get("env_kwargs", {}))
         # chosen by the evaluation, not the policy
@@ -43,31 +46,85 @@ class SB3Policy(Controller):
         self.uses_unmeasured_signals = env_kwargs.get("observation") == "full_state"
 
     @classmethod
-    def load(cls, path: str | Path) -> SB3Policy:
-        """Load ``path`` (a ``.zip``); raises ``ValueError`` with the reason if it is not one."""
+    def load(cls, path: str | Path, require_normalization: bool = True) -> SB3Policy:
+        """Load ``path`` (a ``.zip``) with the files next to it.
+
+        ``require_normalization``: the ``.vecnormalize.pkl`` statistics must be there (a policy
+        trained on normalised observations acts on raw ones without them, far worse than the
+        passive damper); False runs a policy without them on raw observations.
+
+        When the ``.json`` lists the sizes and SHA-256 of the ``.zip`` and ``.pkl``
+        (``train.py`` writes it last, as the mark of a complete save), those present are
+        checked.
+        Raises ``ValueError`` naming the file and the reason for a missing, empty, corrupt,
+        inconsistent or mismatched file.
+        """
         path = Path(path)
         if path.suffix != ".zip" or not path.is_file():
             raise ValueError(f"policy path must be an existing SB3 .zip file, got {path}")
+        if path.stat().st_size == 0:
+            raise ValueError(f"policy file {path} is empty")
         stem = path.with_suffix("")
         meta_path = stem.with_suffix(".json")
-        meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+        meta: dict = {}
+        if meta_path.is_file():
+            try:
+                meta = json.loads(meta_path.read_text())
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise ValueError(
+                    f"policy metadata {meta_path} is not readable JSON: {exc}"
+                ) from None
+            if not isinstance(meta, dict):
+                raise ValueError(f"policy metadata {meta_path} is not a JSON object")
+        recorded = meta.get("files")
+        if isinstance(recorded, dict):  # a missing .pkl is dealt with below
+            present = {n: d for n, d in recorded.items() if (path.parent / n).is_file()}
+            problem = digest_mismatch(path.parent, present)
+            if problem:
+                raise ValueError(f"policy {path} does not match {meta_path.name}: {problem}")
         meta.setdefault("name", stem.name)
         algo = meta.get("algo", "ppo")
         if algo not in ALGORITHMS:
             raise ValueError(f"unknown algo {algo!r} in {meta_path}; accepted: {ALGORITHMS}")
         import stable_baselines3 as sb3
 
-        model = getattr(sb3, algo.upper()).load(str(path), device="cpu")
+        try:
+            model = getattr(sb3, algo.upper()).load(str(path), device="cpu")
+        except Exception as exc:  # a corrupt zip raises many types (BadZipFile, KeyError, ...)
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ValueError(
+                f"cannot load {path} as an SB3 {algo.upper()} model: {reason}"
+            ) from None
         norm_path = Path(str(stem) + ".vecnormalize.pkl")
         obs_rms, clip_obs, eps = None, 10.0, 1e-8
         if norm_path.is_file():
-            with norm_path.open("rb") as fh:
-                vec_normalize = pickle.load(fh)
-            if getattr(vec_normalize, "norm_obs", True):
-                obs_rms = vec_normalize.obs_rms
-            clip_obs = float(vec_normalize.clip_obs)
-            eps = float(vec_normalize.epsilon)
-        return cls(model, obs_rms, clip_obs, eps, meta)
+            try:
+                with norm_path.open("rb") as fh:
+                    vec_normalize = pickle.load(fh)
+                norm_obs = bool(getattr(vec_normalize, "norm_obs", True))
+                if norm_obs:
+                    obs_rms = vec_normalize.obs_rms
+                clip_obs = float(vec_normalize.clip_obs)
+                eps = float(vec_normalize.epsilon)
+            except Exception as exc:  # unpickling garbage raises many types
+                raise ValueError(
+                    f"cannot read the normalisation statistics {norm_path}: {exc!r}"
+                ) from None
+        elif require_normalization:
+            raise ValueError(
+                f"policy {path} has no normalisation statistics {norm_path.name} next to it: "
+                "it would act on raw observations (allow that explicitly with "
+                "require_normalization=False, evaluate.py --allow-unnormalized)"
+            )
+        space = getattr(model, "observation_space", None)
+        if obs_rms is not None and space is not None and obs_rms.mean.shape != space.shape:
+            raise ValueError(
+                f"{norm_path.name} holds statistics of observations of shape "
+                f"{obs_rms.mean.shape}, but the model {path} takes shape {space.shape}"
+            )
+        policy = cls(model, obs_rms, clip_obs, eps, meta)
+        policy.path = path
+        return policy
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_rms is None:

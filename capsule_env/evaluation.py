@@ -130,3 +130,52 @@ def episode_metrics(
         out["vre"] = vre
     out["terminated_episodes"] = int(rollout.terminated.sum())
     return out
+
+
+def minimum_episode_steps(
+    dt_s: float, bands_hz: dict[str, tuple[float, float]] | None = None
+) -> int:
+    """Fewest control steps of ``dt_s`` whose amplitude spectrum has a line in every mode band
+    (``bands_hz``, default :data:`capsule_env.metrics.DEFAULT_BANDS_HZ`): the vibration
+    reduction effect of :func:`episode_metrics` needs one. Raises ``ValueError`` when a band
+    lies above the Nyquist frequency."""
+    bands = bands_hz or metrics.DEFAULT_BANDS_HZ
+    narrowest = min(hi - lo for lo, hi in bands.values())
+    # a resolution 1 / (n dt) no coarser than the narrowest band puts a line in each one
+    # below the Nyquist frequency
+    for n in range(1, int(np.ceil(1.0 / (max(narrowest, 1e-9) * dt_s))) + 2):
+        f = np.fft.rfftfreq(n, dt_s)
+        if all(np.any((f >= lo) & (f <= hi)) for lo, hi in bands.values()):
+            return n
+    raise ValueError(f"mode bands {bands} reach above the Nyquist frequency {0.5 / dt_s:g} Hz")
+
+
+def check_episode_length(
+    episode_length_s: float,
+    dt_s: float,
+    name: str = "episode_length_s",
+    bands_hz: dict[str, tuple[float, float]] | None = None,
+) -> int:
+    """The number of control steps of an episode of ``episode_length_s`` seconds, checked to
+    be long enough for :func:`episode_metrics` (at least one control step of ``dt_s``, and a
+    spectral line in every mode band). Raises ``ValueError`` naming ``name`` and the minimum."""
+    try:
+        length = float(episode_length_s)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of seconds, got {episode_length_s!r}") from None
+    if not (np.isfinite(length) and length > 0.0):
+        raise ValueError(f"{name} must be a positive number of seconds, got {episode_length_s!r}")
+    steps = int(round(length / dt_s))
+    needed = minimum_episode_steps(dt_s, bands_hz)
+    if steps < 1:
+        raise ValueError(
+            f"{name} {length:g} s is shorter than one control step ({dt_s:g} s); the metrics "
+            f"need at least {needed * dt_s:.3g} s"
+        )
+    if steps < needed:
+        raise ValueError(
+            f"{name} {length:g} s ({steps} control steps) is too short for the spectra of the "
+            f"mode bands {dict(bands_hz or metrics.DEFAULT_BANDS_HZ)} Hz: at least "
+            f"{needed * dt_s:.3g} s ({needed} steps of {dt_s:g} s) is needed"
+        )
+    return steps

@@ -93,6 +93,10 @@ DEFAULT_CURRENTS_A: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
 MODEL_NAMES: tuple[str, ...] = ("bi_exponential", "bouc_wen", "tanh")
 #: The paper's RMSE at 1.5 A on its own damper's measured loops (N) [paper].
 PAPER_RMSE_N: dict[str, float] = {"bi_exponential": 61.8, "bouc_wen": 695.3}
+#: Largest sample magnitude accepted in a measured file (mm, mm/s or N): far beyond any damper
+#: test, and small enough that the fits' sums of squares cannot overflow.
+MAX_MEASURED_MAGNITUDE = 1e9
+_X_F_COLUMNS = ("displacement (mm)", "velocity (mm/s)", "force (N)")
 _BRANCHES = ("upper", "lower")
 #: Rules for the Bi-exponential d (:func:`fit_bi_exponential`): the paper's mean, or a joint fit.
 D_RULES: tuple[str, ...] = ("mean", "joint")
@@ -255,51 +259,62 @@ def load_measured_loop(path: str | Path, current_a: float = 0.0) -> Loop:
     current-independent coefficients. ``periodic`` is False (a record of several cycles).
 
     Raises ``ValueError`` naming the path and the problem for a missing, unreadable or
-    malformed file.
+    malformed file: no ``x_F`` of shape (n, 3), complex or non-numeric values, an empty or
+    non-positive ``Ts``, NaN/inf samples or magnitudes beyond
+    :data:`MAX_MEASURED_MAGNITUDE`, a constant column, a time that does not increase.
     """
     path = Path(path)
+    name = f"measured data file {str(path)!r}"
     if not path.is_file():
-        raise ValueError(f"measured data file {str(path)!r} does not exist")
+        raise ValueError(f"{name} does not exist")
     try:
         data = sio.loadmat(str(path))
     except Exception as exc:  # scipy raises several types for a bad file
-        raise ValueError(
-            f"cannot read measured data file {str(path)!r} as a MATLAB .mat file: {exc}"
-        ) from exc
+        raise ValueError(f"cannot read {name} as a MATLAB .mat file: {exc}") from exc
     if "x_F" not in data:
         raise ValueError(
-            f"measured data file {str(path)!r} has no variable 'x_F' (n x 3: displacement mm, "
-            "velocity mm/s, force N)"
+            f"{name} has no variable 'x_F' (n x 3: displacement mm, velocity mm/s, force N)"
         )
-    try:
-        x_f = np.asarray(data["x_F"], dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"measured data file {str(path)!r}: 'x_F' is not numeric") from exc
+    x_f = _real_array(data, "x_F", name)
     if x_f.ndim != 2 or x_f.shape[1] != 3 or x_f.shape[0] < 16:
-        raise ValueError(
-            f"measured data file {str(path)!r}: 'x_F' must have shape (n, 3) with n >= 16, "
-            f"got {x_f.shape}"
-        )
+        raise ValueError(f"{name}: 'x_F' must have shape (n, 3) with n >= 16, got {x_f.shape}")
     n = x_f.shape[0]
     time = None
     if "Tout" in data:
-        time = np.asarray(data["Tout"], dtype=np.float64).ravel()
+        time = _real_array(data, "Tout", name).ravel()
         if time.size != n:
             time = None
     if time is None:
         if "Ts" not in data:
             raise ValueError(
-                f"measured data file {str(path)!r} has neither a time vector 'Tout' of "
-                f"{n} samples nor a sample period 'Ts'"
+                f"{name} has neither a time vector 'Tout' of {n} samples nor a sample period 'Ts'"
             )
-        ts = float(np.asarray(data["Ts"], dtype=np.float64).ravel()[0])
+        ts_values = _real_array(data, "Ts", name)
+        if ts_values.size != 1:
+            raise ValueError(
+                f"{name}: the sample period 'Ts' must be one number, got an array of shape "
+                f"{ts_values.shape}"
+            )
+        ts = float(ts_values.ravel()[0])
         if not ts > 0.0:
-            raise ValueError(f"measured data file {str(path)!r}: sample period Ts must be > 0")
+            raise ValueError(f"{name}: sample period Ts must be > 0, got {ts!r}")
         time = np.arange(n) * ts
     if not (np.all(np.isfinite(x_f)) and np.all(np.isfinite(time))):
-        raise ValueError(f"measured data file {str(path)!r} holds NaN or infinite samples")
+        raise ValueError(f"{name} holds NaN or infinite samples")
+    for k, column in enumerate(_X_F_COLUMNS):
+        peak = float(np.max(np.abs(x_f[:, k])))
+        if peak > MAX_MEASURED_MAGNITUDE:
+            raise ValueError(
+                f"{name}: the {column} column of 'x_F' reaches {peak:.3g}, beyond "
+                f"{MAX_MEASURED_MAGNITUDE:.0e}: not a damper test's values (and they overflow "
+                "in the fits)"
+            )
+        if np.ptp(x_f[:, k]) == 0.0:
+            raise ValueError(
+                f"{name}: the {column} column of 'x_F' is constant ({x_f[0, k]:g}): nothing to fit"
+            )
     if np.any(np.diff(time) <= 0.0):
-        raise ValueError(f"measured data file {str(path)!r}: time 'Tout' is not increasing")
+        raise ValueError(f"{name}: time 'Tout' is not increasing")
     disp_m = x_f[:, 0] * 1e-3
     force = x_f[:, 2]
     offset = float(np.mean(force))
@@ -313,6 +328,18 @@ def load_measured_loop(path: str | Path, current_a: float = 0.0) -> Loop:
         force_offset_n=offset,
         periodic=False,
     )
+
+
+def _real_array(data: dict[str, Any], key: str, name: str) -> np.ndarray:
+    """``data[key]`` as a float64 array; ``ValueError`` naming the file when it is complex or
+    not numeric."""
+    value = data[key]
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name}: {key!r} holds complex values; the measurements must be real")
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: {key!r} is not numeric") from None
 
 
 # --------------------------------------------------------------------------------- helpers
@@ -929,6 +956,8 @@ def identify_loops(
     import time
 
     loops = _check_loops(loops)
+    if max(lp.peak_force_n for lp in loops) == 0.0:
+        raise ValueError("the loops' force is zero everywhere: nothing to identify")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     bi_exp, trends = fit_bi_exponential(loops, d_rule=d_rule)

@@ -8,7 +8,8 @@ Run ``python -m capsule_env.identify --help``. Examples::
     python -m capsule_env.identify --data ../shared/data/labcontrol-mr-damper/ensaio.A.1.mat
     python -m capsule_env.identify --data ../shared/data/labcontrol-mr-damper   # every file
 
-Exit status: 0 on success, 2 for bad arguments or unreadable data (with a message on stderr).
+Exit status: 0 on success, 2 for bad arguments, unreadable or unusable data, or an output
+path that cannot be written (checked before fitting), with one line on stderr naming the file.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from capsule_env.identification import (
     D_RULES,
@@ -30,6 +32,7 @@ from capsule_env.identification import (
     measured_files,
     plot_fits,
 )
+from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 
 _LABELS = {"bi_exponential": "Bi-exponential", "bouc_wen": "Bouc-Wen", "tanh": "tanh"}
 _CLASSES = {
@@ -39,9 +42,16 @@ _CLASSES = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m capsule_env.identify``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="python -m capsule_env.identify",
         description=(
             "Identify the Bi-exponential, Bouc-Wen and tanh MR-damper models from force loops "
@@ -206,6 +216,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.emit_defaults and args.data is not None:
         parser.error("--emit-defaults fits the reference damper; do not combine it with --data")
     try:
+        if args.json is not None:
+            check_writable_file(args.json, "--json")
+        if args.plots is not None:
+            check_writable_dir(args.plots, "--plots")
         if args.data is None:
             result = identify_reference(
                 frequency_hz=args.frequency_hz, amplitude_m=args.amplitude_m, d_rule=args.d_rule
@@ -223,7 +237,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise ValueError(f"--data: no such file or folder: {str(path)!r}")
             results = []
             for file in files:
-                results.append(identify_measured(file))
+                try:
+                    results.append(identify_measured(file))
+                except ValueError as exc:
+                    if str(file) in str(exc):
+                        raise
+                    raise ValueError(f"cannot identify {str(file)!r}: {exc}") from None
                 print(_report(results[-1]))
                 print()
             if len(results) > 1:
@@ -238,8 +257,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print()
             print(format_defaults(results[0]), end="")
         if args.json is not None:
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            args.json.write_text(json.dumps(payload, indent=2) + "\n")
+            atomic_write_text(args.json, json.dumps(payload, indent=2) + "\n")
             print(f"\nwrote {args.json}")
         if args.plots is not None:
             written = []
@@ -247,7 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 prefix = "" if len(results) == 1 else Path(r.source).stem + "_"
                 written += plot_fits(r, None, args.plots, prefix=prefix)
             print(f"wrote {len(written)} figures to {args.plots}")
-    except ValueError as exc:
+    except (ValueError, OSError, TypeError) as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2
     return 0
