@@ -105,7 +105,11 @@ class Args:
         metadata={"help": "vehicles simulated in parallel; default: the file's n_envs"},
     )
     seed: int = field(
-        default=0, metadata={"help": "random seed (torch, numpy, env: vehicle n gets seed+n)"}
+        default=0,
+        metadata={
+            "help": "random seed (torch, numpy; vehicle n gets stream n of "
+            "numpy.random.SeedSequence(seed), so different seeds share no stream)"
+        },
     )
     env_kwargs: dict = field(
         default_factory=dict,
@@ -389,6 +393,15 @@ def resolve_env_kwargs(file_kwargs: dict, cli_kwargs: dict) -> dict[str, Any]:
 
 
 # ----------------------------------------------------------------------------- env
+def run_seed_for(seed: int, timesteps_done: int) -> int:
+    """The seed of a run that starts after ``timesteps_done`` steps: ``seed`` itself for a new
+    run, else an integer derived from both by ``numpy.random.SeedSequence`` (not ``seed +
+    timesteps``, which could be another run's seed)."""
+    if timesteps_done == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), int(timesteps_done)]).generate_state(1)[0])
+
+
 def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecnormalize=None):
     """The batched kernel as an SB3 VecEnv, + VecMonitor + VecNormalize (new, or a saved one)."""
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
@@ -396,7 +409,7 @@ def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecn
     from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
 
     venv = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
-    venv.seed(seed)  # vehicle n: seed + n (its guideway windows, randomisation, noise)
+    venv.seed(seed)  # vehicle n: stream n of SeedSequence(seed) (guideway window, noise, ...)
     venv = VecMonitor(venv)
     if vecnormalize is not None:  # resume: keep the checkpoint's running statistics
         return VecNormalize.load(str(vecnormalize), venv)
@@ -866,14 +879,17 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
     algo_cls = getattr(sb3, args.algo.upper())
     run = Run(args, env_kwargs, plan.hp, output_dir)
 
-    # Seeds in one place: torch/numpy/random, and the vehicles (seed + n). A resumed run
-    # continues with fresh streams (seed + timesteps done) instead of replaying the start.
+    # Seeds in one place. The vehicles get the independent streams
+    # SeedSequence(run_seed).spawn(num_envs), so that training seeds 0, 1, 2 share no stream; a
+    # resumed run continues with fresh streams (a seed derived from the seed and the timesteps
+    # done) instead of replaying the start. torch/numpy/random get the same run seed.
     start = 0
     if ckpt is not None:
         start = int(ckpt_meta["num_timesteps"])
-    set_random_seed(args.seed + start)
+    run_seed = run_seed_for(args.seed, start)
+    set_random_seed(run_seed)
     env = make_env(
-        num_envs, args.seed + start, env_kwargs, plan.norm_kwargs,
+        num_envs, run_seed, env_kwargs, plan.norm_kwargs,
         vecnormalize=None if ckpt is None else str(ckpt.with_suffix("")) + ".vecnormalize.pkl",
     )  # fmt: skip
 

@@ -273,10 +273,7 @@ class EnvConfig:
     @property
     def plant_damper(self) -> DamperParams:
         name = self.plant_damper_name
-        try:
-            damper = make_damper(name, **self.damper_params)
-        except TypeError as err:  # pragma: no cover - make_damper names keys itself
-            raise ValueError(f"damper_params: {err}") from None
+        damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
         tau = self.effective_coil_time_constant_s
         if name != "passive":
             damper = replace(damper, coil_time_constant_s=tau)

@@ -56,7 +56,8 @@ def run_episodes(
     seed: int = 0,
     episode_length_s: float = 10.0,
 ) -> Rollout:
-    """Run ``episodes`` episodes (vehicle ``k`` seeded ``seed + k``) with one vector env.
+    """Run ``episodes`` episodes (episode ``k``: the single env seeded ``seed + k``) with one
+    vector env.
 
     ``env_kwargs`` are the env's arguments (setting, the controller's needs, overrides).
     After a termination the vehicle's remaining samples repeat its last values.
@@ -64,7 +65,8 @@ def run_episodes(
     kwargs = {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}
     env = CapsuleSuspensionVectorEnv(num_envs=episodes, episode_length_s=episode_length_s, **kwargs)
     steps = env.batch.max_steps
-    obs, _ = env.reset(seed=seed)
+    # episode k is the single env seeded seed + k: each reproducible alone
+    obs, _ = env.reset(seed=[seed + k for k in range(episodes)])
     if hasattr(policy, "reset"):
         policy.reset()
     record = {name: np.zeros((episodes, steps)) for name in RECORDED}

@@ -66,7 +66,7 @@ class Episode:
         self.start, self.speed, self.gain = (
             float(batch.start_position[k]), float(batch.speed[k]), float(batch.gain[k])
         )  # fmt: skip
-        self.dt, self.table, self.i_max = batch.dt, batch.sub_table, batch.i_max
+        self.dt, self.table, self.i_max = batch.dt, batch.sub_table[k], batch.i_max
         self.n_steps = n_steps
 
     def replay(self, currents: np.ndarray, substeps: int | np.ndarray | None = None):
@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         num_envs=args.episodes, episode_length_s=args.duration,
         guideway_seed=EVALUATION_GUIDEWAY_SEED, **kwargs,
     )  # fmt: skip
-    env.reset(seed=args.seed)
+    env.reset(seed=[args.seed + k for k in range(args.episodes)])  # as run_episodes
     batch, n_steps = env.batch, env.batch.max_steps
     delay = env.config.effective_control_delay_steps
     applied_sky = applied_from_commands(roll_sky.signals["current_command_a"], delay)

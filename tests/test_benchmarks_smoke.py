@@ -30,3 +30,15 @@ def test_bench_training_runs(tmp_path):
     data = json.loads(out.read_text())
     assert data["timesteps"] >= 512 and 0.0 < data["env_share_of_wall"] < 1.0
     assert data["first_step_s"] > 0.0  # the one-time kernel load, reported apart
+
+
+def test_soak_quick_runs_and_counts(tmp_path):
+    out = tmp_path / "soak.json"
+    subprocess.run(
+        [sys.executable, "benchmarks/soak.py", "--quick", "--json", str(out)], check=True,
+        capture_output=True,
+    )  # fmt: skip
+    data = json.loads(out.read_text())
+    assert data["total"]["vehicle_steps"] == sum(r["vehicle_steps"] for r in data["configurations"])
+    assert data["total"]["non_finite"] == 0 and data["total"]["out_of_space"] == 0
+    assert len(data["configurations"]) == 6

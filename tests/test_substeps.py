@@ -112,9 +112,10 @@ def test_each_vehicle_gets_the_table_of_its_own_parameters():
     expected = substep_tables(config.plant_damper, config.dt_s, batch.vehicle_params, rates)
     np.testing.assert_array_equal(batch.sub_table, expected)
     assert len({tuple(row) for row in batch.sub_table}) > 1  # they really differ
+    # A light bogie on a stiff levitation has a 4.4x faster bogie mode: more substeps at 0 A.
     nominal = substep_tables(config.plant_damper, config.dt_s, config.vehicle.as_array())
-    light = np.argmin(batch.vehicle_params[:, 1])  # the lightest bogie needs the most
-    assert batch.sub_table[light].max() >= nominal.max()
+    light = config.vehicle.as_array() * [1.0, 0.1, 1.0, 1.9]
+    assert substep_tables(config.plant_damper, config.dt_s, light)[0, 0] > nominal[0, 0]
 
 
 def test_too_stiff_a_configuration_is_refused_not_run_with_a_million_substeps():
