@@ -1,112 +1,72 @@
-"""Run a compiled kernel over a batch on several threads, fork-safely.
+"""Run a compiled kernel over a batch of vehicles, on all cores when the batch is large, and
+safely after ``fork()``.
 
-The kernels are compiled with ``nogil=True`` and take the range of vehicles ``[lo, hi)`` they
-step; :func:`run_batched` splits a large batch into contiguous chunks and runs them on a small
-pool of Python threads (the calling thread takes the first chunk). The kernels release the GIL,
-so the chunks run in parallel. Unlike numba's ``parallel=True`` (whose GNU OpenMP layer kills a
-child process forked after it ran: ``fork() called from a process already using GNU OpenMP``),
-this survives ``fork()``: the pool is rebuilt lazily in the child. A vehicle's numbers do not
-depend on which chunk or thread steps it, so the results are the same bits for any number of
-threads.
+Every kernel is written once, as a serial function of the range of vehicles ``[lo, hi)`` it
+steps. :func:`parallel_kernel` wraps it in numba's ``prange`` over chunks of the batch, and
+:func:`run_batched` picks one of the two: the serial kernel for small batches (a thread launch
+costs more than they do), the parallel one for large batches. A vehicle's numbers do not depend
+on its chunk or thread, so both give the same bits.
 
-Threads: ``CAPSULE_ENV_NUM_THREADS`` if set, else the CPUs this process may run on; change it
-with :func:`set_num_threads`.
+Fork: numba's fastest threading layer here is GNU OpenMP, which terminates a child process that
+launches a parallel region after its parent did (``fork() called from a process already using
+GNU OpenMP``; ``AsyncVectorEnv(context="fork")``, multiprocessing pools). A forked child of a
+process that has launched one therefore runs the serial kernels: correct and as fast per core,
+never killed. (Numba's fork-safe ``workqueue`` layer and a pool of Python threads were measured
+slower than the serial kernel at N = 64: their thread wake-up costs 50-80 us a step.)
 """
 
 from __future__ import annotations
 
 import os
-import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-__all__ = ["PARALLEL_THRESHOLD", "get_num_threads", "run_batched", "set_num_threads"]
+from numba import njit, prange
 
-#: Batches at least this large are split across threads (smaller ones: one call, no pool).
+__all__ = ["PARALLEL_THRESHOLD", "parallel_kernel", "run_batched"]
+
+#: Batches at least this large are stepped by the multi-threaded kernel.
 PARALLEL_THRESHOLD = 64
-#: Chunks are whole multiples of this many vehicles (the block kernel's SIMD groups).
-_CHUNK_MULTIPLE = 8
+
+_launched_parallel = False  # this process has launched a parallel region
+_serial_only = False  # a forked child of a process that had: never launch one
 
 
-def _default_threads() -> int:
-    text = os.environ.get("CAPSULE_ENV_NUM_THREADS")
-    if text:
-        try:
-            value = int(text)
-        except ValueError:
-            raise ValueError(
-                f"CAPSULE_ENV_NUM_THREADS must be an integer >= 1, got {text!r}"
-            ) from None
-        if value < 1:
-            raise ValueError(f"CAPSULE_ENV_NUM_THREADS must be an integer >= 1, got {text!r}")
-        return value
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+def _after_fork_in_child() -> None:
+    global _serial_only
+    _serial_only = _serial_only or _launched_parallel
 
 
-_lock = threading.Lock()
-_num_threads = _default_threads()
-_pool: ThreadPoolExecutor | None = None
+os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
-def get_num_threads() -> int:
-    """Threads used to step a large batch."""
-    return _num_threads
+@njit(cache=True)
+def work_item_size(n: int) -> int:
+    """Vehicles per work item of the parallel kernels: one 64-vehicle block for large
+    batches, smaller (a multiple of 8, at least 4 items) for small ones so that every core gets
+    work. A vehicle's result does not depend on its block mates, so this changes no number."""
+    return min(64, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
-def set_num_threads(n: int) -> None:
-    """Use ``n`` threads (>= 1) to step large batches from now on."""
-    global _num_threads, _pool
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ValueError(f"n must be an integer >= 1, got {n!r}")
-    with _lock:
-        _num_threads = n
-        if _pool is not None:
-            _pool.shutdown(wait=False)
-            _pool = None
+def parallel_kernel(serial: Callable[..., None]) -> Callable[..., None]:
+    """A numba ``parallel=True`` kernel ``(n, *args)`` that calls ``serial(lo, hi, *args)`` on
+    chunks of ``[0, n)`` in parallel."""
+
+    @njit(cache=True, parallel=True)
+    def parallel(n, *args):
+        chunk = work_item_size(n)
+        for c in prange((n + chunk - 1) // chunk):
+            serial(c * chunk, min(n, (c + 1) * chunk), *args)
+
+    return parallel
 
 
-def _forget_pool_in_child() -> None:
-    # The parent's worker threads do not exist in a forked child: start a new pool there.
-    global _pool, _lock
-    _pool = None
-    _lock = threading.Lock()
-
-
-os.register_at_fork(after_in_child=_forget_pool_in_child)
-
-
-def _get_pool(workers: int) -> ThreadPoolExecutor:
-    global _pool
-    with _lock:
-        if _pool is None:
-            _pool = ThreadPoolExecutor(workers, thread_name_prefix="capsule-env")
-        return _pool
-
-
-def chunk_bounds(n: int, threads: int) -> list[int]:
-    """Chunk boundaries ``[0, ..., n]``: ``threads`` chunks of nearly equal size, each a
-    multiple of 8 vehicles except the last."""
-    size = -(-n // threads)
-    size = -(-size // _CHUNK_MULTIPLE) * _CHUNK_MULTIPLE
-    return [*range(0, n, size), n]
-
-
-def run_batched(kernel: Callable[..., Any], n: int, *args: Any) -> None:
-    """``kernel(lo, hi, *args)`` over ``[0, n)``: one call for a small batch, else chunks on
-    :func:`get_num_threads` threads. Exceptions from any chunk are raised here."""
-    threads = _num_threads
-    if n < PARALLEL_THRESHOLD or threads == 1:
-        kernel(0, n, *args)
+def run_batched(serial: Callable[..., None], parallel: Callable[..., None], n: int, *args: Any) -> None:
+    """``serial(0, n, *args)`` for a small batch (or in a forked child, see the module
+    docstring), ``parallel(n, *args)`` for a large one."""
+    global _launched_parallel
+    if n < PARALLEL_THRESHOLD or _serial_only:
+        serial(0, n, *args)
         return
-    bounds = chunk_bounds(n, threads)
-    pool = _get_pool(threads - 1)
-    futures = [pool.submit(kernel, lo, hi, *args) for lo, hi in zip(bounds[1:-1], bounds[2:])]
-    try:
-        kernel(bounds[0], bounds[1], *args)
-    finally:
-        for future in futures:
-            future.result()
+    _launched_parallel = True
+    parallel(n, *args)

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from capsule_env._fastmath import FAST, fast_cos_2pi, fast_log
-from capsule_env._threads import run_batched
+from capsule_env._threads import parallel_kernel, run_batched
 from capsule_env._validation import (
     available_memory_bytes,
     check_choice,
@@ -703,13 +703,14 @@ def _env_step_block(
             obs[n, j] = min(max(obs[n, j], obs_bounds[0, j]), obs_bounds[1, j])
 
 
-def _make_env_kernel(model: int, mode: int):
-    """The env kernel for one plant model and kernel mode: steps vehicles ``lo .. hi-1``
-    (closure constants, so each compiles separately and only when used; ``nogil``, so that
-    :func:`capsule_env._threads.run_batched` runs chunks of a large batch in parallel)."""
+def _make_env_kernels(model: int, mode: int) -> tuple[Any, Any]:
+    """``(serial, parallel)`` env kernels for one plant model and kernel mode (closure
+    constants, so each compiles separately and only when used). ``serial(lo, hi, ...)`` steps
+    vehicles ``lo .. hi-1``; ``parallel(n, ...)`` runs it on chunks of ``[0, n)`` on all cores
+    (:mod:`capsule_env._threads`)."""
 
-    @njit(cache=True, nogil=True)
-    def kernel(
+    @njit(cache=True)
+    def serial(
         lo, hi, actions, cfg_f, cfg_i, inv_p, noise_std, obs_bounds, env_f, env_i, noise_key,
         meas, delay_buf, dp, vp, state, profiles, sub_table, derived, obs, reward, terminated,
         sig, applied, plant_out,
@@ -721,17 +722,17 @@ def _make_env_kernel(model: int, mode: int):
                 sub_table, derived, obs, reward, terminated, sig, applied, plant_out,
             )  # fmt: skip
 
-    return kernel
+    return serial, parallel_kernel(serial)
 
 
-_ENV_KERNELS: dict[tuple[int, int], Any] = {}
+_ENV_KERNELS: dict[tuple[int, int], tuple[Any, Any]] = {}
 
 
-def env_kernel(model: int, mode: int) -> Any:
-    """The env kernel for a plant model and kernel mode (memoised)."""
+def env_kernels(model: int, mode: int) -> tuple[Any, Any]:
+    """``(serial, parallel)`` env kernels for a plant model and kernel mode (memoised)."""
     key = (int(model), int(mode))
     if key not in _ENV_KERNELS:
-        _ENV_KERNELS[key] = _make_env_kernel(*key)
+        _ENV_KERNELS[key] = _make_env_kernels(*key)
     return _ENV_KERNELS[key]
 
 
@@ -742,9 +743,11 @@ class CapsuleBatch:
     ----------
     config : the environment options.
     num_envs : batch size N.
+    fresh_signals : give ``signals`` a new buffer every step, so that rows handed out as
+        ``info`` arrays keep their values (the vector envs); the single env copies them.
     """
 
-    def __init__(self, config: EnvConfig, num_envs: int = 1) -> None:
+    def __init__(self, config: EnvConfig, num_envs: int = 1, fresh_signals: bool = True) -> None:
         self.config = config
         self.num_envs = n = check_num_envs(num_envs)
         self.vehicle = config.vehicle
@@ -824,7 +827,8 @@ class CapsuleBatch:
         self.block_constants = block_constants(
             self.plant.code, self.damper_params, self.dt, self.sub_table
         )
-        self._kernel = env_kernel(self.plant.code, self.kernel_mode)
+        self._kernels = env_kernels(self.plant.code, self.kernel_mode)
+        self._fresh_signals = bool(fresh_signals)
         self._nominal_vehicle = self.vehicle.as_array()
         self._action_buf = np.zeros(n)
         self._delay_pos = 0
@@ -934,18 +938,19 @@ class CapsuleBatch:
         self._run()
 
     def _run(self) -> None:
-        # A fresh signals buffer every step (the kernel writes every entry): the vector envs
-        # hand its rows out as ``info`` arrays without copying them, so infos kept from
-        # earlier steps keep their values (for any number of vehicles, one included).
-        self._signals_buf = np.empty((N_SIGNALS, self.num_envs + 8))
-        self.signals = self._signals_buf[:, : self.num_envs]
+        if self._fresh_signals:
+            # A fresh signals buffer every step (the kernel writes every entry): the vector
+            # envs hand its rows out as ``info`` arrays without copying them, so infos kept
+            # from earlier steps keep their values (for any number of vehicles, one included).
+            self._signals_buf = np.empty((N_SIGNALS, self.num_envs + 8))
+            self.signals = self._signals_buf[:, : self.num_envs]
         # ring buffer of delay + 1 commands: write this step's, apply the oldest
         self._delay_pos += 1
         n_buf = self.delay_buf.shape[1]
         self.cfg_i[I_DELAY_WRITE] = self._delay_pos % n_buf
         self.cfg_i[I_DELAY_READ] = (self._delay_pos + 1) % n_buf
         run_batched(
-            self._kernel, self.num_envs, self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
+            *self._kernels, self.num_envs, self._action_buf, self.cfg_f, self.cfg_i, self._inv_params, self.noise_std,
             self.obs_bounds, self.env_f, self.env_i, self.noise_key, self.measured,
             self.delay_buf, self.damper_params, self.vehicle_params, self.state, self.profiles,
             self.sub_table, self.block_constants, self.obs, self.reward, self.terminated,

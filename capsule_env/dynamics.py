@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from capsule_env._fastmath import FAST, fast_exp, fast_log, fast_tanh_nonneg
-from capsule_env._threads import run_batched
+from capsule_env._threads import parallel_kernel, run_batched
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
@@ -697,31 +697,33 @@ def _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacin
                      spacing, x0, speed, gain, dt, table, derived, out)  # fmt: skip
 
 
-def _make_step_kernel(mode: int, model: int):
-    """The plant kernel for one (kernel mode, damper model): advances vehicles ``lo .. hi-1``.
+def _make_step_kernels(mode: int, model: int) -> tuple[Any, Any]:
+    """``(serial, parallel)`` plant kernels for one (kernel mode, damper model):
+    ``serial(lo, hi, ...)`` advances vehicles ``lo .. hi-1``, ``parallel(n, ...)`` all of
+    ``[0, n)`` on all cores (:mod:`capsule_env._threads`).
 
     ``mode`` and ``model`` are closure constants: numba compiles each pair separately (the
-    branches for other models are pruned), so only the models in use are compiled. ``nogil``:
-    :func:`capsule_env._threads.run_batched` runs chunks of a large batch in parallel.
+    branches for other models are pruned), so only the models in use are compiled.
     """
 
-    @njit(cache=True, nogil=True)
-    def kernel(lo, hi, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
+    @njit(cache=True)
+    def serial(lo, hi, dp, vp, state, i_cmd, profiles, idx, spacing, x0, speed, gain, dt, table,
                derived, out):  # fmt: skip
         _step_chunk(mode, lo, hi, model, dp, vp, state, i_cmd, profiles, idx, spacing, x0,
                     speed, gain, dt, table, derived, out)  # fmt: skip
 
-    return kernel
+    return serial, parallel_kernel(serial)
 
 
-_STEP_KERNELS: dict[tuple[int, int], Any] = {}
+_STEP_KERNELS: dict[tuple[int, int], tuple[Any, Any]] = {}
 
 
-def step_kernel(mode: int, model: int) -> Any:
-    """The compiled plant kernel for a kernel mode and damper model (memoised)."""
+def step_kernels(mode: int, model: int) -> tuple[Any, Any]:
+    """``(serial, parallel)`` compiled plant kernels for a kernel mode and damper model
+    (memoised)."""
     key = (int(mode), int(model))
     if key not in _STEP_KERNELS:
-        _STEP_KERNELS[key] = _make_step_kernel(*key)
+        _STEP_KERNELS[key] = _make_step_kernels(*key)
     return _STEP_KERNELS[key]
 
 
@@ -766,10 +768,10 @@ def step_batch(
     if guideway_gain is None:
         guideway_gain = np.ones(state.shape[0])
     table = _as_table(substeps, state.shape[0])
-    kernel = step_kernel(block_kernel_mode(damper_code, damper_params), damper_code)
+    kernels = step_kernels(block_kernel_mode(damper_code, damper_params), damper_code)
     derived = block_constants(damper_code, damper_params, dt_s, table)
     run_batched(
-        kernel, state.shape[0], damper_params, vehicle_params, state, current_command_a, profiles, profile_index,
+        *kernels, state.shape[0], damper_params, vehicle_params, state, current_command_a, profiles, profile_index,
         spacing_m, start_position_m, speed_mps, guideway_gain, dt_s, table, derived, out,
     )  # fmt: skip
 

@@ -18,7 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from capsule_env import dynamics
-from capsule_env._threads import PARALLEL_THRESHOLD, run_batched
+from capsule_env._threads import PARALLEL_THRESHOLD
 from capsule_env.dampers import (
     DAMPER_NAMES,
     N_DAMPER_PARAMS,
@@ -555,8 +555,8 @@ def _block_inputs(damper, n: int, seed: int = 4):
     )
 
 
-def _run_kernel(kernel, inp, n, code, threaded=False):
-    """Step the compiled kernel over ``n`` vehicles: one call, or chunks on threads."""
+def _run_kernel(kernels, inp, n, code, threaded=False):
+    """Step ``(serial, parallel)`` kernels over ``n`` vehicles: serial, or on all cores."""
     state, out = initial_state(n), np.empty((n, N_OUTPUTS))
     derived = dynamics.block_constants(code, inp["dp"], DT, inp["table"])
     states = np.empty((BATCH_STEPS, n, STATE_SIZE))
@@ -565,9 +565,9 @@ def _run_kernel(kernel, inp, n, code, threaded=False):
                 inp["profiles"], inp["idx"], inp["spacing"], inp["x0"], inp["speed"],
                 inp["gain"], DT, inp["table"], derived, out)  # fmt: skip
         if threaded:
-            run_batched(kernel, n, *args)
+            kernels[1](n, *args)
         else:
-            kernel(0, n, *args)
+            kernels[0](0, n, *args)
         states[k] = state
     return states
 
@@ -596,11 +596,11 @@ def test_vectorised_block_kernel_matches_scalar_kernel(case):
     n = 10
     inp = _block_inputs(damper, n)
     assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode | dynamics.KERNEL_UNIFORM
-    scalar = dynamics.step_kernel(dynamics.KERNEL_SCALAR, damper.code)
+    scalar = dynamics.step_kernels(dynamics.KERNEL_SCALAR, damper.code)
     s_ref = _run_kernel(scalar, inp, n, damper.code)
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     for variant in (mode | dynamics.KERNEL_UNIFORM, mode):
-        s_vec = _run_kernel(dynamics.step_kernel(variant, damper.code), inp, n, damper.code)
+        s_vec = _run_kernel(dynamics.step_kernels(variant, damper.code), inp, n, damper.code)
         assert np.all(np.isfinite(s_vec))
         assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     assert np.ptp(s_vec[-1, :, 0]) > 0.0  # the vehicles really differ
@@ -619,14 +619,14 @@ def test_block_kernel_honours_per_vehicle_damper_rows():
     inp["dp"] = np.ascontiguousarray(dp)
     mode = dynamics.block_kernel_mode(base.code, dp)
     assert mode == dynamics.KERNEL_BLOCK  # not uniform
-    s_vec = _run_kernel(dynamics.step_kernel(mode, base.code), inp, n, base.code)
-    s_ref = _run_kernel(dynamics.step_kernel(dynamics.KERNEL_SCALAR, base.code), inp, n,
+    s_vec = _run_kernel(dynamics.step_kernels(mode, base.code), inp, n, base.code)
+    s_ref = _run_kernel(dynamics.step_kernels(dynamics.KERNEL_SCALAR, base.code), inp, n,
                         base.code)  # fmt: skip
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     # and the rows matter: the same vehicles with the base damper end elsewhere
     uniform = dict(inp, dp=np.ascontiguousarray(np.tile(base.as_array(), (n, 1))))
-    s_base = _run_kernel(dynamics.step_kernel(mode, base.code), uniform, n, base.code)
+    s_base = _run_kernel(dynamics.step_kernels(mode, base.code), uniform, n, base.code)
     assert np.max(np.abs(s_base - s_vec) / scale) > 1e-3
 
 
@@ -652,10 +652,10 @@ def test_adaptive_substeps_batch_equals_each_vehicle_alone():
     n = PARALLEL_THRESHOLD + 7
     inp = _block_inputs(damper, n, seed=8)
     mode = dynamics.block_kernel_mode(damper.code, inp["dp"])
-    kernel = dynamics.step_kernel(mode, damper.code)
-    s_all = _run_kernel(kernel, inp, n, damper.code, threaded=True)
+    kernels = dynamics.step_kernels(mode, damper.code)
+    s_all = _run_kernel(kernels, inp, n, damper.code, threaded=True)
     for row in (0, 5, 33, 63, 64, n - 1):
         one = {k: (v[row : row + 1] if isinstance(v, np.ndarray) and k != "profiles"
                    else v) for k, v in inp.items()}  # fmt: skip
         one["cmd"] = np.ascontiguousarray(inp["cmd"][:, row : row + 1])
-        np.testing.assert_array_equal(_run_kernel(kernel, one, 1, damper.code)[:, 0], s_all[:, row])
+        np.testing.assert_array_equal(_run_kernel(kernels, one, 1, damper.code)[:, 0], s_all[:, row])

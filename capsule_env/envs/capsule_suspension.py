@@ -199,7 +199,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.config = EnvConfig.from_kwargs(**kwargs)
         self.render_mode = render_mode
-        self._batch = CapsuleBatch(self.config, 1)
+        # infos are copied into a dict every step: no fresh signal arrays needed
+        self._batch = CapsuleBatch(self.config, 1, fresh_signals=False)
         self.action_space, self.observation_space = _spaces(self.config)
         self._needs_reset = True
 
@@ -260,6 +261,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
 def _single_action(action: Any) -> float:
     """The one number of a single env's action: shape (1,) (the action space) or a scalar."""
+    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+        return float(action[0])  # the common case, first
     if isinstance(action, (float, int, np.floating, np.integer)) and not isinstance(action, bool):
         return float(action)
     try:
