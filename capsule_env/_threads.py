@@ -61,7 +61,9 @@ def parallel_kernel(serial: Callable[..., None]) -> Callable[..., None]:
     return parallel
 
 
-def run_batched(serial: Callable[..., None], parallel: Callable[..., None], n: int, *args: Any) -> None:
+def run_batched(
+    serial: Callable[..., None], parallel: Callable[..., None], n: int, *args: Any
+) -> None:
     """``serial(0, n, *args)`` for a small batch (or in a forked child, see the module
     docstring), ``parallel(n, *args)`` for a large one."""
     global _launched_parallel

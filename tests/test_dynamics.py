@@ -658,4 +658,6 @@ def test_adaptive_substeps_batch_equals_each_vehicle_alone():
         one = {k: (v[row : row + 1] if isinstance(v, np.ndarray) and k != "profiles"
                    else v) for k, v in inp.items()}  # fmt: skip
         one["cmd"] = np.ascontiguousarray(inp["cmd"][:, row : row + 1])
-        np.testing.assert_array_equal(_run_kernel(kernels, one, 1, damper.code)[:, 0], s_all[:, row])
+        np.testing.assert_array_equal(
+            _run_kernel(kernels, one, 1, damper.code)[:, 0], s_all[:, row]
+        )
