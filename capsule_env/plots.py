@@ -1,22 +1,29 @@
-"""Figures of the evaluation (the paper's Figures 10 and 11 analogues, damper loops)."""
+"""Figures: the evaluation (the paper's Figures 10 and 11 analogues, damper loops under
+control) and the damper-model identification (the paper's Figures 4 to 7 analogues)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from capsule_env.dampers import damper_force
+from capsule_env.identification.loops import Loop, check_loops, group_by_current
+from capsule_env.identification.predict import predict_force
+from capsule_env.identification.results import MODEL_NAMES, IdentificationResult
 from capsule_env.metrics import DEFAULT_BANDS_HZ, amplitude_spectrum
 
 #: Controllers drawn in the paper's figures (others are drawn if these are absent).
 FIGURE_CONTROLLERS = ("passive", "skyhook-csdc", "skyhook-biexp")
 
 
-def _pyplot():
+def _pyplot(force: bool = True) -> Any:
+    """``matplotlib.pyplot`` on the Agg backend (``force``: as :func:`matplotlib.use`)."""
     import matplotlib
 
-    matplotlib.use("Agg")
+    matplotlib.use("Agg", force=force)
     import matplotlib.pyplot as plt
 
     return plt
@@ -89,7 +96,155 @@ def evaluation_figures(rollouts: dict[tuple[str, str], Any], directory: Path) ->
     return written
 
 
-def _save(fig, path: Path, plt) -> Path:
+def _save(fig: Any, path: Path, plt: Any) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+# ---------------------------------------------------------------------------- identification
+_MODEL_LABELS = {"bi_exponential": "Bi-exponential", "bouc_wen": "Bouc-Wen", "tanh": "tanh"}
+
+
+def plot_fits(
+    result: IdentificationResult,
+    loops: Sequence[Loop] | None = None,
+    directory: str | Path = ".",
+    prefix: str = "",
+) -> list[Path]:
+    """Write PNG figures of an identification and return their paths.
+
+    - ``{prefix}force_velocity.png`` and ``{prefix}force_displacement.png``: data (dots) against
+      each fitted model (lines), every current (the paper's Figure 7 analogue, all models).
+    - ``{prefix}top_current_branches.png``: the loop at the reporting current split by the sign
+      of the stroke (upper/lower branches, the paper's Figure 4) with the Bi-exponential branches.
+    - ``{prefix}bi_exponential_trends.png`` (several currents only): a, b, c, d against current,
+      free per-current fits and the refit at the mean d with its linear law (Figures 5 and 6).
+
+    ``loops`` defaults to ``result.loops``; ``directory`` is created if needed.
+    """
+    plt = _pyplot(force=False)
+    loops = list(result.loops if loops is None else check_loops(loops))
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    currents, groups = group_by_current(loops)
+    cmap = plt.get_cmap("viridis")
+    colours = [cmap(k / max(len(currents) - 1, 1)) for k in range(len(currents))]
+    paths: list[Path] = []
+
+    def ordered(loop: Loop) -> np.ndarray:
+        # close a periodic loop for a continuous line
+        idx = np.arange(loop.n_samples)
+        return np.append(idx, 0) if loop.periodic else idx
+
+    def kilo(ax: Any) -> None:
+        ax.grid(True, alpha=0.3)
+
+    peak = result.peak_force_n
+    where = f"at {result.rmse_current_a:g} A" if len(currents) > 1 else "(whole record)"
+    scale, unit = (1e-3, "kN") if peak >= 2e3 else (1.0, "N")
+    for kind, xlabel in (("velocity", "stroke rate v (m/s)"), ("displacement", "stroke x (mm)")):
+        fig, axes = plt.subplots(1, len(MODEL_NAMES), figsize=(5.2 * len(MODEL_NAMES), 4.4),
+                                 sharey=True, constrained_layout=True)  # fmt: skip
+        for ax, name in zip(axes, MODEL_NAMES):
+            fit = result.models[name]
+            for colour, i, group in zip(colours, currents, groups):
+                for n, loop in enumerate(group):
+                    model = predict_force(fit.damper, loop)
+                    idx = ordered(loop)
+                    xs = loop.stroke_rate_m_s if kind == "velocity" else loop.stroke_m * 1e3
+                    step = max(1, loop.n_samples // (250 if loop.periodic else 3000))
+                    single = len(currents) == 1
+                    ax.plot(xs[::step], loop.force_n[::step] * scale, ".", ms=2.5,
+                            color="0.45" if single else colour, alpha=0.5,
+                            label=("data" if single else f"data {i:g} A") if n == 0 else None)  # fmt: skip
+                    ax.plot(xs[idx], model[idx] * scale, "-", lw=1.1,
+                            color="tab:red" if single else colour,
+                            label="model" if single and n == 0 else None)  # fmt: skip
+            ax.set_title(f"{_MODEL_LABELS[name]}: RMSE {fit.rmse_n:.1f} N {where}")
+            ax.set_xlabel(xlabel)
+            kilo(ax)
+        axes[0].set_ylabel(f"damper force F ({unit})")
+        axes[0].legend(fontsize=7, loc="upper left", title="dots: data, lines: model",
+                       title_fontsize=7, framealpha=0.9)  # fmt: skip
+        fig.suptitle(f"Force-{kind} loops, data vs identified models ({result.source})")
+        path = directory / f"{prefix}force_{kind}.png"
+        paths.append(_save(fig, path, plt))
+
+    # The reporting current, split by branch (Figures 4 and 7).
+    top = groups[-1]
+    bi = result.models["bi_exponential"].damper
+    fig, (ax_x, ax_v) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+    for loop in top:
+        up = loop.upper
+        for mask, label, colour in ((up, "upper (x >= 0)", "tab:red"),
+                                    (~up, "lower (x < 0)", "tab:blue")):  # fmt: skip
+            ax_x.plot(loop.stroke_m[mask] * 1e3, loop.force_n[mask] * scale, ".", ms=2,
+                      color=colour, label=f"data, {label}")  # fmt: skip
+            ax_v.plot(loop.stroke_rate_m_s[mask], loop.force_n[mask] * scale, ".", ms=2,
+                      color=colour, label=f"data, {label}")  # fmt: skip
+    v_max = max(float(np.max(np.abs(lp.stroke_rate_m_s))) for lp in top)
+    vv = np.linspace(-v_max, v_max, 400)
+    i_top = float(currents[-1])
+    for x_sign, label, colour in ((1.0, "upper", "darkred"), (-1.0, "lower", "navy")):
+        f_model = damper_force(bi, np.full_like(vv, 0.5 * x_sign), vv, i_top)[0]
+        ax_v.plot(vv, f_model * scale, "-", lw=2, color=colour,
+                  label=f"Bi-exponential, {label} branch")  # fmt: skip
+    ax_x.set_xlabel("stroke x (mm)")
+    ax_v.set_xlabel("stroke rate v (m/s)")
+    for ax in (ax_x, ax_v):
+        ax.set_ylabel(f"damper force F ({unit})")
+        kilo(ax)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Loop at {i_top:g} A split by the sign of the stroke; Bi-exponential RMSE "
+                 f"{result.models['bi_exponential'].rmse_n:.1f} N ({result.source})")  # fmt: skip
+    path = directory / f"{prefix}top_current_branches.png"
+    paths.append(_save(fig, path, plt))
+
+    trends = result.bi_exponential
+    if trends.currents_a.size > 1:
+        units = {"a": "a (N)", "b": "b (N s/m)", "c": "c (N)", "d": "d (s/m)"}
+        fig, axes = plt.subplots(2, 4, figsize=(16, 7.5), constrained_layout=True)
+        ii = trends.currents_a
+        fine = np.linspace(ii.min(), ii.max(), 50)
+        styles = (("upper", "tab:red", "o", 9), ("lower", "tab:blue", "s", 4))
+        for branch, colour, marker, size in styles:
+            for col, p in enumerate("abcd"):
+                ax = axes[0, col]
+                ax.plot(ii, trends.free[branch][p], marker + "-", color=colour, ms=size,
+                        mfc="none" if size > 5 else colour, label=branch)  # fmt: skip
+                if p == "d":
+                    ax.axhline(trends.table[branch]["d"], color=colour, ls="--",
+                               label=f"{branch} mean {trends.table[branch]['d']:.4g}")  # fmt: skip
+                ax.set_title(f"free fit: {units[p]}")
+            for col, p in enumerate("abc"):
+                ax = axes[1, col]
+                row = trends.table[branch]
+                ax.plot(ii, trends.fixed_d[branch][p], marker, color=colour, ms=size,
+                        mfc="none" if size > 5 else colour,
+                        label=f"{branch}, d = {row['d']:.4g}")  # fmt: skip
+                ax.plot(fine, row[f"{p}0"] + row[f"{p}1"] * fine, "-", color=colour,
+                        label=_law_label(p, row))  # fmt: skip
+                ax.set_title(f"fixed d: {units[p]}")
+            mfc = "none" if size > 5 else colour
+            axes[1, 3].plot(ii, trends.fixed_d[branch]["rmse_n"], marker + "-", color=colour,
+                            ms=size, mfc=mfc, label=f"{branch}, fixed d")  # fmt: skip
+            axes[1, 3].plot(ii, trends.free[branch]["rmse_n"], marker + ":", color=colour,
+                            ms=size, mfc=mfc, label=f"{branch}, free d")  # fmt: skip
+        axes[1, 3].set_title("branch RMSE (N) per current")
+        for ax in axes.flat:
+            ax.set_xlabel("current i (A)")
+            kilo(ax)
+            ax.legend(fontsize=7)
+        fig.suptitle(
+            "Bi-exponential parameters vs current: free per-current fits (top, paper Fig. 5) "
+            f"and refit at the {result.d_rule} d with linear laws (bottom, Fig. 6 / Table 2)"
+        )
+        path = directory / f"{prefix}bi_exponential_trends.png"
+        paths.append(_save(fig, path, plt))
+    return paths
+
+
+def _law_label(p: str, row: dict[str, float]) -> str:
+    """Legend text of a linear law ``p = p0 + p1 i`` (used by :func:`plot_fits`)."""
+    return f"{p} = {row[p + '0']:.4g} + {row[p + '1']:.4g} i"
