@@ -624,7 +624,7 @@ class Run:
         self.wall_before = 0.0  # wall time of the runs this one resumes
         self.t0 = time.perf_counter()
         self.eval_seconds = 0.0
-        self.best: dict | None = None  # {"num_timesteps", "wk_rms_body_acc", ...}
+        self.best: dict | None = None  # {"num_timesteps", "wk_rms_body_acc_m_s2", ...}
         self.last_eval_timesteps = -1
         eval_kwargs = policy_env_kwargs(env_kwargs)
         self.eval_kwargs = eval_kwargs
@@ -683,17 +683,17 @@ class Run:
             "num_timesteps": int(model.num_timesteps),
             "wall_time_s": round(self.wall_time(), 2),
             "steps_per_s": round(self.steps_per_s(model.num_timesteps), 1),
-            "wk_rms_body_acc": m["wk_rms_body_acc"],
-            "rms_body_acc": m["rms_body_acc"],
-            "vre_body_mode1": m["vre"]["body_mode1"],
-            "max_stroke": m["max_stroke"],
+            "wk_rms_body_acc_m_s2": m["wk_rms_body_acc_m_s2"],
+            "rms_body_acc_m_s2": m["rms_body_acc_m_s2"],
+            "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],
+            "max_stroke_m": m["max_stroke_m"],
             "terminated_episodes": m["terminated_episodes"],
         }
         # Best: no bump-stop hit first, then the lowest Wk-weighted RMS body acceleration.
-        key = (result["terminated_episodes"], result["wk_rms_body_acc"])
+        key = (result["terminated_episodes"], result["wk_rms_body_acc_m_s2"])
         improved = self.best is None or key < (
             self.best["terminated_episodes"],
-            self.best["wk_rms_body_acc"],
+            self.best["wk_rms_body_acc_m_s2"],
         )
         if improved:
             self.best = result
@@ -704,17 +704,17 @@ class Run:
         with (self.output_dir / "evaluations.jsonl").open("a") as fh:
             fh.write(json.dumps(result) + "\n")
         print(
-            f"[{result['num_timesteps']:>10d}] eval Wk acc {result['wk_rms_body_acc']:.4f} m/s^2"
-            f"  VRE body m1 {result['vre_body_mode1']:6.2f} %  stroke "
-            f"{1000 * result['max_stroke']:5.1f} mm  hits {result['terminated_episodes']}"
+            f"[{result['num_timesteps']:>10d}] eval Wk acc {result['wk_rms_body_acc_m_s2']:.4f} m/s^2"
+            f"  VRE body m1 {result['vre_body_mode1_pct']:6.2f} %  stroke "
+            f"{1000 * result['max_stroke_m']:5.1f} mm  hits {result['terminated_episodes']}"
             f"  | {result['steps_per_s']:8.0f} steps/s, {result['wall_time_s']:7.1f} s"
             + ("  *best*" if improved else ""),
             flush=True,
         )
         if logger is not None:
-            logger.record("eval/wk_rms_body_acc", result["wk_rms_body_acc"])
-            logger.record("eval/vre_body_mode1", result["vre_body_mode1"])
-            logger.record("eval/max_stroke_m", result["max_stroke"])
+            logger.record("eval/wk_rms_body_acc_m_s2", result["wk_rms_body_acc_m_s2"])
+            logger.record("eval/vre_body_mode1_pct", result["vre_body_mode1_pct"])
+            logger.record("eval/max_stroke_m", result["max_stroke_m"])
             logger.record("time/env_steps_per_s", result["steps_per_s"])
         return result
 
@@ -724,22 +724,29 @@ class Run:
         from agents import classical_controllers
 
         a = self.args
-        refs = {"passive": episode_metrics(self.passive, None)["wk_rms_body_acc"]}
+        wk = "wk_rms_body_acc_m_s2"
+        refs = {"passive": {wk: episode_metrics(self.passive, None)[wk]}}
         sky = classical_controllers().get(REFERENCE_CONTROLLER)
         if sky is not None:
             kwargs = {**self.eval_kwargs, **sky.env_kwargs}
             roll = run_episodes(sky, kwargs, a.eval_episodes, a.eval_seed, a.eval_episode_length)
             m = episode_metrics(roll, self.passive)
-            refs[REFERENCE_CONTROLLER] = m["wk_rms_body_acc"]
-            refs[f"{REFERENCE_CONTROLLER} VRE body m1"] = m["vre"]["body_mode1"]
-        print(
-            f"evaluation: seeds {a.eval_seed}..{a.eval_seed + a.eval_episodes - 1} of the held-out "
-            f"guideway bank {EVALUATION_GUIDEWAY_SEED}; reference Wk acc (m/s^2): "
-            + ", ".join(
-                f"{k} {v:.2f} %" if "VRE" in k else f"{k} {v:.4f}" for k, v in refs.items()
-            ),
-            flush=True,
-        )
+            refs[REFERENCE_CONTROLLER] = {
+                wk: m[wk],
+                "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],
+            }
+        described = [
+            f"{name} Wk {r[wk]:.4f} m/s^2"
+            + (
+                f", VRE body m1 {r['vre_body_mode1_pct']:.2f} %"
+                if "vre_body_mode1_pct" in r
+                else ""
+            )
+            for name, r in refs.items()
+        ]
+        print(f"evaluation: seeds {a.eval_seed}..{a.eval_seed + a.eval_episodes - 1} of the "
+              f"held-out guideway bank {EVALUATION_GUIDEWAY_SEED}; references: "
+              + "; ".join(described), flush=True)  # fmt: skip
         return refs
 
     def _eval_block(self, m: dict) -> dict:
@@ -749,7 +756,7 @@ class Run:
             "seeds": [a.eval_seed, a.eval_seed + a.eval_episodes - 1],
             "episode_length_s": a.eval_episode_length,
             "metrics": m,
-            "references_wk_rms_body_acc": self.references,
+            "references": self.references,
         }
 
     def checkpoint(self, model: Any) -> Path:
@@ -960,8 +967,8 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         flush=True,
     )
     if run.best:
-        print(f"best: Wk acc {run.best['wk_rms_body_acc']:.4f} m/s^2, VRE body m1 "
-              f"{run.best['vre_body_mode1']:.2f} % at {run.best['num_timesteps']} timesteps "
+        print(f"best: Wk acc {run.best['wk_rms_body_acc_m_s2']:.4f} m/s^2, VRE body m1 "
+              f"{run.best['vre_body_mode1_pct']:.2f} % at {run.best['num_timesteps']} timesteps "
               f"-> {output_dir / 'best_model.zip'}")  # fmt: skip
     env.close()
     return {

@@ -226,7 +226,7 @@ def test_policies_with_the_same_name_get_distinct_rows(tmp_path, capsys):
                           str(passive_named) + ".zip"]) == 0  # fmt: skip
     rows = json.loads(out.read_text())["settings"]["sim"]["controllers"]
     assert set(rows) == {"passive", "passive#2"}
-    assert "uses_unmeasured_signals" in rows["passive"] and rows["passive#2"]["vre"]
+    assert "uses_unmeasured_signals" in rows["passive"] and rows["passive#2"]["vre_pct"]
 
 
 def test_policy_without_statistics_is_refused_unless_allowed(tmp_path, capsys):

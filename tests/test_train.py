@@ -74,8 +74,8 @@ def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
     assert meta["env_kwargs"]["action_mode"] == "force"
     assert "guideway_seed" not in meta["env_kwargs"]  # chosen by the evaluation
     assert meta["eval"]["guideway_seed"] == 2026
-    assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc"])
-    assert "vre" in meta["eval"]["metrics"]
+    assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc_m_s2"])
+    assert "vre_pct" in meta["eval"]["metrics"]
     assert meta["num_timesteps"] > 0 and meta["wall_time_s"] > 0
     final = json.loads((out / "final_model.json").read_text())
     assert final["num_timesteps"] == 2048
@@ -91,7 +91,7 @@ def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
     assert rc == 0
     controllers = json.loads(report.read_text())["settings"]["hils"]["controllers"]
     assert "tiny-ppo" in controllers and "passive" in controllers
-    assert np.isfinite(controllers["tiny-ppo"]["wk_rms_body_acc"])
+    assert np.isfinite(controllers["tiny-ppo"]["wk_rms_body_acc_m_s2"])
 
 
 def test_saved_policy_matches_trained_model(ppo_run):
