@@ -58,6 +58,14 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "lqr-clipped-biexp",
 ]
 
+#: The tables' columns after the controller's name: (header with the unit, width), and the
+#: number format of each. The json (``--json``) holds the same figures in SI units.
+COLUMNS = [
+    ("body m1 %", 11), ("paper %", 9), ("body m2 %", 11), ("bogie m1 %", 12), ("bogie m2 %", 12),
+    ("Wk m/s^2", 10), ("rms m/s^2", 11), ("stroke mm", 11), ("I A", 8), ("trk rel", 9),
+]  # fmt: skip
+FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f"]
+
 
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
@@ -262,28 +270,21 @@ def format_tables(results: dict) -> str:
         lines.append(
             f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) =="
         )
-        header = (
-            f"{'controller':<22}{'body m1':>9}{'paper':>8}{'body m2':>9}{'bogie m1':>9}"
-            f"{'bogie m2':>9}{'Wk acc':>9}{'rms acc':>9}{'stroke':>8}{'I mean':>8}{'trk err':>8}"
-        )
-        lines.append(header)
-        lines.append("-" * len(header))
+        header = "".join(f"{title:>{width}}" for title, width in COLUMNS)
+        lines.append(f"{'controller':<22}{header}")
+        lines.append("-" * (22 + len(header)))
         for name, m in block["controllers"].items():
-            vre = m.get("vre", {})
+            vre = m.get("vre_pct", {})  # absent for passive, the reference
             paper = PAPER_VRE.get((setting, name, "body_mode1"))
-            cells = [
-                f"{name:<22}",
-                f"{vre.get('body_mode1', float('nan')):9.2f}" if vre else f"{'-':>9}",
-                f"{paper:8.2f}" if paper is not None else f"{'':>8}",
-            ]
-            for key in ("body_mode2", "bogie_mode1", "bogie_mode2"):
-                cells.append(f"{vre[key]:9.2f}" if vre else f"{'-':>9}")
-            cells.append(f"{m['wk_rms_body_acc']:9.4f}")
-            cells.append(f"{m['rms_body_acc']:9.4f}")
-            cells.append(f"{m['max_stroke'] * 1000:7.1f}m")
-            cells.append(f"{m['mean_current']:8.3f}")
-            trk = m.get("force_tracking_error")
-            cells.append(f"{trk:8.3f}" if trk is not None else f"{'-':>8}")
+            values = [
+                vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
+                vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
+                1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
+            ]  # fmt: skip
+            cells = [f"{name:<22}"]
+            for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
+                blank = "" if title == "paper %" else "-"
+                cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
             lines.append("".join(cells))
         lines.append(PAPER_TEXT[setting])
     if results.get("policies"):
@@ -291,9 +292,10 @@ def format_tables(results: dict) -> str:
         lines.append("policies: " + "; ".join(f"{n} = {p}" for n, p in results["policies"].items()))
     lines.append("")
     lines.append(
-        "VRE: (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
-        "band (paper eq. 16); Wk acc / rms acc: car-body acceleration (m/s^2); stroke: max |x| "
-        "(mm); I mean: mean coil current (A); trk err: rms(F - F_d)/rms(F_d)."
+        "VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
+        "band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS car-body "
+        "acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
+        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio)."
     )
     return "\n".join(lines)
 

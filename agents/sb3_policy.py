@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import pickle
 from pathlib import Path
@@ -21,13 +22,27 @@ def shipped_policy_paths() -> list[str]:
     return [str(p) for p in sorted(PRETRAINED_DIR.glob("*.zip"))]
 
 
+#: ``(obs_rms, clip_obs, epsilon)`` of a policy that acts on raw observations.
+_RAW_OBSERVATIONS: tuple[Any, float, float] = (None, 10.0, 1e-8)
+
+
+def _statistics(vec_normalize: Any) -> tuple[Any, float, float]:
+    """``(obs_rms or None, clip_obs, epsilon)`` of a ``VecNormalize`` (a copy of the running
+    statistics: the policy keeps them as they are now)."""
+    norm_obs = bool(getattr(vec_normalize, "norm_obs", True))
+    obs_rms = copy.deepcopy(vec_normalize.obs_rms) if norm_obs else None
+    return obs_rms, float(vec_normalize.clip_obs), float(vec_normalize.epsilon)
+
+
 class SB3Policy(Controller):
     """A trained SB3 policy with the observation normalisation it was trained with.
 
     Files: ``NAME.zip`` (the SB3 model), and next to it ``NAME.vecnormalize.pkl`` (SB3's
     ``VecNormalize`` statistics; required unless ``load(..., require_normalization=False)``)
     and ``NAME.json`` (metadata written by ``train.py``: algorithm, the env arguments it was
-    trained with and the digests of the other two files; optional).
+    trained with and the digests of the other two files; optional): :meth:`load`. During
+    training, :meth:`from_model` wraps the model in memory with its ``VecNormalize``, so that
+    ``train.py``'s evaluations see the policy as ``evaluate.py`` will.
     """
 
     def __init__(self, model: Any, obs_rms: Any, clip_obs: float, epsilon: float, meta: dict):
@@ -96,16 +111,11 @@ class SB3Policy(Controller):
                 f"cannot load {path} as an SB3 {algo.upper()} model: {reason}"
             ) from None
         norm_path = Path(str(stem) + ".vecnormalize.pkl")
-        obs_rms, clip_obs, eps = None, 10.0, 1e-8
+        statistics = _RAW_OBSERVATIONS
         if norm_path.is_file():
             try:
                 with norm_path.open("rb") as fh:
-                    vec_normalize = pickle.load(fh)
-                norm_obs = bool(getattr(vec_normalize, "norm_obs", True))
-                if norm_obs:
-                    obs_rms = vec_normalize.obs_rms
-                clip_obs = float(vec_normalize.clip_obs)
-                eps = float(vec_normalize.epsilon)
+                    statistics = _statistics(pickle.load(fh))
             except Exception as exc:  # unpickling garbage raises many types
                 raise ValueError(
                     f"cannot read the normalisation statistics {norm_path}: {exc!r}"
@@ -116,15 +126,25 @@ class SB3Policy(Controller):
                 "it would act on raw observations (allow that explicitly with "
                 "require_normalization=False, evaluate.py --allow-unnormalized)"
             )
+        obs_rms = statistics[0]
         space = getattr(model, "observation_space", None)
         if obs_rms is not None and space is not None and obs_rms.mean.shape != space.shape:
             raise ValueError(
                 f"{norm_path.name} holds statistics of observations of shape "
                 f"{obs_rms.mean.shape}, but the model {path} takes shape {space.shape}"
             )
-        policy = cls(model, obs_rms, clip_obs, eps, meta)
+        policy = cls(model, *statistics, meta)
         policy.path = path
         return policy
+
+    @classmethod
+    def from_model(cls, model: Any, vec_normalize: Any, meta: dict | None = None) -> SB3Policy:
+        """The in-memory ``model`` with a snapshot of the statistics of ``vec_normalize`` (the
+        ``VecNormalize`` it trains on, or None for raw observations): what :meth:`load` gives
+        for the files ``train.py`` would save now. Later updates of ``vec_normalize`` do not
+        change the policy (``train.py`` evaluates during training with it)."""
+        statistics = _RAW_OBSERVATIONS if vec_normalize is None else _statistics(vec_normalize)
+        return cls(model, *statistics, dict(meta or {}))
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_rms is None:

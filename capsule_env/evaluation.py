@@ -18,6 +18,19 @@ from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 
 #: Guideway bank for evaluation: held out from training (which uses ``guideway_seed=0``).
 EVALUATION_GUIDEWAY_SEED = 2026
+#: The unit of each metric of :func:`episode_metrics` (also the suffix of its key).
+METRIC_UNITS = {
+    "vre_pct": "%",
+    "rms_body_acc_m_s2": "m/s^2",
+    "wk_rms_body_acc_m_s2": "m/s^2",
+    "rms_body_disp_m": "m",
+    "rms_bogie_disp_m": "m",
+    "max_stroke_m": "m",
+    "mean_current_a": "A",
+    "coil_power_w": "W",
+    "force_tracking_error_rel": "ratio rms(F - F_d) / rms(F_d)",
+    "terminated_episodes": "episodes",
+}
 RECORDED = (
     "car_body_displacement_m",
     "bogie_displacement_m",
@@ -97,25 +110,33 @@ def episode_metrics(
 ) -> dict[str, Any]:
     """The paper's metrics, averaged over episodes (with the per-episode spread).
 
-    ``vre`` (per cent, paper eq. 16, needs the passive rollout on the same seeds):
-    ``body_mode1``, ``body_mode2``, ``bogie_mode1``, ``bogie_mode2``. Ride metrics:
-    ``rms_body_acc`` and ``wk_rms_body_acc`` (m/s^2, ISO 2631-1 Wk), ``rms_body_disp`` and
-    ``rms_bogie_disp`` (m), ``max_stroke`` (m), ``mean_current`` (A), ``coil_power_w`` (W),
-    ``force_tracking_error`` (relative, force mode only), ``terminated_episodes``.
+    Every key names its unit (see :data:`METRIC_UNITS`):
+
+    - ``vre_pct`` (only with the passive rollout on the same seeds, paper eq. 16): the
+      vibration reduction effect in per cent, ``{"body_mode1", "body_mode2", "bogie_mode1",
+      "bogie_mode2": %}``;
+    - ``rms_body_acc_m_s2`` and ``wk_rms_body_acc_m_s2`` (RMS and ISO 2631-1 Wk-weighted RMS
+      car-body acceleration, m/s^2), ``rms_body_disp_m`` and ``rms_bogie_disp_m`` (m),
+      ``max_stroke_m`` (largest damper stroke, m), ``mean_current_a`` (mean coil current, A),
+      ``coil_power_w`` (W), ``force_tracking_error_rel`` (``rms(F - F_d) / rms(F_d)``, a
+      ratio; force mode only);
+    - ``std``: the spread over episodes of each of those, the VRE ones as
+      ``vre_body_mode1_pct`` ...;
+    - ``terminated_episodes``: how many episodes hit the bump stop (a count).
     """
     bands = bands_hz or metrics.DEFAULT_BANDS_HZ
     s, dt = rollout.signals, rollout.dt_s
     per_episode = {
-        "rms_body_acc": metrics.rms(s["car_body_acceleration_m_s2"]),
-        "wk_rms_body_acc": metrics.wk_weighted_rms(s["car_body_acceleration_m_s2"], dt),
-        "rms_body_disp": metrics.rms(s["car_body_displacement_m"]),
-        "rms_bogie_disp": metrics.rms(s["bogie_displacement_m"]),
-        "max_stroke": np.max(np.abs(s["stroke_m"]), axis=-1),
-        "mean_current": np.mean(s["coil_current_a"], axis=-1),
+        "rms_body_acc_m_s2": metrics.rms(s["car_body_acceleration_m_s2"]),
+        "wk_rms_body_acc_m_s2": metrics.wk_weighted_rms(s["car_body_acceleration_m_s2"], dt),
+        "rms_body_disp_m": metrics.rms(s["car_body_displacement_m"]),
+        "rms_bogie_disp_m": metrics.rms(s["bogie_displacement_m"]),
+        "max_stroke_m": np.max(np.abs(s["stroke_m"]), axis=-1),
+        "mean_current_a": np.mean(s["coil_current_a"], axis=-1),
         "coil_power_w": metrics.coil_power_w(s["coil_current_a"], coil_resistance_ohm),
     }
     if rollout.action_mode == "force":
-        per_episode["force_tracking_error"] = metrics.force_tracking_error(
+        per_episode["force_tracking_error_rel"] = metrics.force_tracking_error(
             s["desired_force_n"], s["damper_force_n"]
         )
     out: dict[str, Any] = {k: float(np.nanmean(v)) for k, v in per_episode.items()}
@@ -128,8 +149,8 @@ def episode_metrics(
                     passive.signals[key], s[key], dt, band
                 )  # fmt: skip
                 vre[f"{body}_{mode}"] = float(np.mean(v))
-                out["std"][f"vre_{body}_{mode}"] = float(np.std(v))
-        out["vre"] = vre
+                out["std"][f"vre_{body}_{mode}_pct"] = float(np.std(v))
+        out["vre_pct"] = vre
     out["terminated_episodes"] = int(rollout.terminated.sum())
     return out
 

@@ -137,8 +137,9 @@ def main(argv: list[str] | None = None) -> int:
     applied_sky = applied_from_commands(roll_sky.signals["current_command_a"], delay)
     sky_metrics = episode_metrics(roll_sky, roll_pas)
     print(f"{SKYHOOK} in hils over {args.episodes} episodes of {args.duration:g} s (seeds "
-          f"{args.seed}..{args.seed + args.episodes - 1}): Wk {sky_metrics['wk_rms_body_acc']:.4f} "
-          f"m/s^2, first-mode VRE {sky_metrics['vre']['body_mode1']:.1f} %", flush=True)  # fmt: skip
+          f"{args.seed}..{args.seed + args.episodes - 1}): Wk "
+          f"{sky_metrics['wk_rms_body_acc_m_s2']:.4f} m/s^2, first-mode VRE "
+          f"{sky_metrics['vre_pct']['body_mode1']:.1f} %", flush=True)  # fmt: skip
 
     rows = []
     for k in range(args.episodes):
@@ -166,39 +167,39 @@ def main(argv: list[str] | None = None) -> int:
         )  # fmt: skip
         row = {
             "seed": args.seed + k,
-            "wk_skyhook": wk_sky,
-            "wk_clairvoyant": wk_opt,
+            "wk_skyhook_m_s2": wk_sky,
+            "wk_clairvoyant_m_s2": wk_opt,
             "ratio": wk_opt / wk_sky,
-            "vre_body_mode1_clairvoyant": vre_opt,
+            "vre_body_mode1_clairvoyant_pct": vre_opt,
             "max_stroke_m": float(np.max(np.abs(stroke_opt))),
             "mean_current_a": float(np.mean(best_u)),
-            "replay_error": replay_error,
+            "replay_error_rel": replay_error,
             "iterations": iterations,
-            "seconds": time.perf_counter() - t0,
+            "time_s": time.perf_counter() - t0,
         }
         rows.append(row)
         print(f"seed {row['seed']}: Skyhook Wk {wk_sky:.4f}, clairvoyant {wk_opt:.4f} "
               f"(x{row['ratio']:.3f}), first-mode VRE {vre_opt:.1f} %, max stroke "
               f"{1e3 * row['max_stroke_m']:.1f} mm, replay error {replay_error:.1e}, "
-              f"{iterations} iterations, {row['seconds']:.0f} s", flush=True)  # fmt: skip
-    wk_s = np.mean([r["wk_skyhook"] for r in rows])
-    wk_c = np.mean([r["wk_clairvoyant"] for r in rows])
+              f"{iterations} iterations, {row['time_s']:.0f} s", flush=True)  # fmt: skip
+    wk_s = np.mean([r["wk_skyhook_m_s2"] for r in rows])
+    wk_c = np.mean([r["wk_clairvoyant_m_s2"] for r in rows])
     summary = {
         "episodes": args.episodes,
         "duration_s": args.duration,
-        "wk_skyhook_mean": float(wk_s),
-        "wk_clairvoyant_mean": float(wk_c),
+        "wk_skyhook_mean_m_s2": float(wk_s),
+        "wk_clairvoyant_mean_m_s2": float(wk_c),
         "ratio_of_means": float(wk_c / wk_s),
         "bar": 0.9,
-        "vre_body_mode1_skyhook": sky_metrics["vre"]["body_mode1"],
-        "vre_body_mode1_clairvoyant_mean": float(
-            np.mean([r["vre_body_mode1_clairvoyant"] for r in rows])
+        "vre_body_mode1_skyhook_pct": sky_metrics["vre_pct"]["body_mode1"],
+        "vre_body_mode1_clairvoyant_mean_pct": float(
+            np.mean([r["vre_body_mode1_clairvoyant_pct"] for r in rows])
         ),
         "episodes_detail": rows,
     }
     print(f"mean Wk: Skyhook {wk_s:.4f}, clairvoyant {wk_c:.4f} (x{wk_c / wk_s:.3f}; the bar "
-          f"is x0.9); first-mode VRE: Skyhook {summary['vre_body_mode1_skyhook']:.1f} %, "
-          f"clairvoyant {summary['vre_body_mode1_clairvoyant_mean']:.1f} %")  # fmt: skip
+          f"is x0.9); first-mode VRE: Skyhook {summary['vre_body_mode1_skyhook_pct']:.1f} %, "
+          f"clairvoyant {summary['vre_body_mode1_clairvoyant_mean_pct']:.1f} %")  # fmt: skip
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=2))
     return 0

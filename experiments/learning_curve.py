@@ -27,16 +27,18 @@ def main(argv: list[str] | None = None) -> int:
     for run in args.runs:
         rows = [json.loads(line) for line in (run / "evaluations.jsonl").read_text().splitlines()]
         steps = [r["num_timesteps"] / 1e6 for r in rows]
-        axes[0].plot(steps, [r["wk_rms_body_acc"] for r in rows], label=run.name)
-        axes[1].plot(steps, [r["vre_body_mode1"] for r in rows], label=run.name)
+        axes[0].plot(steps, [r["wk_rms_body_acc_m_s2"] for r in rows], label=run.name)
+        axes[1].plot(steps, [r["vre_body_mode1_pct"] for r in rows], label=run.name)
         meta = run / "best_model.json"
         if refs is None and meta.is_file():
-            refs = json.loads(meta.read_text())["eval"].get("references_wk_rms_body_acc")
+            refs = json.loads(meta.read_text())["eval"].get("references")
     if refs:  # passive and Skyhook on the same evaluation seeds
-        for name, value in refs.items():
-            ax = axes[1] if "VRE" in name else axes[0]
-            ax.axhline(value, ls="--", lw=1, color="k" if name == "passive" else "C3")
-            ax.annotate(name, (0, value), fontsize=8, va="bottom")
+        for name, figures in refs.items():
+            for key, ax in (("wk_rms_body_acc_m_s2", axes[0]), ("vre_body_mode1_pct", axes[1])):
+                if key in figures:
+                    value = figures[key]
+                    ax.axhline(value, ls="--", lw=1, color="k" if name == "passive" else "C3")
+                    ax.annotate(name, (0, value), fontsize=8, va="bottom")
     axes[0].set_ylabel("ISO Wk-weighted RMS body acceleration (m/s^2)")
     axes[1].set_ylabel("car-body first-mode VRE (%)")
     for ax in axes:

@@ -52,27 +52,29 @@ def main(argv: list[str] | None = None) -> int:
         )  # fmt: skip
         runs[seed] = json.loads(evaluation.read_text())["settings"]["hils"]["controllers"]
     first = next(iter(runs.values()))
-    best_sky = min(SKYHOOKS, key=lambda n: first[n]["wk_rms_body_acc"])
-    sky_wk = first[best_sky]["wk_rms_body_acc"]
-    sky_vre = first[best_sky]["vre"]["body_mode1"]
+    best_sky = min(SKYHOOKS, key=lambda n: first[n]["wk_rms_body_acc_m_s2"])
+    sky_wk = first[best_sky]["wk_rms_body_acc_m_s2"]
+    sky_vre = first[best_sky]["vre_pct"]["body_mode1"]
     policies = {
         s: [n for n in r if n not in SKYHOOKS and n != "passive"][0] for s, r in runs.items()
     }
-    wk = np.array([r[policies[s]]["wk_rms_body_acc"] for s, r in runs.items()])
-    vre = np.array([r[policies[s]]["vre"]["body_mode1"] for s, r in runs.items()])
+    wk = np.array([r[policies[s]]["wk_rms_body_acc_m_s2"] for s, r in runs.items()])
+    vre = np.array([r[policies[s]]["vre_pct"]["body_mode1"] for s, r in runs.items()])
     print(f"\nhils, 10 held-out guideway seeds; best Skyhook by Wk: {best_sky} "
           f"(Wk {sky_wk:.4f} m/s^2, VRE body m1 {sky_vre:.2f} %), passive Wk "
-          f"{first['passive']['wk_rms_body_acc']:.4f}")  # fmt: skip
+          f"{first['passive']['wk_rms_body_acc_m_s2']:.4f}")  # fmt: skip
     for seed, r in runs.items():
         m = r[policies[seed]]
-        print(f"  seed {seed}: Wk {m['wk_rms_body_acc']:.4f} ({m['wk_rms_body_acc'] / sky_wk:.3f} x "
-              f"Skyhook), VRE body m1 {m['vre']['body_mode1']:.2f} %")  # fmt: skip
+        wk_m = m["wk_rms_body_acc_m_s2"]
+        print(f"  seed {seed}: Wk {wk_m:.4f} ({wk_m / sky_wk:.3f} x Skyhook), VRE body m1 "
+              f"{m['vre_pct']['body_mode1']:.2f} %")  # fmt: skip
     print(f"  mean +- std: Wk {wk.mean():.4f} +- {wk.std():.4f} ({wk.mean() / sky_wk:.3f} x), "
           f"VRE {vre.mean():.2f} +- {vre.std():.2f} %")  # fmt: skip
     bar = bool(np.all(wk <= 0.9 * sky_wk) and np.all(vre > sky_vre))
     print(f"  bar (every seed: Wk <= 0.9 x Skyhook and higher VRE): {'met' if bar else 'NOT met'}")
-    summary = {"best_skyhook": best_sky, "skyhook_wk": sky_wk, "skyhook_vre_body_mode1": sky_vre,
-               "policy_wk": wk.tolist(), "policy_vre_body_mode1": vre.tolist(), "bar_met": bar,
+    summary = {"best_skyhook": best_sky, "skyhook_wk_m_s2": sky_wk,
+               "skyhook_vre_body_mode1_pct": sky_vre, "policy_wk_m_s2": wk.tolist(),
+               "policy_vre_body_mode1_pct": vre.tolist(), "bar_met": bar,
                "seeds": args.seeds, "train_args": args.train_args}  # fmt: skip
     (args.root / "summary.json").write_text(json.dumps(summary, indent=2))
     return 0

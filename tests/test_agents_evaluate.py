@@ -17,7 +17,7 @@ from agents import (
     classical_controllers,
 )
 from agents.base import FULL
-from capsule_env.evaluation import episode_metrics, run_episodes
+from capsule_env.evaluation import METRIC_UNITS, episode_metrics, run_episodes
 from capsule_env.vehicle import VehicleParams, state_space
 
 
@@ -82,7 +82,14 @@ def test_vre_of_passive_against_itself_is_zero():
     passive = PassiveController()
     roll = run_episodes(passive, {**passive.env_kwargs}, episodes=2, seed=3, episode_length_s=2)
     m = episode_metrics(roll, roll)
-    assert all(abs(v) < 1e-12 for v in m["vre"].values())
+    assert all(abs(v) < 1e-12 for v in m["vre_pct"].values())
+    # every metric's key ends with its unit, the spreads' too
+    assert set(m) - {"std"} == set(METRIC_UNITS) - {"force_tracking_error_rel"}  # current mode
+    suffixes = ("_m_s2", "_m", "_a", "_w", "_pct", "_rel")
+    assert all(k.endswith(suffixes) for k in m["std"]), sorted(m["std"])
+    assert set(m["std"]) == {k for k in METRIC_UNITS if k.endswith(suffixes[:-2])} | {
+        f"vre_{part}_{mode}_pct" for part in ("body", "bogie") for mode in ("mode1", "mode2")
+    }
 
 
 def test_skyhook_reduces_body_first_mode_in_sim():
@@ -90,11 +97,11 @@ def test_skyhook_reduces_body_first_mode_in_sim():
     passive = run_episodes(ctrls["passive"], ctrls["passive"].env_kwargs, 3, 0, 10.0)
     sky = run_episodes(ctrls["skyhook-biexp"], ctrls["skyhook-biexp"].env_kwargs, 3, 0, 10.0)
     m = episode_metrics(sky, passive)
-    assert m["vre"]["body_mode1"] > 20.0  # Skyhook's purpose: damp the body mode
+    assert m["vre_pct"]["body_mode1"] > 20.0  # Skyhook's purpose: damp the body mode
     assert m["terminated_episodes"] == 0
 
 
-def test_evaluate_end_to_end(tmp_path):
+def test_evaluate_end_to_end(tmp_path, capsys):
     out = tmp_path / "eval.json"
     plots = tmp_path / "plots"
     code = evaluate.main(
@@ -108,11 +115,17 @@ def test_evaluate_end_to_end(tmp_path):
         ctrls = data["settings"][setting]["controllers"]
         assert set(ctrls) == {"passive", "skyhook-csdc", "skyhook-biexp"}
         entry = ctrls["skyhook-biexp"]
-        assert set(entry["vre"]) == {"body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"}
-        for key in ("rms_body_acc", "wk_rms_body_acc", "rms_body_disp", "max_stroke",
-                    "mean_current"):  # fmt: skip
+        assert set(entry["vre_pct"]) == {"body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"}
+        for key in ("rms_body_acc_m_s2", "wk_rms_body_acc_m_s2", "rms_body_disp_m",
+                    "max_stroke_m", "mean_current_a"):  # fmt: skip
             assert np.isfinite(entry[key])
+        assert 0.0 < entry["force_tracking_error_rel"] < 10.0
     assert len(list(plots.glob("*.png"))) == 6
+    header = next(
+        line for line in capsys.readouterr().out.splitlines() if line.startswith("controller")
+    )
+    for column in ("body m1 %", "Wk m/s^2", "rms m/s^2", "stroke mm", "I A", "trk rel"):
+        assert column in header
 
 
 def test_evaluate_rejects_unknown_controller():

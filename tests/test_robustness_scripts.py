@@ -28,7 +28,9 @@ pytest.importorskip("stable_baselines3")
 
 import evaluate  # noqa: E402
 import train  # noqa: E402
+from agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy  # noqa: E402
 from agents.sb3_policy import SB3Policy  # noqa: E402
+from agents.training import make_env  # noqa: E402
 from capsule_env import identify  # noqa: E402
 from capsule_env.safe_io import StagedFiles, atomic_write_text  # noqa: E402
 
@@ -75,12 +77,12 @@ def make_policy(stem: Path, name: str | None = "tiny", env: str = "capsule") -> 
 
         venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]))
     else:
-        venv = train.make_env(2, 0, POLICY_ENV, {"norm_obs": True, "norm_reward": True})
+        venv = make_env(2, 0, POLICY_ENV, {"norm_obs": True, "norm_reward": True})
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=0, device="cpu")
     meta = {"algo": "ppo", "env_kwargs": POLICY_ENV, "num_timesteps": 0}
     if name is not None:
         meta["name"] = name
-    train.save_policy(model, stem, meta)
+    save_policy(model, stem, meta)
     return model
 
 
@@ -170,7 +172,7 @@ def test_failed_policy_save_leaves_the_previous_files_intact(tmp_path, monkeypat
     cls = type(model) if failing == "model" else VecNormalize
     monkeypatch.setattr(cls, "save", lambda self, path, *a, **k: half_then_full(path))
     with pytest.raises(OSError, match="No space"):
-        train.save_policy(model, stem, {"algo": "ppo", "name": "tiny", "num_timesteps": 4096})
+        save_policy(model, stem, {"algo": "ppo", "name": "tiny", "num_timesteps": 4096})
     assert files_of(tmp_path) == before  # unchanged, and no temporary file left behind
     SB3Policy.load(stem.with_suffix(".zip"))
 
@@ -179,7 +181,7 @@ def test_loader_refuses_a_model_mixed_with_another_saves_statistics(tmp_path):
     make_policy(tmp_path / "a" / "best_model")
     other = make_policy(tmp_path / "b" / "best_model", name="other")
     other.num_timesteps = 77
-    train.save_policy(other, tmp_path / "b" / "best_model", {"algo": "ppo", "name": "other"})
+    save_policy(other, tmp_path / "b" / "best_model", {"algo": "ppo", "name": "other"})
     # the zip of one save next to the statistics and json of another
     shutil.copy(tmp_path / "b" / "best_model.zip", tmp_path / "a" / "best_model.zip")
     with pytest.raises(ValueError, match="best_model.zip") as info:
@@ -226,7 +228,7 @@ def test_policies_with_the_same_name_get_distinct_rows(tmp_path, capsys):
                           str(passive_named) + ".zip"]) == 0  # fmt: skip
     rows = json.loads(out.read_text())["settings"]["sim"]["controllers"]
     assert set(rows) == {"passive", "passive#2"}
-    assert "uses_unmeasured_signals" in rows["passive"] and rows["passive#2"]["vre"]
+    assert "uses_unmeasured_signals" in rows["passive"] and rows["passive#2"]["vre_pct"]
 
 
 def test_policy_without_statistics_is_refused_unless_allowed(tmp_path, capsys):
@@ -368,7 +370,7 @@ def test_wall_time_checkpoints_survive_a_hard_kill(ppo_yml, tmp_path):
     ckpts = sorted(p.name for p in (tmp_path / "checkpoints").glob("ckpt_*.zip"))
     assert ckpts == ["ckpt_000000001024.zip", "ckpt_000000002048.zip"]
     for name in ckpts:
-        assert train.checkpoint_problem(tmp_path / "checkpoints" / name) is None
+        assert checkpoint_problem(tmp_path / "checkpoints" / name) is None
     resumed = train.train(train.parse_args([*argv, "--resume", "auto"]))
     assert resumed["num_timesteps"] == 4096 and resumed["model"].num_timesteps == 4096
 
@@ -380,7 +382,7 @@ def test_the_end_of_training_is_always_checkpointed(ppo_yml, tmp_path):
     stem = tmp_path / "checkpoints" / "ckpt_000000001024"
     for suffix in (".zip", ".vecnormalize.pkl", ".json"):
         assert Path(str(stem) + suffix).is_file(), suffix
-    assert train.checkpoint_problem(Path(str(stem) + ".zip")) is None
+    assert checkpoint_problem(Path(str(stem) + ".zip")) is None
     meta = json.loads(Path(str(stem) + ".json").read_text())
     assert meta["num_timesteps"] == 1024
     assert set(meta["files"]) == {"ckpt_000000001024.zip", "ckpt_000000001024.vecnormalize.pkl"}
@@ -419,7 +421,7 @@ def test_latest_checkpoint_skips_damaged_ones(two_checkpoints, tmp_path, capsys,
     out = tmp_path / "run"
     shutil.copytree(two_checkpoints, out)
     _corrupt(out / "checkpoints", how)
-    assert train.latest_checkpoint(out).name == "ckpt_000000001024.zip"
+    assert latest_checkpoint(out).name == "ckpt_000000001024.zip"
     err = capsys.readouterr().err
     assert "skipping" in err and "ckpt_000000002048" in err
 
@@ -518,7 +520,7 @@ def test_off_policy_checkpoints_keep_only_the_newest_replay_buffers(tmp_path, ca
         "ckpt_000000000250.replay_buffer.pkl", "ckpt_000000000300.replay_buffer.pkl"
     ]  # fmt: skip
     for s in steps:  # the pruned checkpoints stay intact
-        assert train.checkpoint_problem(ckpt_dir / f"ckpt_{s:012d}.zip") is None
+        assert checkpoint_problem(ckpt_dir / f"ckpt_{s:012d}.zip") is None
     # resuming from one whose buffer was pruned works, with an empty buffer, and says so
     capsys.readouterr()
     resumed = train.train(train.parse_args([*argv[:-2], "--checkpoint-freq", "0",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import pickle
 import re
@@ -17,7 +18,8 @@ pytest.importorskip("stable_baselines3")
 
 import evaluate  # noqa: E402
 import train  # noqa: E402
-from agents.sb3_policy import SB3Policy  # noqa: E402
+from agents import hyperparams  # noqa: E402
+from agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 # Small and fast: 4 vehicles, 256-step PPO rollouts (1024 samples per update), a 2-episode,
@@ -74,8 +76,8 @@ def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
     assert meta["env_kwargs"]["action_mode"] == "force"
     assert "guideway_seed" not in meta["env_kwargs"]  # chosen by the evaluation
     assert meta["eval"]["guideway_seed"] == 2026
-    assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc"])
-    assert "vre" in meta["eval"]["metrics"]
+    assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc_m_s2"])
+    assert "vre_pct" in meta["eval"]["metrics"]
     assert meta["num_timesteps"] > 0 and meta["wall_time_s"] > 0
     final = json.loads((out / "final_model.json").read_text())
     assert final["num_timesteps"] == 2048
@@ -91,7 +93,7 @@ def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
     assert rc == 0
     controllers = json.loads(report.read_text())["settings"]["hils"]["controllers"]
     assert "tiny-ppo" in controllers and "passive" in controllers
-    assert np.isfinite(controllers["tiny-ppo"]["wk_rms_body_acc"])
+    assert np.isfinite(controllers["tiny-ppo"]["wk_rms_body_acc_m_s2"])
 
 
 def test_saved_policy_matches_trained_model(ppo_run):
@@ -109,9 +111,13 @@ def test_saved_policy_matches_trained_model(ppo_run):
     got, _ = policy.predict(obs)
     np.testing.assert_allclose(got, np.clip(expected, -1, 1), rtol=1e-6, atol=1e-6)
     # and the live training statistics are the saved ones
-    np.testing.assert_array_equal(
-        model.get_vec_normalize_env().obs_rms.mean, vec_normalize.obs_rms.mean
-    )
+    live_env = model.get_vec_normalize_env()
+    np.testing.assert_array_equal(live_env.obs_rms.mean, vec_normalize.obs_rms.mean)
+    # the in-memory policy train.py evaluates is the one evaluate.py loads, with a snapshot of
+    # the statistics (not the live object that training goes on updating)
+    live = SB3Policy.from_model(model, live_env, {"name": "live"})
+    assert live.obs_rms is not live_env.obs_rms and live.name == "live"
+    np.testing.assert_array_equal(live.predict(obs)[0], got)
 
 
 class _StopAt:
@@ -142,6 +148,7 @@ def _statistics_at_start():
                 "var": env.obs_rms.var.copy(),
                 "count": env.obs_rms.count,
                 "ret_var": env.ret_rms.var.copy(),
+                "first_obs": env.get_original_obs().copy(),
                 "num_timesteps": self.model.num_timesteps,
             }
 
@@ -170,9 +177,15 @@ def test_interrupt_then_resume_auto(tiny_ppo_yml, tmp_path):
     second = train.train(train.parse_args([*argv, "--resume", "auto"]), extra_callbacks=[capture()])
     seen = capture.seen
     assert seen["num_timesteps"] == 1024  # not reset
-    np.testing.assert_array_equal(seen["mean"], saved.obs_rms.mean)
-    np.testing.assert_array_equal(seen["var"], saved.obs_rms.var)
-    assert seen["count"] == saved.obs_rms.count
+    # Training goes on from the checkpoint's statistics plus the one batch of observations of
+    # the env reset that starts learn() (SB3's public resume API: Algo.load + learn with
+    # reset_num_timesteps=False), and nothing else.
+    assert seen["first_obs"].shape == (4, saved.obs_rms.mean.shape[0])
+    expected = copy.deepcopy(saved.obs_rms)
+    expected.update(seen["first_obs"])
+    assert seen["count"] == saved.obs_rms.count + 4 == expected.count
+    np.testing.assert_allclose(seen["mean"], expected.mean, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(seen["var"], expected.var, rtol=1e-12, atol=0)
     np.testing.assert_array_equal(seen["ret_var"], saved.ret_rms.var)
     assert second["num_timesteps"] == 3072 and not second["interrupted"]
     final = json.loads((tmp_path / "final_model.json").read_text())
@@ -211,44 +224,76 @@ def test_off_policy_tiny_run_and_resume(algo, tmp_path):
 
 
 def test_hyperparameter_files_parse():
-    for algo in train.ALGORITHMS:
-        hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml")
+    for algo in ALGORITHMS:
+        hp = hyperparams.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml")
         for key in ("n_envs", "n_timesteps", "policy", "gamma", "env_kwargs"):
             assert key in hp, f"{algo}.yml: {key}"
-        kwargs = train.algo_kwargs_from(hp)
+        kwargs = hyperparams.algo_kwargs_from(hp)
         assert isinstance(kwargs["policy_kwargs"], dict)
-        assert train.normalize_kwargs_from(hp)["gamma"] == hp["gamma"]
-        train.resolve_env_kwargs(hp["env_kwargs"], {})
+        assert hyperparams.normalize_kwargs_from(hp)["gamma"] == hp["gamma"]
+        hyperparams.resolve_env_kwargs(hp["env_kwargs"], {})
+    ppo = hyperparams.load_hyperparams(ROOT / "hyperparams" / "ppo.yml")
+    assert ppo["n_timesteps"] == 4e6 and ppo["learning_rate"] == "lin_1e-3"
+    schedule = hyperparams.algo_kwargs_from(ppo)["learning_rate"]
+    assert schedule(1.0) == pytest.approx(1e-3) and schedule(0.5) == pytest.approx(5e-4)
 
 
-def test_hyperparameter_files_without_pyyaml(monkeypatch):
-    """PyYAML is not a dependency: the built-in reader gives the same entries."""
-    expected = {
-        a: train.load_hyperparams(ROOT / "hyperparams" / f"{a}.yml") for a in train.ALGORITHMS
+def test_policy_kwargs_are_read_without_eval():
+    import torch.nn as nn
+
+    read = hyperparams.algo_kwargs_from
+    kwargs = read(
+        {
+            "policy_kwargs": "dict(net_arch=dict(pi=[64, 64], vf=[32]), "
+            "activation_fn=nn.Tanh, log_std_init=-1.0, ortho_init=False)"
+        }
+    )
+    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [64, 64], "vf": [32]},
+                                       "activation_fn": nn.Tanh, "log_std_init": -1.0,
+                                       "ortho_init": False}  # fmt: skip
+    literal = read({"policy_kwargs": "{'net_arch': [8, (4, 2)], 'activation_fn': nn.GELU}"})
+    assert literal["policy_kwargs"] == {"net_arch": [8, (4, 2)], "activation_fn": nn.GELU}
+    assert hyperparams.normalize_kwargs_from({"normalize": "dict(norm_reward=False)"}) == {
+        "norm_obs": True, "norm_reward": False, "clip_obs": 10.0, "gamma": 0.99
+    }  # fmt: skip
+    bad = {
+        "__import__('os').system('echo no')": "policy_kwargs",
+        "dict(activation_fn=nn.Module)": "policy_kwargs.activation_fn",
+        "dict(net_arch=[64, len('ab')])": "policy_kwargs.net_arch",
+        "dict(activation_fn=open)": "policy_kwargs.activation_fn",
+        "dict(**{'a': 1})": "policy_kwargs",
+        "dict(net_arch=[64, 64]": "policy_kwargs",
+        "[64, 64]": "policy_kwargs",
+        "{1: 2}": "policy_kwargs",
     }
-    monkeypatch.setitem(sys.modules, "yaml", None)  # import yaml -> ImportError
-    for algo, entry in expected.items():
-        assert train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml") == entry
-    text = "A:\n  b: !!float 3e5  # comment\n  c: 'x # y'\n  d: [1, \"step\"]\n  e:\n    f: true\n  g: lin_1e-3\n"
-    assert train.parse_simple_yaml(text) == {
-        "A": {"b": 3e5, "c": "x # y", "d": [1, "step"], "e": {"f": True}, "g": "lin_1e-3"}
-    }
+    for text, key in bad.items():
+        with pytest.raises(ValueError) as info:
+            read({"policy_kwargs": text})
+        message = str(info.value)
+        assert message.startswith(f"{key}: ") and "\n" not in message, (text, message)
+    with pytest.raises(ValueError, match="normalize"):
+        hyperparams.normalize_kwargs_from({"normalize": "dict(norm_obs=exit())"})
+    with pytest.raises(ValueError, match="learning_rate"):
+        read({"learning_rate": "exp_1e-3"})
 
 
 def test_env_arguments_merge_and_validate():
     args = train.parse_args(["--env-kwargs", '{"speed_kmh": 600}', "--env", "setting=sim",
-                             "--env", 'guideway_params={"peak_m": 0.01}'])  # fmt: skip
+                             "--env", "guideway_params={'peak_m': 0.01}"])  # fmt: skip
     assert args.env_kwargs == {"speed_kmh": 600, "setting": "sim",
                                "guideway_params": {"peak_m": 0.01}}  # fmt: skip
-    merged = train.resolve_env_kwargs({"observation": "full_state"}, args.env_kwargs)
+    assert train.parse_args(["--env-kwargs", "{'speed_kmh': 500.0}"]).env_kwargs == {
+        "speed_kmh": 500.0
+    }
+    merged = hyperparams.resolve_env_kwargs({"observation": "full_state"}, {"setting": "sim"})
     assert merged["action_mode"] == "force" and merged["setting"] == "sim"
     assert merged["observation"] == "full_state"
-    with pytest.raises(SystemExit, match="setting"):
-        train.resolve_env_kwargs({}, {"setting": "moon"})
-    with pytest.raises(SystemExit, match="speed_kmh"):
-        train.resolve_env_kwargs({}, {"speed_kmh": -3})
-    with pytest.raises(SystemExit, match="speed_kmh"):
-        train.resolve_env_kwargs({}, {"speed_kmh": "fast"})
+    with pytest.raises(ValueError, match="setting"):
+        hyperparams.resolve_env_kwargs({}, {"setting": "moon"})
+    with pytest.raises(ValueError, match="speed_kmh"):
+        hyperparams.resolve_env_kwargs({}, {"speed_kmh": -3})
+    with pytest.raises(ValueError, match="speed_kmh"):
+        hyperparams.resolve_env_kwargs({}, {"speed_kmh": "fast"})
 
 
 def _run_cli(*argv: str) -> subprocess.CompletedProcess:

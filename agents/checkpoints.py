@@ -1,0 +1,223 @@
+"""Saving trained policies and checkpoints, and resuming from them (``train.py``).
+
+A saved policy is a group of files with one stem: ``stem.zip`` (the SB3 model),
+``stem.vecnormalize.pkl`` (its ``VecNormalize`` statistics), for SAC/TD3 checkpoints
+``stem.replay_buffer.pkl``, and ``stem.json`` (metadata: name, algorithm, env arguments,
+timesteps, wall time, and the sizes and SHA-256 of the other files). :func:`save_policy`
+writes them all under temporary names and renames them into place, the json last
+(:class:`capsule_env.safe_io.StagedFiles`): a full disk or a kill during a save leaves the
+previous files intact, and the loaders (:func:`checkpoint_problem`,
+``agents.sb3_policy.SB3Policy.load``) refuse a set mixed from two saves or truncated later.
+
+Checkpoints are ``<output>/checkpoints/ckpt_<timesteps, 12 digits>.*``; only the newest
+``keep_replay_buffers`` keep their replay buffer (:func:`prune_replay_buffers`).
+``--resume auto`` takes the newest intact one (:func:`latest_checkpoint`), reporting each newer
+damaged one on stderr.
+
+Resuming uses SB3's public API only (:func:`resume_model`): ``Algo.load(zip, env=env)``, with
+the checkpoint's statistics loaded into the env's ``VecNormalize``, ``load_replay_buffer`` for
+SAC/TD3, then ``model.learn(..., reset_num_timesteps=False)``. ``Algo.load`` discards the
+saved last observation (its ``force_reset``), so ``learn`` starts by resetting the env, and
+that reset, in training mode, updates the observation statistics with one batch of
+observations (``num_envs`` samples, against the checkpoint's millions): the resumed run starts
+from the checkpoint's statistics plus that one batch, not from exactly the checkpoint's.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from capsule_env.safe_io import StagedFiles, digest_mismatch, file_digest
+
+
+def _sibling(stem: Path, suffix: str) -> Path:
+    """``stem`` + ``suffix`` (``stem.with_suffix`` would replace a dotted part of the name)."""
+    return stem.with_name(stem.name + suffix)
+
+
+def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False) -> None:
+    """``stem.zip`` (model), ``stem.vecnormalize.pkl`` (statistics), optionally
+    ``stem.replay_buffer.pkl`` (SAC/TD3), and ``stem.json`` (metadata), saved together.
+
+    Every file is written to a temporary name next to it first, then all are renamed into
+    place (statistics, replay buffer, model, and the metadata last): a failed save (a full
+    disk, a kill) leaves the previous files as they were. The json records the size and
+    SHA-256 of the model and statistics (``files``) and of the replay buffer
+    (``replay_buffer``), which the loaders check (:func:`checkpoint_problem`,
+    ``agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
+    """
+    stem = Path(stem)
+    zip_path, pkl_path = _sibling(stem, ".zip"), _sibling(stem, ".vecnormalize.pkl")
+    rb_path = _sibling(stem, ".replay_buffer.pkl")
+    with StagedFiles() as staged:
+        model.get_vec_normalize_env().save(str(staged.temp_for(pkl_path)))
+        if replay_buffer:
+            model.save_replay_buffer(str(staged.temp_for(rb_path)))
+        model.save(str(staged.temp_for(zip_path)))
+        temps = staged.staged
+        meta = {**meta, "files": {p.name: file_digest(temps[p]) for p in (zip_path, pkl_path)}}
+        if replay_buffer:
+            meta["replay_buffer"] = {rb_path.name: file_digest(temps[rb_path])}
+        staged.write_text(_sibling(stem, ".json"), json.dumps(meta, indent=2, default=str))
+
+
+def save_checkpoint(model: Any, ckpt_dir: Path, meta: dict, keep_replay_buffers: int = 2) -> Path:
+    """``ckpt_dir/ckpt_<steps>.*`` (:func:`save_policy`; SAC/TD3 with the replay buffer unless
+    ``keep_replay_buffers`` is 0), then :func:`prune_replay_buffers`. Returns the ``.zip``."""
+    stem = Path(ckpt_dir) / f"ckpt_{model.num_timesteps:012d}"
+    with_buffer = hasattr(model, "save_replay_buffer") and keep_replay_buffers > 0
+    save_policy(model, stem, {**meta, "num_timesteps": int(model.num_timesteps)}, with_buffer)
+    if hasattr(model, "save_replay_buffer"):
+        prune_replay_buffers(ckpt_dir, keep_replay_buffers)
+    return _sibling(stem, ".zip")
+
+
+def prune_replay_buffers(ckpt_dir: Path, keep: int) -> list[Path]:
+    """Delete the ``.replay_buffer.pkl`` files of all but the newest ``keep`` checkpoints (by
+    their timesteps); the checkpoints' models stay. Returns the deleted paths."""
+    buffers = sorted(Path(ckpt_dir).glob("ckpt_*.replay_buffer.pkl"))  # zero-padded steps
+    doomed = buffers[: max(len(buffers) - keep, 0)]
+    for path in doomed:
+        path.unlink(missing_ok=True)
+    return doomed
+
+
+def checkpoint_problem(zip_path: Path) -> str | None:
+    """Why the checkpoint ``zip_path`` (with its ``.vecnormalize.pkl`` and ``.json``, and
+    ``.replay_buffer.pkl`` when present) cannot be resumed from, or None when it is intact.
+
+    Checked: the json (written last, the mark of a complete save) is readable; the files
+    exist and, when the json records their sizes and SHA-256 (:func:`save_policy`), match
+    them; else (older checkpoints) the zip is a readable zip archive and the statistics
+    unpickle.
+    """
+    zip_path = Path(zip_path)
+    stem = zip_path.with_suffix("")
+    meta_path, pkl_path = _sibling(stem, ".json"), _sibling(stem, ".vecnormalize.pkl")
+    if not meta_path.is_file():
+        return f"no {meta_path.name} (the save did not finish)"
+    try:
+        meta = json.loads(meta_path.read_text())
+        steps = int(meta["num_timesteps"])
+    except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
+        return f"{meta_path.name} is not readable checkpoint metadata ({type(exc).__name__}: {exc})"
+    missing = [k for k in ("algo", "num_envs", "train_env_kwargs") if k not in meta]
+    if missing:
+        return f"{meta_path.name} lacks {', '.join(missing)}"
+    if f"ckpt_{steps:012d}" != stem.name and stem.name.startswith("ckpt_"):
+        return f"{meta_path.name} says {steps} timesteps, not those of its name"
+    for path in (zip_path, pkl_path):
+        if not path.is_file() or path.stat().st_size == 0:
+            return f"{path.name} is missing or empty"
+    if isinstance(meta.get("files"), dict):
+        problem = digest_mismatch(zip_path.parent, meta["files"])
+        if problem:
+            return problem
+    else:  # a checkpoint from before the digests: check that the files can be read
+        import pickle
+        import zipfile
+
+        try:
+            with zipfile.ZipFile(zip_path) as archive:
+                bad = archive.testzip()
+            if bad is not None:
+                return f"{zip_path.name}: member {bad} is corrupt"
+            with pkl_path.open("rb") as fh:
+                pickle.load(fh)
+        except Exception as exc:  # a corrupt archive or pickle raises many types
+            return f"cannot read it ({type(exc).__name__}: {exc})"
+    buffer = meta.get("replay_buffer")
+    if isinstance(buffer, dict):  # pruned buffers are allowed to be absent
+        present = {n: d for n, d in buffer.items() if (zip_path.parent / n).is_file()}
+        problem = digest_mismatch(zip_path.parent, present)
+        if problem:
+            return problem
+    return None
+
+
+def latest_checkpoint(output_dir: Path) -> Path:
+    """The newest intact checkpoint in ``output_dir/checkpoints`` (:func:`checkpoint_problem`);
+    each newer one that is not intact is reported on stderr, with the reason, and skipped."""
+    ckpt_dir = Path(output_dir) / "checkpoints"
+    stems = {p.name.split(".")[0] for p in ckpt_dir.glob("ckpt_*.*")}
+    if not stems:
+        raise ValueError(f"--resume auto: no checkpoint in {ckpt_dir}")
+    skipped = 0
+    for name in sorted(stems, reverse=True):  # zero-padded timesteps: newest first
+        zip_path = ckpt_dir / f"{name}.zip"
+        problem = checkpoint_problem(zip_path)
+        if problem is None:
+            return zip_path
+        skipped += 1
+        print(f"--resume auto: skipping {zip_path}: {problem}", file=sys.stderr, flush=True)
+    raise ValueError(f"--resume auto: no intact checkpoint in {ckpt_dir} ({skipped} skipped)")
+
+
+def find_checkpoint(resume: str, output_dir: Path, algo: str) -> tuple[Path, dict]:
+    """The checkpoint ``--resume`` names (``auto``: :func:`latest_checkpoint`) and its
+    metadata, checked to be intact and of ``algo``; ``ValueError`` (one line) otherwise."""
+    if resume == "auto":
+        ckpt = latest_checkpoint(output_dir)
+    else:
+        ckpt = Path(resume)
+        if not ckpt.is_file():
+            raise ValueError(f"--resume: no checkpoint {ckpt}")
+        problem = checkpoint_problem(ckpt)
+        if problem:
+            raise ValueError(f"--resume: cannot resume from {ckpt}: {problem}")
+    meta = json.loads(ckpt.with_suffix(".json").read_text())
+    if meta["algo"] != algo:
+        raise ValueError(f"--resume: {ckpt} is {meta['algo']}, not {algo}")
+    return ckpt, meta
+
+
+def statistics_path(ckpt: Path) -> Path:
+    """The ``.vecnormalize.pkl`` of the checkpoint ``ckpt`` (a ``.zip``)."""
+    return _sibling(Path(ckpt).with_suffix(""), ".vecnormalize.pkl")
+
+
+def resume_model(algo_cls: Any, ckpt: Path, env: Any, **load_kwargs: Any) -> Any:
+    """The model of the checkpoint ``ckpt`` on ``env`` (whose ``VecNormalize`` holds the
+    checkpoint's statistics), with its replay buffer for SAC/TD3 when the checkpoint kept one.
+
+    SB3's public API only: ``algo_cls.load(ckpt, env=env)`` discards the saved last
+    observation, so the caller's ``model.learn(..., reset_num_timesteps=False)`` first resets
+    the env, which adds that one batch of observations to the statistics (see the module
+    docstring). Raises ``SystemExit`` (one line) when the model does not load on ``env``.
+    """
+    try:
+        model = algo_cls.load(str(ckpt), env=env, **load_kwargs)
+    except Exception as exc:  # e.g. the env's spaces differ from the checkpoint's
+        env.close()
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SystemExit(f"train.py: error: --resume: cannot load {ckpt}: {reason}") from None
+    buffer = _sibling(Path(ckpt).with_suffix(""), ".replay_buffer.pkl")
+    if hasattr(model, "load_replay_buffer"):
+        if buffer.is_file():
+            model.load_replay_buffer(str(buffer))
+        else:
+            print(f"note: {ckpt} has no replay buffer (--keep-replay-buffers keeps only the "
+                  "newest ones): the replay buffer starts empty", file=sys.stderr)  # fmt: skip
+    print(f"resumed {ckpt} at {model.num_timesteps} timesteps")
+    return model
+
+
+def best_so_far(output_dir: Path, metric: str) -> dict | None:
+    """The ``best`` block of ``output_dir/best_model.json`` (the best evaluation before a
+    resume; it may be newer than the checkpoint), or None when absent, unreadable or written
+    without ``metric`` (an older format)."""
+    path = Path(output_dir) / "best_model.json"
+    if not path.is_file():
+        return None
+    try:
+        best = json.loads(path.read_text())["best"]
+        if not all(isinstance(best[k], (int, float)) for k in (metric, "terminated_episodes")):
+            raise TypeError(f"its {metric} or terminated_episodes is not a number")
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+        print(f"note: ignoring {path} ({exc!r}); the next evaluation writes a new best model",
+              file=sys.stderr)  # fmt: skip
+        return None
+    return best

@@ -1,0 +1,507 @@
+"""What ``train.py``'s run is made of: its command line, the checks made before training, the
+env, and the state shared by the callbacks and the main loop (evaluation, checkpoints, clock).
+
+- :func:`parse_args`: the command line of a CleanRL-style argument dataclass (each field's
+  help is the string literal under it), with ``--env KEY=VALUE`` items merged into
+  ``env_kwargs`` and the values checked; errors are one line on stderr, exit status 2.
+- :func:`prepare`: everything checked before any training time is spent (the hyperparameter
+  file, the env arguments, the evaluation episode length, the checkpoint to resume from, the
+  output and TensorBoard folders), as a :class:`Plan`.
+- :func:`make_env`: the batched numba kernel as an SB3 ``VecEnv`` + ``VecMonitor`` +
+  ``VecNormalize`` (new, or with a checkpoint's statistics).
+- :class:`Run` and :class:`TrainingMonitor`: held-out evaluation through
+  ``agents.sb3_policy.SB3Policy`` (the class ``evaluate.py`` loads saved policies with) on the
+  guideway bank ``EVALUATION_GUIDEWAY_SEED`` (2026; training uses bank 0), keeping
+  ``best_model.*`` by the ISO 2631 Wk-weighted RMS car-body acceleration (an evaluation with a
+  bump-stop hit ranks below every one without); checkpoints every ``checkpoint_freq`` env
+  steps and every ``checkpoint_minutes`` of wall time (:mod:`agents.checkpoints`);
+  throughput. The passive damper and ``skyhook-cont-biexp`` run on the same evaluation seeds
+  once, as references (printed, and kept in ``best_model.json``).
+
+Output folder: ``best_model.{zip,vecnormalize.pkl,json}`` (the json: ``name``, ``algo``,
+``env_kwargs`` (what ``evaluate.py`` merges into its env), ``train_env_kwargs``,
+``num_timesteps``, ``wall_time_s``, ``seed``, ``num_envs``, ``hyperparams``, ``best`` and
+``eval``: the seeds, ``metrics`` (``capsule_env.evaluation.episode_metrics``) and
+``references``), ``final_model.*``, ``checkpoints/ckpt_<steps>.*`` and ``evaluations.jsonl``
+(one line per evaluation: ``num_timesteps``, ``wall_time_s``, ``steps_per_s``,
+``wk_rms_body_acc_m_s2``, ``rms_body_acc_m_s2``, ``vre_body_mode1_pct``, ``max_stroke_m``,
+``terminated_episodes``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import inspect
+import json
+import math
+import sys
+import textwrap
+import time
+import typing
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+
+from agents import PassiveController, classical_controllers
+from agents.checkpoints import (
+    best_so_far,
+    find_checkpoint,
+    save_checkpoint,
+    save_policy,
+    statistics_path,
+)
+from agents.hyperparams import (
+    algo_kwargs_from,
+    load_hyperparams,
+    normalize_kwargs_from,
+    parse_env_item,
+    parse_env_kwargs,
+    resolve_env_kwargs,
+)
+from agents.sb3_policy import SB3Policy
+from capsule_env.core import EnvConfig
+from capsule_env.evaluation import (
+    EVALUATION_GUIDEWAY_SEED,
+    check_episode_length,
+    episode_metrics,
+    run_episodes,
+)
+from capsule_env.safe_io import check_writable_dir
+
+HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
+#: Env arguments chosen by the evaluation, not by the policy (kept out of the saved metadata
+#: that ``evaluate.py`` merges into its env; ``episode_length_s`` is its ``--episode-length``).
+EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
+#: Printed beside the evaluations: the best classical controller in ``hils``.
+REFERENCE_CONTROLLER = "skyhook-cont-biexp"
+#: The metric ``best_model`` is chosen by (lower is better), after the bump-stop hits.
+BEST_METRIC = "wk_rms_body_acc_m_s2"
+
+
+# ----------------------------------------------------------------------------- command line
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _integer(text: str) -> int:
+    """An integer, also written like 2e6."""
+    value = float(text)
+    if value != int(value):
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}")
+    return int(value)
+
+
+def field_docs(cls: type) -> dict[str, str]:
+    """The string literal under each field of the dataclass ``cls`` (CleanRL / tyro style)."""
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    except (OSError, TypeError):  # no source (a frozen program): no help texts
+        return {}
+    body = tree.body[0].body
+    docs = {}
+    for node, after in zip(body, body[1:]):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant)
+            and isinstance(after.value.value, str)
+        ):
+            docs[node.target.id] = " ".join(after.value.value.split())
+    return docs
+
+
+def _add_argument(parser: argparse.ArgumentParser, f: Any, kind: Any, help_text: str) -> None:
+    """``--name`` for the dataclass field ``f`` of type ``kind``: ``bool`` a ``--name`` /
+    ``--no-name`` pair, ``Literal[...]`` its choices, ``list[str]`` a repeatable option,
+    ``dict`` a JSON text (read after argparse), int/float/str (maybe optional) a value."""
+    origin, default = typing.get_origin(kind), f.default
+    if f.default_factory is not MISSING:
+        default = f.default_factory()
+    if "default" not in help_text and kind is not bool and origin is not list:
+        help_text = f"{help_text} (default: {default})"
+    options: dict[str, Any] = {"default": default, "help": help_text}
+    if kind is bool:
+        options["action"] = argparse.BooleanOptionalAction
+    elif origin is typing.Literal:
+        options["choices"] = typing.get_args(kind)
+    elif origin is list:
+        options.update(action="append", metavar="KEY=VALUE")
+    elif kind is dict:
+        options.update(default="{}", metavar="JSON")
+    else:
+        types = set(typing.get_args(kind)) or {kind}
+        options["type"] = _integer if int in types else float if float in types else str
+    parser.add_argument("--" + f.name.replace("_", "-"), **options)
+
+
+def parse_args(cls: type, argv: list[str] | None, description: str | None) -> Any:
+    """The command line as an instance of the argument dataclass ``cls`` (``train.Args``).
+
+    Each field is an option ``--field-name``; its help is the string literal under the field.
+    ``env_kwargs`` (a JSON object or Python dict literal) and the ``env`` items (``KEY=VALUE``,
+    VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
+    items last. A bad value exits with one line on stderr and status 2.
+    """
+    parser = _Parser(prog="train.py", description=description,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    docs, hints = field_docs(cls), typing.get_type_hints(cls)
+    for f in fields(cls):
+        _add_argument(parser, f, hints[f.name], docs.get(f.name, ""))
+    ns = parser.parse_args(argv)
+    values = {f.name: getattr(ns, f.name) for f in fields(cls)}
+    try:
+        env_kwargs = parse_env_kwargs(values["env_kwargs"])
+        env_kwargs.update(parse_env_item(item) for item in values["env"])
+        values["env_kwargs"] = env_kwargs
+        args = cls(**values)
+        check_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
+
+
+def check_args(args: Any) -> None:
+    """The values' ranges; ``ValueError`` naming the option."""
+    for name in ("num_envs", "total_timesteps", "eval_episodes", "threads"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    for name in ("eval_freq", "checkpoint_freq", "keep_replay_buffers"):
+        if getattr(args, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
+        raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
+    if args.env_kwargs.get("guideway_seed", None) == EVALUATION_GUIDEWAY_SEED:
+        raise ValueError(
+            f"guideway_seed={EVALUATION_GUIDEWAY_SEED} is the held-out evaluation bank"
+        )
+
+
+# ----------------------------------------------------------------------------- before training
+@dataclass
+class Plan:
+    """What :func:`prepare` checked and loaded before anything is trained."""
+
+    output_dir: Path
+    hp: dict
+    env_kwargs: dict
+    norm_kwargs: dict
+    algo_kwargs: dict
+    algo_cls: type
+    num_envs: int
+    total: int  # timesteps to reach, rounded up to whole rollouts
+    ckpt: Path | None = None  # the checkpoint to resume from
+    ckpt_meta: dict = field(default_factory=dict)
+    tensorboard_log: str | None = None
+
+    @property
+    def start_timesteps(self) -> int:
+        """The timesteps done before this run: 0, or the checkpoint's."""
+        return int(self.ckpt_meta.get("num_timesteps", 0))
+
+    @property
+    def statistics(self) -> Path | None:
+        """The checkpoint's ``VecNormalize`` statistics, when resuming."""
+        return None if self.ckpt is None else statistics_path(self.ckpt)
+
+
+def prepare(args: Any) -> Plan:
+    """Check everything the run needs before it starts: the hyperparameters, the env
+    arguments, the evaluation episode length, the checkpoint to resume from (``auto``: the
+    newest intact one) and that the output and TensorBoard folders can be written. Raises
+    ``ValueError``/``OSError``/``TypeError`` with a one-line message."""
+    import stable_baselines3 as sb3
+
+    output_dir = Path(args.output_dir or f"runs/{args.algo}-seed{args.seed}")
+    hp = load_hyperparams(args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml")
+    env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
+    norm_kwargs, algo_kwargs = normalize_kwargs_from(hp), algo_kwargs_from(hp)
+    dt_s = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs)).dt_s
+    check_episode_length(args.eval_episode_length, dt_s, "--eval-episode-length")
+
+    # Output folders: writable before any training time is spent.
+    check_writable_dir(output_dir, "--output-dir")
+    check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
+    if args.tensorboard:
+        check_writable_dir(args.tensorboard, "--tensorboard")
+
+    # Resume: the checkpoint fixes the algorithm, the number of vehicles and the statistics.
+    ckpt, ckpt_meta = None, {}
+    num_envs = args.num_envs or int(hp.get("n_envs", 1))
+    if args.resume:
+        ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir, args.algo)
+        if ckpt_meta["train_env_kwargs"] != env_kwargs:
+            print(
+                f"note: env arguments differ from the checkpoint's {ckpt_meta['train_env_kwargs']}"
+            )
+        num_envs = args.num_envs or ckpt_meta["num_envs"]
+        if args.algo != "ppo" and num_envs != ckpt_meta["num_envs"]:
+            raise ValueError("--resume: SAC/TD3 replay buffers need the checkpoint's num_envs")
+
+    total = int(args.total_timesteps or float(hp["n_timesteps"]))
+    chunk = num_envs * (algo_kwargs.get("n_steps", 2048) if args.algo == "ppo" else 1)
+    if total % chunk:
+        total = (total // chunk + 1) * chunk
+        print(f"total timesteps rounded up to {total} (a multiple of {chunk})")
+
+    tensorboard_log = None
+    if args.tensorboard:
+        try:
+            import tensorboard  # noqa: F401
+        except ImportError:
+            print("tensorboard logging disabled: the tensorboard package is not installed "
+                  "(pip install tensorboard)", file=sys.stderr)  # fmt: skip
+        else:
+            tensorboard_log = args.tensorboard
+    algo_cls = getattr(sb3, args.algo.upper())
+    return Plan(output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs, total,
+                ckpt, ckpt_meta, tensorboard_log)  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- env
+def run_seed_for(seed: int, timesteps_done: int) -> int:
+    """The seed of a run that starts after ``timesteps_done`` steps: ``seed`` itself for a new
+    run, else an integer derived from both by ``numpy.random.SeedSequence`` (not ``seed +
+    timesteps``, which could be another run's seed)."""
+    if timesteps_done == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), int(timesteps_done)]).generate_state(1)[0])
+
+
+def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecnormalize=None):
+    """The batched kernel as an SB3 VecEnv, + VecMonitor + VecNormalize (new, or a saved one).
+
+    Vehicle ``n`` gets stream ``n`` of ``numpy.random.SeedSequence(seed)`` (guideway window,
+    noise, ...) at the first reset, so that runs with different seeds share no stream."""
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+
+    venv = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
+    venv.seed(seed)
+    venv = VecMonitor(venv)
+    if vecnormalize is not None:  # resume: the checkpoint's running statistics
+        return VecNormalize.load(str(vecnormalize), venv)
+    return VecNormalize(venv, **norm_kwargs)
+
+
+def policy_env_kwargs(env_kwargs: dict) -> dict:
+    """The env arguments a saved policy carries (those the evaluation chooses left out)."""
+    return {k: v for k, v in env_kwargs.items() if k not in EVALUATION_CHOSEN}
+
+
+# ----------------------------------------------------------------------------- the run
+class Run:
+    """State shared by the callbacks and the main loop: where to save, the clock, the best
+    evaluation so far and the metadata that goes with every saved policy."""
+
+    def __init__(self, args: Any, plan: Plan, model: Any) -> None:
+        self.args = args
+        self.plan = plan
+        self.output_dir = plan.output_dir
+        self.name = args.name or f"{args.algo}-seed{args.seed}"
+        self.start_timesteps = int(model.num_timesteps)
+        self.rollout_end_timesteps = self.start_timesteps  # PPO: the last complete rollout
+        self.wall_before = float(plan.ckpt_meta.get("wall_time_s", 0.0))  # earlier runs
+        self.t0 = time.perf_counter()
+        self.eval_seconds = 0.0
+        self.best: dict | None = None  # an evaluations.jsonl line
+        if plan.ckpt is not None:  # best_model may be newer than the checkpoint
+            self.best = best_so_far(self.output_dir, BEST_METRIC)
+        self.last_eval_timesteps = -1
+        self.eval_kwargs = policy_env_kwargs(plan.env_kwargs)
+        self.passive = None
+        self.references: dict = {}
+        self.last_checkpoint_clock = time.monotonic()  # for --checkpoint-minutes
+        self.last_checkpoint_timesteps = self.start_timesteps
+
+    # -- clock
+    def wall_time(self) -> float:
+        """Wall time of this run and the runs it resumes, s."""
+        return self.wall_before + time.perf_counter() - self.t0
+
+    def steps_per_s(self, num_timesteps: int) -> float:
+        """Training throughput of this process: env steps / (wall time minus evaluations)."""
+        elapsed = time.perf_counter() - self.t0 - self.eval_seconds
+        return (num_timesteps - self.start_timesteps) / max(elapsed, 1e-9)
+
+    def meta(self, model: Any, **extra: Any) -> dict:
+        """The metadata saved with ``model`` (``.json`` next to its ``.zip``)."""
+        return {
+            "name": self.name,
+            "algo": self.args.algo,
+            "env_kwargs": policy_env_kwargs(self.plan.env_kwargs),
+            "train_env_kwargs": self.plan.env_kwargs,
+            "num_timesteps": int(model.num_timesteps),
+            "wall_time_s": round(self.wall_time(), 2),
+            "seed": self.args.seed,
+            "num_envs": model.n_envs,
+            "hyperparams": self.plan.hp,
+            "best": self.best,
+            **extra,
+        }
+
+    # -- evaluation on the held-out guideway bank
+    def _episodes(self, policy: Any, env_kwargs: dict) -> Any:
+        a = self.args
+        return run_episodes(policy, env_kwargs, a.eval_episodes, a.eval_seed, a.eval_episode_length)
+
+    def evaluate(self, model: Any, logger: Any = None) -> dict:
+        """Evaluate ``model`` (through :meth:`SB3Policy.from_model`, frozen statistics) on the
+        held-out seeds; save it as ``best_model`` when it is the best so far; log the result
+        (``evaluations.jsonl``, stdout, SB3's ``logger``). Returns the result."""
+        if model.num_timesteps == self.last_eval_timesteps:
+            return self.best or {}
+        t_start = time.perf_counter()
+        if self.passive is None:  # the VRE reference: passive damper on the same seeds
+            passive_kwargs = {**self.eval_kwargs, **PassiveController.env_kwargs}
+            self.passive = self._episodes(PassiveController(), passive_kwargs)
+            self.references = self._references()
+        policy = SB3Policy.from_model(model, model.get_vec_normalize_env(), {"name": self.name})
+        m = episode_metrics(self._episodes(policy, self.eval_kwargs), self.passive)
+        self.eval_seconds += time.perf_counter() - t_start
+        self.last_eval_timesteps = model.num_timesteps
+        result = {
+            "num_timesteps": int(model.num_timesteps),
+            "wall_time_s": round(self.wall_time(), 2),
+            "steps_per_s": round(self.steps_per_s(model.num_timesteps), 1),
+            "wk_rms_body_acc_m_s2": m["wk_rms_body_acc_m_s2"],
+            "rms_body_acc_m_s2": m["rms_body_acc_m_s2"],
+            "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],
+            "max_stroke_m": m["max_stroke_m"],
+            "terminated_episodes": m["terminated_episodes"],
+        }
+        # Best: no bump-stop hit first, then the lowest Wk-weighted RMS body acceleration.
+        rank = (result["terminated_episodes"], result[BEST_METRIC])
+        best = self.best
+        improved = best is None or rank < (best["terminated_episodes"], best[BEST_METRIC])
+        if improved:
+            self.best = result
+            save_policy(model, self.output_dir / "best_model",
+                        self.meta(model, eval=self._eval_block(m)))  # fmt: skip
+        with (self.output_dir / "evaluations.jsonl").open("a") as fh:
+            fh.write(json.dumps(result) + "\n")
+        print(
+            f"[{result['num_timesteps']:>10d}] eval Wk acc {result[BEST_METRIC]:.4f} m/s^2"
+            f"  VRE body m1 {result['vre_body_mode1_pct']:6.2f} %  stroke "
+            f"{1000 * result['max_stroke_m']:5.1f} mm  hits {result['terminated_episodes']}"
+            f"  | {result['steps_per_s']:8.0f} steps/s, {result['wall_time_s']:7.1f} s"
+            + ("  *best*" if improved else ""),
+            flush=True,
+        )
+        if logger is not None:
+            for key in (BEST_METRIC, "vre_body_mode1_pct", "max_stroke_m"):
+                logger.record(f"eval/{key}", result[key])
+            logger.record("time/env_steps_per_s", result["steps_per_s"])
+        return result
+
+    def _references(self) -> dict:
+        """Passive and the best Skyhook variant on the evaluation seeds (numbers to compare
+        with: the seeds differ from evaluate.py's, so do the absolute values)."""
+        a = self.args
+        refs = {"passive": {BEST_METRIC: episode_metrics(self.passive, None)[BEST_METRIC]}}
+        sky = classical_controllers().get(REFERENCE_CONTROLLER)
+        if sky is not None:
+            m = episode_metrics(self._episodes(sky, {**self.eval_kwargs, **sky.env_kwargs}),
+                                self.passive)  # fmt: skip
+            refs[REFERENCE_CONTROLLER] = {
+                BEST_METRIC: m[BEST_METRIC],
+                "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],
+            }
+        described = [
+            f"{name} Wk {r[BEST_METRIC]:.4f} m/s^2"
+            + (
+                f", VRE body m1 {r['vre_body_mode1_pct']:.2f} %"
+                if "vre_body_mode1_pct" in r
+                else ""
+            )
+            for name, r in refs.items()
+        ]
+        print(f"evaluation: seeds {a.eval_seed}..{a.eval_seed + a.eval_episodes - 1} of the "
+              f"held-out guideway bank {EVALUATION_GUIDEWAY_SEED}; references: "
+              + "; ".join(described), flush=True)  # fmt: skip
+        return refs
+
+    def _eval_block(self, m: dict) -> dict:
+        a = self.args
+        return {
+            "guideway_seed": EVALUATION_GUIDEWAY_SEED,
+            "seeds": [a.eval_seed, a.eval_seed + a.eval_episodes - 1],
+            "episode_length_s": a.eval_episode_length,
+            "metrics": m,
+            "references": self.references,
+        }
+
+    # -- checkpoints
+    def checkpoint(self, model: Any) -> Path:
+        """Save a checkpoint of ``model`` now (:func:`agents.checkpoints.save_checkpoint`)."""
+        path = save_checkpoint(
+            model, self.output_dir / "checkpoints", self.meta(model), self.args.keep_replay_buffers
+        )
+        self.last_checkpoint_clock = time.monotonic()
+        self.last_checkpoint_timesteps = int(model.num_timesteps)
+        return path
+
+    def report(self, model: Any) -> None:
+        """Print the throughput of this process and the best evaluation."""
+        steps = model.num_timesteps - self.start_timesteps
+        elapsed = time.perf_counter() - self.t0
+        print(
+            f"done: {model.num_timesteps} timesteps; this process {steps} steps in {elapsed:.1f}"
+            f" s wall ({steps / max(elapsed, 1e-9):.0f} steps/s overall, "
+            f"{self.steps_per_s(model.num_timesteps):.0f} steps/s training without evaluations;"
+            f" total wall time {self.wall_time():.1f} s)",
+            flush=True,
+        )
+        if self.best:
+            print(f"best: Wk acc {self.best[BEST_METRIC]:.4f} m/s^2, VRE body m1 "
+                  f"{self.best['vre_body_mode1_pct']:.2f} % at {self.best['num_timesteps']} "
+                  f"timesteps -> {self.output_dir / 'best_model.zip'}")  # fmt: skip
+
+
+def _next_multiple(steps: int, every: int) -> float:
+    return math.inf if every <= 0 else (steps // every + 1) * every
+
+
+class TrainingMonitor(BaseCallback):
+    """Held-out evaluation (:meth:`Run.evaluate`) every ``eval_freq`` env steps, a checkpoint
+    every ``checkpoint_freq`` env steps and, between rollouts, when ``checkpoint_minutes`` of
+    wall time have passed since the last one."""
+
+    def __init__(self, run: Run) -> None:
+        super().__init__()
+        self.run = run
+        self.next_eval = _next_multiple(run.start_timesteps, run.args.eval_freq)
+        self.next_ckpt = _next_multiple(run.start_timesteps, run.args.checkpoint_freq)
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.next_eval:
+            self.next_eval = _next_multiple(self.num_timesteps, self.run.args.eval_freq)
+            self.run.evaluate(self.model, logger=self.logger)
+        if self.num_timesteps >= self.next_ckpt:
+            self.next_ckpt = _next_multiple(self.num_timesteps, self.run.args.checkpoint_freq)
+            self._checkpoint("checkpoint")
+        return True
+
+    def _on_rollout_start(self) -> None:
+        # Between rollouts the model has learned from every step it counts (PPO: the
+        # previous rollout; SAC/TD3: the gradient steps after the last env step).
+        minutes = self.run.args.checkpoint_minutes
+        due = time.monotonic() - self.run.last_checkpoint_clock >= 60.0 * minutes
+        if minutes > 0 and due and self.num_timesteps > self.run.last_checkpoint_timesteps:
+            self._checkpoint(f"checkpoint ({minutes:g} min)")
+
+    def _on_rollout_end(self) -> None:
+        self.run.rollout_end_timesteps = self.num_timesteps
+
+    def _checkpoint(self, label: str) -> None:
+        path = self.run.checkpoint(self.model)
+        print(f"[{self.num_timesteps:>10d}] {label} {path}", flush=True)
