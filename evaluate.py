@@ -30,14 +30,14 @@ from typing import NoReturn
 import numpy as np
 
 from agents import classical_controllers
-from capsule_env.core import EnvConfig
+from capsule_env.config import EnvConfig
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.vehicle import natural_frequencies_hz
 
 #: The paper's published vibration-reduction effects (per cent) that survived extraction
-#: (MODEL.md 8): the rest of Tables 5 and 6 was lost. Text-only statements are in ``PAPER_TEXT``.
+#: (docs/model.md 12): the rest of Tables 5 and 6 was lost. Text-only statements are in ``PAPER_TEXT``.
 PAPER_VRE = {
     ("sim", "skyhook-biexp", "body_mode1"): 72.33,
     ("sim", "skyhook-csdc", "body_mode1"): 41.66,

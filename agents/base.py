@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.core import FULL_STATE_NAMES
+from capsule_env.config import FULL_STATE_NAMES
 
 #: Column of each full-state signal in the ``full_state`` observation.
 FULL = {name: k for k, name in enumerate(FULL_STATE_NAMES)}

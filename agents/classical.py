@@ -1,4 +1,4 @@
-"""Classical semi-active controllers (MODEL.md section 7).
+"""Classical semi-active controllers (docs/model.md, section 11).
 
 All force-requesting laws output ``a = F_d / max_force_n`` (the env's force mode); the env's
 inverse model turns the request into a coil current and applies the semi-active rule. They
@@ -15,7 +15,7 @@ from scipy.linalg import solve_continuous_are
 from agents.base import FULL, Controller
 from capsule_env.vehicle import VehicleParams
 
-#: Default Skyhook gains (N s/m) [reconstructed, MODEL.md 7: about 0.7 of critical damping of
+#: Default Skyhook gains (N s/m) [reconstructed, docs/model.md 11: about 0.7 of critical damping of
 #: the body on the series stiffness].
 C_SKY = 7.0e4
 DEFAULT_MAX_FORCE_N = 8000.0

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.core import EnvConfig
+from capsule_env.config import EnvConfig
 
 ENV_ID = "CapsuleSuspension-v0"
 #: Env arguments used for training unless the hyperparameter file or the command line says

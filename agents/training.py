@@ -63,7 +63,7 @@ from agents.hyperparams import (
     resolve_env_kwargs,
 )
 from agents.sb3_policy import SB3Policy
-from capsule_env.core import EnvConfig
+from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
     check_episode_length,

@@ -7,7 +7,8 @@ Physics (pure functions and frozen parameter dataclasses, no Gym import):
 - :mod:`capsule_env.dampers`: MR damper forward models (reference Spencer, Bouc-Wen, tanh,
   Bi-exponential) and the linear passive damper, one interface.
 - :mod:`capsule_env.hysteresis`: closed-form Bouc-Wen (n = 2) update.
-- :mod:`capsule_env.dynamics`: the batched plant + damper integration kernel.
+- :mod:`capsule_env.plant`: the batched plant + damper integration kernels.
+- :mod:`capsule_env.damper_rig`: a damper alone under a prescribed stroke (test-rig loops).
 """
 
 from capsule_env.dampers import (

@@ -1,7 +1,7 @@
-"""MR damper forward models and the linear passive damper (MODEL.md section 4).
+"""MR damper forward models and the linear passive damper (docs/model.md, section 4).
 
 Every model shares one interface: ``(stroke x, stroke rate v, current i, internal state) ->
-(force F, state derivative)``. Sign convention (MODEL.md 1): ``x = z_c - z_b``, ``F > 0`` resists
+(force F, state derivative)``. Sign convention (docs/model.md 1): ``x = z_c - z_b``, ``F > 0`` resists
 ``v > 0``; the force acts as ``-F`` on the car body and ``+F`` on the bogie.
 
 Each model is a frozen dataclass of parameters that packs into a fixed-length float vector
@@ -13,22 +13,22 @@ ignore them. The coil current the model sees is the *actual* current; the coil/d
 
 | model | name | provenance of the default values |
 | --- | --- | --- |
-| :class:`LinearDamper` | ``"passive"`` | c_s of MODEL.md 2 [reconstructed] |
+| :class:`LinearDamper` | ``"passive"`` | c_s of docs/model.md 2 [reconstructed] |
 | :class:`ReferenceDamper` | ``"reference"`` | Spencer et al. 1997 x 5 in force [standard, scaled] |
-| :class:`BoucWenDamper` | ``"bouc_wen"`` | identified from reference loops (MODEL.md 6) |
-| :class:`TanhDamper` | ``"tanh"`` | identified from reference loops (MODEL.md 6) |
-| :class:`BiExponentialDamper` | ``"bi_exponential"`` | identified from reference loops (MODEL.md 6) |
+| :class:`BoucWenDamper` | ``"bouc_wen"`` | identified from reference loops (docs/model.md 6) |
+| :class:`TanhDamper` | ``"tanh"`` | identified from reference loops (docs/model.md 6) |
+| :class:`BiExponentialDamper` | ``"bi_exponential"`` | identified from reference loops (docs/model.md 6) |
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
+from capsule_env._fastmath import fast_exp, fast_tanh_nonneg
 from capsule_env._validation import (
     check_array_in_range,
     check_choice,
@@ -37,6 +37,54 @@ from capsule_env._validation import (
     check_positive,
 )
 from capsule_env.hysteresis import hysteresis_rate
+from capsule_env.layout import (
+    BRANCH_BLEND,
+    BW_A,
+    BW_ALPHA_A,
+    BW_ALPHA_B,
+    BW_BETA,
+    BW_C0A,
+    BW_C0B,
+    BW_GAMMA,
+    BW_K0,
+    BW_X0,
+    BX_A0,
+    BX_A1,
+    BX_B0,
+    BX_B1,
+    BX_C0,
+    BX_C1,
+    BX_D,
+    BX_LOWER,
+    BX_UPPER,
+    COIL_TAU,
+    DAMPER_PARAM_NAMES,
+    I_MAX,
+    N_DAMPER_PARAMS,
+    PV_DAMPING,
+    SP_A,
+    SP_ALPHA_A,
+    SP_ALPHA_B,
+    SP_BETA,
+    SP_C0A,
+    SP_C0B,
+    SP_C1A,
+    SP_C1B,
+    SP_GAMMA,
+    SP_K0,
+    SP_K1,
+    SP_X0,
+    TH_ALPHA_A,
+    TH_ALPHA_B,
+    TH_BETA,
+    TH_C_A,
+    TH_C_B,
+    TH_DELTA,
+    TH_F0_A,
+    TH_F0_B,
+    TH_K_A,
+    TH_K_B,
+)
 
 __all__ = [
     "PASSIVE",
@@ -59,12 +107,6 @@ __all__ = [
 # Integer codes used by the compiled kernels.
 PASSIVE, REFERENCE, BOUC_WEN, TANH, BI_EXPONENTIAL = 0, 1, 2, 3, 4
 DAMPER_NAMES = ("passive", "reference", "bouc_wen", "tanh", "bi_exponential")
-#: Length of the packed parameter vector: model parameters, then i_max, the coil time constant
-#: and the branch-blend width of the sign-of-stroke models (Bi-exponential, tanh).
-N_DAMPER_PARAMS = 17
-_I_MAX, _COIL_TAU, _BLEND = 14, 15, 16
-#: Fields packed into their own slots rather than in declaration order.
-_SLOTTED = ("max_current_a", "coil_time_constant_s", "branch_blend_m")
 
 
 class _DamperBase:
@@ -73,21 +115,16 @@ class _DamperBase:
     code: ClassVar[int]
     name: ClassVar[str]
 
-    def _packed_fields(self) -> list[float]:
-        return [
-            getattr(self, f.name)
-            for f in fields(self)  # type: ignore[arg-type]
-            if f.name not in _SLOTTED
-        ]
-
     def as_array(self) -> np.ndarray:
-        """Packed float64 vector of length :data:`N_DAMPER_PARAMS` for the kernels."""
+        """Packed float64 vector of length :data:`N_DAMPER_PARAMS` for the kernels: the
+        model's parameters in the order of ``layout.DAMPER_PARAM_NAMES[name]``, then
+        ``max_current_a``, ``coil_time_constant_s`` and ``branch_blend_m`` (0 where absent)."""
         out = np.zeros(N_DAMPER_PARAMS)
-        values = self._packed_fields()
-        out[: len(values)] = values
-        out[_I_MAX] = getattr(self, "max_current_a", 0.0)
-        out[_COIL_TAU] = getattr(self, "coil_time_constant_s", 0.0)
-        out[_BLEND] = getattr(self, "branch_blend_m", 0.0)
+        for slot, field_name in enumerate(DAMPER_PARAM_NAMES[self.name]):
+            out[slot] = getattr(self, field_name)
+        out[I_MAX] = getattr(self, "max_current_a", 0.0)
+        out[COIL_TAU] = getattr(self, "coil_time_constant_s", 0.0)
+        out[BRANCH_BLEND] = getattr(self, "branch_blend_m", 0.0)
         return out
 
     def _validate_common(self) -> None:
@@ -100,7 +137,7 @@ class _DamperBase:
 
 @dataclass(frozen=True)
 class LinearDamper(_DamperBase):
-    """Linear viscous passive damper ``F = c v`` (the passive baseline, MODEL.md 2/7).
+    """Linear viscous passive damper ``F = c v`` (the passive baseline, docs/model.md 2/7).
 
     ``damping_n_s_per_m``: c_s (N s/m), default 1.5e4 [reconstructed].
     """
@@ -116,7 +153,7 @@ class LinearDamper(_DamperBase):
 
 @dataclass(frozen=True)
 class ReferenceDamper(_DamperBase):
-    """Spencer et al. (1997) modified Bouc-Wen model: the "hardware" in simulation (MODEL.md 4.1).
+    """Spencer et al. (1997) modified Bouc-Wen model: the "hardware" in simulation (docs/model.md 4.2).
 
     ::
 
@@ -160,7 +197,7 @@ class ReferenceDamper(_DamperBase):
 
 @dataclass(frozen=True)
 class BoucWenDamper(_DamperBase):
-    """Bouc-Wen MR damper model (paper eq. 1, MODEL.md 4.2) [standard form]::
+    """Bouc-Wen MR damper model (paper eq. 1, docs/model.md 4.3) [standard form]::
 
         F  = c0 x' + k0 (x - x0) + alpha z
         z' = -gamma |x'| z |z| - beta x' z^2 + A x'        (n = 2)
@@ -195,7 +232,7 @@ class BoucWenDamper(_DamperBase):
 
 @dataclass(frozen=True)
 class TanhDamper(_DamperBase):
-    """Hyperbolic-tangent hysteresis model (paper eq. 3, Kwok et al. 2006, MODEL.md 4.3)::
+    """Hyperbolic-tangent hysteresis model (paper eq. 3, Kwok et al. 2006, docs/model.md 4.4)::
 
         F = c v + k x + alpha tanh(beta v + delta sgn_w(x)) + f0
         c, k, alpha, f0 linear in current (p = p_a + p_b i); beta, delta constant
@@ -232,7 +269,7 @@ class TanhDamper(_DamperBase):
 
 @dataclass(frozen=True)
 class BiExponentialDamper(_DamperBase):
-    """Bi-exponential MR damper model (paper eq. 4, MODEL.md 4.4) [reconstructed form]::
+    """Bi-exponential MR damper model (paper eq. 4, docs/model.md 4.5) [reconstructed form]::
 
         S_d(v) = sign(v) (1 - exp(-d |v|))
         F(v, i) = a(i) S_d(v) + b(i) v + c(i)    (upper set when x >= 0, lower set when x < 0)
@@ -348,59 +385,103 @@ def branch_weights(x: np.ndarray, width_m: float) -> np.ndarray:
 def bi_exponential_branch(p, x: float):
     """The Bi-exponential parameters ``(a0, a1, b0, b1, c0, c1, d)`` at stroke ``x``: the lower
     set plus :func:`branch_weight` times (upper - lower)."""
-    w = branch_weight(x, p[_BLEND])
+    w = branch_weight(x, p[BRANCH_BLEND])
+    up, lo = BX_UPPER, BX_LOWER
     return (
-        p[7] + w * (p[0] - p[7]),
-        p[8] + w * (p[1] - p[8]),
-        p[9] + w * (p[2] - p[9]),
-        p[10] + w * (p[3] - p[10]),
-        p[11] + w * (p[4] - p[11]),
-        p[12] + w * (p[5] - p[12]),
-        p[13] + w * (p[6] - p[13]),
+        p[lo + BX_A0] + w * (p[up + BX_A0] - p[lo + BX_A0]),
+        p[lo + BX_A1] + w * (p[up + BX_A1] - p[lo + BX_A1]),
+        p[lo + BX_B0] + w * (p[up + BX_B0] - p[lo + BX_B0]),
+        p[lo + BX_B1] + w * (p[up + BX_B1] - p[lo + BX_B1]),
+        p[lo + BX_C0] + w * (p[up + BX_C0] - p[lo + BX_C0]),
+        p[lo + BX_C1] + w * (p[up + BX_C1] - p[lo + BX_C1]),
+        p[lo + BX_D] + w * (p[up + BX_D] - p[lo + BX_D]),
     )
+
+
+# One force law per model, written without branches or library calls (exp and tanh from
+# capsule_env._fastmath), so that the plant's SIMD loop over vehicles vectorises; the same
+# functions serve the scalar kernel, the damper test rig and ``damper_force``. ``p``: the packed
+# parameters (an array row or a tuple), ``i``: the actual coil current (A).
+
+
+@njit(cache=True, error_model="numpy")
+def spencer_inv_dashpots(p, i: float) -> float:
+    """``1 / (c0 + c1)`` of the reference (Spencer) damper at current ``i``."""
+    return 1.0 / ((p[SP_C0A] + p[SP_C0B] * i) + (p[SP_C1A] + p[SP_C1B] * i))
+
+
+@njit(cache=True, error_model="numpy")
+def spencer_force(p, x: float, v: float, y: float, z: float, i: float, inv_c: float):
+    """Reference (Spencer) damper: ``(F, y')`` with ``inv_c = 1 / (c0 + c1)`` at ``i``
+    (:func:`spencer_inv_dashpots`, computed ahead, off the integrator's dependency chain)."""
+    c0 = p[SP_C0A] + p[SP_C0B] * i
+    c1 = p[SP_C1A] + p[SP_C1B] * i
+    alpha = p[SP_ALPHA_A] + p[SP_ALPHA_B] * i
+    y_dot = (alpha * z + c0 * v + p[SP_K0] * (x - y)) * inv_c
+    return c1 * y_dot + p[SP_K1] * (x - p[SP_X0]), y_dot
+
+
+@njit(cache=True, error_model="numpy")
+def bouc_wen_force(p, x: float, v: float, z: float, i: float) -> float:
+    """Bouc-Wen damper (paper eq. 1): ``F = c0 v + k0 (x - x0) + alpha z``."""
+    return (
+        (p[BW_C0A] + p[BW_C0B] * i) * v
+        + p[BW_K0] * (x - p[BW_X0])
+        + (p[BW_ALPHA_A] + p[BW_ALPHA_B] * i) * z
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def tanh_force(p, x: float, v: float, i: float) -> float:
+    """Hyperbolic-tangent model (paper eq. 3) with the sign of the stroke blended."""
+    sx = 2.0 * branch_weight(x, p[BRANCH_BLEND]) - 1.0
+    arg = p[TH_BETA] * v + p[TH_DELTA] * sx
+    th = fast_tanh_nonneg(abs(arg))
+    th = th if arg >= 0.0 else -th
+    force = (
+        (p[TH_C_A] + p[TH_C_B] * i) * v
+        + (p[TH_K_A] + p[TH_K_B] * i) * x
+        + (p[TH_ALPHA_A] + p[TH_ALPHA_B] * i) * th
+    )
+    return force + p[TH_F0_A] + p[TH_F0_B] * i
+
+
+@njit(cache=True, error_model="numpy")
+def bi_exponential_force(p, x: float, v: float, i: float) -> float:
+    """Bi-exponential model (paper eq. 4, reconstructed) with the branches blended."""
+    a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
+    mag = 1.0 - fast_exp(-d * abs(v))
+    s_d = mag if v >= 0.0 else -mag
+    return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i
 
 
 @njit(cache=True, inline="always")
 def damper_eval(model: int, p: np.ndarray, x: float, v: float, y: float, z: float, i: float):
-    """Force and internal rates of one damper.
+    """Force and internal rates of one damper of any model (the model a runtime value).
 
     Returns ``(F, y_dot, w)``: force (N), Spencer's internal velocity y' (m/s; 0 for others)
     and ``w``, the deformation rate that drives the hysteretic variable (``x' - y'`` for the
     reference damper, ``x'`` for Bouc-Wen, 0 for models without one).
     """
     if model == REFERENCE:
-        c0 = p[0] + p[1] * i
-        c1 = p[2] + p[3] * i
-        alpha = p[4] + p[5] * i
-        y_dot = (alpha * z + c0 * v + p[6] * (x - y)) / (c0 + c1)
-        return c1 * y_dot + p[7] * (x - p[8]), y_dot, v - y_dot
+        force, y_dot = spencer_force(p, x, v, y, z, i, spencer_inv_dashpots(p, i))
+        return force, y_dot, v - y_dot
     if model == BOUC_WEN:
-        force = (p[0] + p[1] * i) * v + p[4] * (x - p[5]) + (p[2] + p[3] * i) * z
-        return force, 0.0, v
+        return bouc_wen_force(p, x, v, z, i), 0.0, v
     if model == TANH:
-        sx = 2.0 * branch_weight(x, p[_BLEND]) - 1.0
-        force = (
-            (p[0] + p[1] * i) * v
-            + (p[2] + p[3] * i) * x
-            + (p[4] + p[5] * i) * math.tanh(p[8] * v + p[9] * sx)
-            + p[6]
-            + p[7] * i
-        )
-        return force, 0.0, 0.0
+        return tanh_force(p, x, v, i), 0.0, 0.0
     if model == BI_EXPONENTIAL:
-        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
-        s_d = math.copysign(1.0 - math.exp(-d * abs(v)), v)
-        return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i, 0.0, 0.0
-    return p[0] * v, 0.0, 0.0
+        return bi_exponential_force(p, x, v, i), 0.0, 0.0
+    return p[PV_DAMPING] * v, 0.0, 0.0
 
 
 @njit(cache=True, inline="always")
 def hysteresis_params(model: int, p: np.ndarray):
     """``(A, gamma, beta)`` of the model's hysteresis (zeros for models without one)."""
     if model == REFERENCE:
-        return p[11], p[9], p[10]
+        return p[SP_A], p[SP_GAMMA], p[SP_BETA]
     if model == BOUC_WEN:
-        return p[8], p[6], p[7]
+        return p[BW_A], p[BW_GAMMA], p[BW_BETA]
     return 0.0, 0.0, 0.0
 
 

@@ -1,4 +1,4 @@
-"""Command line: identify MR-damper models from force loops (MODEL.md section 6).
+"""Command line: identify MR-damper models from force loops (docs/model.md, section 6).
 
 Run ``python -m capsule_env.identify --help``. Examples::
 
@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m capsule_env.identify",
         description=(
             "Identify the Bi-exponential, Bouc-Wen and tanh MR-damper models from force loops "
-            "(MODEL.md section 6): from loops of the reference (Spencer) damper under a "
+            "(docs/model.md, section 6): from loops of the reference (Spencer) damper under a "
             "sinusoidal stroke at 0 to 1.5 A (default), or from measured Labcontrol .mat "
             "files. Prints the Bi-exponential linear-law table (the paper's Table 2 analogue) "
             "and the RMSE of each model next to the paper's 61.8 N (Bi-exponential) and "

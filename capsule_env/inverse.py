@@ -1,4 +1,4 @@
-"""Inverse MR damper models: desired damper force -> coil current (MODEL.md section 5).
+"""Inverse MR damper models: desired damper force -> coil current (docs/model.md, section 5).
 
 Every inverse here rests on one fact: at fixed kinematics (and fixed hysteretic state) the
 Bi-exponential, tanh and Bouc-Wen forces are *affine in the current*,
@@ -22,8 +22,6 @@ per episode. Pure numba/numpy, no Gym import.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -40,10 +38,35 @@ from capsule_env.dampers import (
     branch_weight,
 )
 from capsule_env.hysteresis import hysteresis_update
+from capsule_env.layout import (
+    BRANCH_BLEND,
+    BW_A,
+    BW_ALPHA_A,
+    BW_ALPHA_B,
+    BW_BETA,
+    BW_C0A,
+    BW_C0B,
+    BW_GAMMA,
+    BW_K0,
+    BW_X0,
+    I_MAX,
+    TH_ALPHA_A,
+    TH_ALPHA_B,
+    TH_BETA,
+    TH_C_A,
+    TH_C_B,
+    TH_DELTA,
+    TH_F0_A,
+    TH_F0_B,
+    TH_K_A,
+    TH_K_B,
+)
 
 __all__ = [
     "INVERSE_NAMES",
     "affine_in_current",
+    "invert_affine",
+    "csdc_z_update",
     "bi_exponential_inverse",
     "tanh_inverse",
     "CSDCInverse",
@@ -51,63 +74,40 @@ __all__ = [
 ]
 
 INVERSE_NAMES = ("bi_exponential", "csdc", "tanh")
-_I_MAX, _BLEND = 14, 16
-
-
-@njit(cache=True, inline="always")
-def affine_in_current(model, p, x, v, z):
-    """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)``."""
-    if model == BI_EXPONENTIAL:
-        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
-        s_d = math.copysign(1.0 - math.exp(-d * abs(v)), v)
-        return a0 * s_d + b0 * v + c0, a1 * s_d + b1 * v + c1
-    if model == TANH:
-        sx = 2.0 * branch_weight(x, p[_BLEND]) - 1.0
-        th = math.tanh(p[8] * v + p[9] * sx)
-        return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
-    if model == BOUC_WEN:
-        return p[0] * v + p[4] * (x - p[5]) + p[2] * z, p[1] * v + p[3] * z
-    return 0.0, 0.0
-
-
-@njit(cache=True, inline="always")
-def invert_affine(f_desired, f0, slope, v, i_max):
-    """Current for ``F0 + slope * i = F_d`` with the semi-active rule and clipping.
-
-    A request that does not push the way the stroke moves (``F_d v <= 0``: opposite signs, a
-    zero request, or no stroke rate) gets 0 A: a semi-active damper cannot help there, and a
-    request for no force is a request for the lowest current."""
-    if f_desired * v <= 0.0:
-        return 0.0
-    f_max = f0 + slope * i_max
-    if abs(slope) * i_max <= 1e-9 * (abs(f0) + abs(f_desired) + 1.0):
-        # Force barely depends on current here: pick the end nearer the request.
-        return 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
-    i = (f_desired - f0) / slope
-    return min(max(i, 0.0), i_max)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def affine_in_current_fast(model, p, x, v):
-    """:func:`affine_in_current` for the algebraic models (Bi-exponential, tanh) without
-    branches or library calls (capsule_env._fastmath), so that a loop over vehicles
-    vectorises; the same values up to rounding."""
+def affine_in_current(model, p, x, v, z):
+    """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)`` (``z``: the
+    Bouc-Wen hysteretic variable, unused by the others). Written without branches or library
+    calls for the algebraic models (capsule_env._fastmath), so that a loop over vehicles
+    vectorises; ``p`` is the packed parameters (an array or a tuple)."""
     if model == BI_EXPONENTIAL:
         a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
         mag = 1.0 - fast_exp(-d * abs(v))
         s_d = mag if v >= 0.0 else -mag
         return a0 * s_d + b0 * v + c0, a1 * s_d + b1 * v + c1
     if model == TANH:
-        arg = p[8] * v + p[9] * (2.0 * branch_weight(x, p[_BLEND]) - 1.0)
+        arg = p[TH_BETA] * v + p[TH_DELTA] * (2.0 * branch_weight(x, p[BRANCH_BLEND]) - 1.0)
         th = fast_tanh_nonneg(abs(arg))
         th = th if arg >= 0.0 else -th
-        return p[0] * v + p[2] * x + p[4] * th + p[6], p[1] * v + p[3] * x + p[5] * th + p[7]
+        f0 = p[TH_C_A] * v + p[TH_K_A] * x + p[TH_ALPHA_A] * th + p[TH_F0_A]
+        return f0, p[TH_C_B] * v + p[TH_K_B] * x + p[TH_ALPHA_B] * th + p[TH_F0_B]
+    if model == BOUC_WEN:
+        f0 = p[BW_C0A] * v + p[BW_K0] * (x - p[BW_X0]) + p[BW_ALPHA_A] * z
+        return f0, p[BW_C0B] * v + p[BW_ALPHA_B] * z
     return 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def invert_affine_fast(f_desired, f0, slope, v, i_max):
-    """:func:`invert_affine` as selects (no branches): the same result."""
+def invert_affine(f_desired, f0, slope, v, i_max):
+    """Current for ``F0 + slope * i = F_d`` with the semi-active rule and clipping, as selects
+    (no branches, so that a loop over vehicles vectorises).
+
+    A request that does not push the way the stroke moves (``F_d v <= 0``: opposite signs, a
+    zero request, or no stroke rate) gets 0 A: a semi-active damper cannot help there, and a
+    request for no force is a request for the lowest current. Where the force barely depends on
+    the current, the end of the band nearer the request is chosen (nothing is divided by ~0)."""
     f_max = f0 + slope * i_max
     flat = abs(slope) * i_max <= 1e-9 * (abs(f0) + abs(f_desired) + 1.0)
     nearer = 0.0 if abs(f0 - f_desired) <= abs(f_max - f_desired) else i_max
@@ -116,12 +116,12 @@ def invert_affine_fast(f_desired, f0, slope, v, i_max):
     return 0.0 if f_desired * v <= 0.0 else i
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inverse_batch(model, params, f_d, x, v, z, out):
     for k in range(f_d.shape[0]):
         p = params[k]
         f0, slope = affine_in_current(model, p, x[k], v[k], z[k])
-        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[_I_MAX])
+        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[I_MAX])
 
 
 def _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s, z=None) -> np.ndarray:
@@ -150,7 +150,7 @@ def bi_exponential_inverse(
     stroke_m: np.ndarray | float,
     stroke_rate_m_s: np.ndarray | float,
 ) -> np.ndarray:
-    """Closed-form Bi-exponential inverse (paper eqs. 5-11, MODEL.md 5), batched.
+    """Closed-form Bi-exponential inverse (paper eqs. 5-11, docs/model.md 5), batched.
 
     ``i* = (F_d - a0 S_d(v) - b0 v - c0) / (a1 S_d(v) + b1 v + c1)`` with the upper set where
     ``x >= 0`` and the lower set where ``x < 0``; valid where ``F(v, 0) <= F_d <= F(v, i_max)``,
@@ -174,21 +174,27 @@ def tanh_inverse(
     return _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def csdc_z_update(p, z_estimate: float, stroke_increment_m: float) -> float:
+    """The CSDC inverse's Bouc-Wen ``z`` estimate advanced over a measured stroke increment
+    (the exact n = 2 update of :mod:`capsule_env.hysteresis`)."""
+    return hysteresis_update(z_estimate, stroke_increment_m, p[BW_A], p[BW_GAMMA], p[BW_BETA])
+
+
+@njit(cache=True, error_model="numpy")
 def _csdc_batch(p, f_d, x, v, z, x_prev, out):
-    a_coef, gamma, beta = p[8], p[6], p[7]
     for k in range(f_d.shape[0]):
-        z[k] = hysteresis_update(z[k], x[k] - x_prev[k], a_coef, gamma, beta)
+        z[k] = csdc_z_update(p, z[k], x[k] - x_prev[k])
         x_prev[k] = x[k]
         f0, slope = affine_in_current(BOUC_WEN, p, x[k], v[k], z[k])
-        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[_I_MAX])
+        out[k] = invert_affine(f_d[k], f0, slope, v[k], p[I_MAX])
 
 
 class CSDCInverse:
     """Continuous state damper controller (CSDC) inverse of the Bouc-Wen model, with state.
 
     ``i = clip((F_d - c0a x' - k0 (x - x0) - alpha_a z) / (c0b x' + alpha_b z), 0, i_max)``
-    when ``F_d x' > 0``, else 0 (paper eq. 2, MODEL.md 5). ``z`` is estimated online by
+    when ``F_d x' > 0``, else 0 (paper eq. 2, docs/model.md 5). ``z`` is estimated online by
     running the Bouc-Wen z-equation on the measured stroke: each call advances the estimate over
     the stroke increment since the previous call with the exact n = 2 update (exact for
     monotone stroke between calls), then inverts.

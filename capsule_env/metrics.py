@@ -1,7 +1,7 @@
 """Ride-quality and control metrics (pure numpy functions, no Gym import).
 
 - :func:`amplitude_spectrum`, :func:`band_peak` and :func:`vibration_reduction_effect`: the
-  paper's eq. 16 (MODEL.md 8), ``VRE_k = (P_passive,k - P_control,k) / P_passive,k * 100 %``
+  paper's eq. 16 (docs/model.md 10), ``VRE_k = (P_passive,k - P_control,k) / P_passive,k * 100 %``
   with ``P`` the peak of the single-sided amplitude spectrum of a displacement inside mode
   band ``k``.
 - :func:`wk_weighting` and :func:`wk_weighted_rms`: ISO 2631-1:1997 frequency weighting Wk
@@ -27,7 +27,7 @@ __all__ = [
     "force_tracking_error",
 ]
 
-#: Mode bands (Hz) of the default plant (MODEL.md 8): first (body) and second (bogie) mode.
+#: Mode bands (Hz) of the default plant (docs/model.md 10): first (body) and second (bogie) mode.
 DEFAULT_BANDS_HZ = {"mode1": (1.0, 3.0), "mode2": (4.5, 7.0)}
 #: Coil resistance for the coil power (ohm) [reconstructed: typical of large MR dampers].
 DEFAULT_COIL_RESISTANCE_OHM = 5.0

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+
+from capsule_env.layout import BODY_DISP, BOGIE_DISP, COIL_CURRENT, TIME
 
 WIDTH, HEIGHT = 480, 360
 _SKY = (236, 240, 245)
@@ -63,3 +67,21 @@ def draw_quarter_car(
     _rect(img, cx - 140, cx + 140, body_y, body_y + 60, _BODY)
     _rect(img, cx - 90, cx + 90, bogie_y, bogie_y + 20, _BOGIE)
     return img
+
+
+def render_vehicle(batch: Any, n: int) -> np.ndarray:
+    """The picture of vehicle ``n`` of a :class:`capsule_env.batch.CapsuleBatch`: its car body
+    and bogie now, 60 m of guideway around it and the coil current as the damper's colour."""
+    span = np.linspace(-30.0, 30.0, 121)
+    profile = batch.profiles[batch.profile_index[n]]
+    t = batch.state[n, TIME]
+    position = batch.start_position[n] + batch.speed[n] * t + span
+    elevation = batch.gain[n] * np.interp(
+        position / batch.spacing, np.arange(profile.size), profile
+    )
+    return draw_quarter_car(
+        batch.state[n, BODY_DISP],
+        batch.state[n, BOGIE_DISP],
+        elevation,
+        coil_current_fraction=batch.state[n, COIL_CURRENT] / max(batch.i_max, 1e-9),
+    )

@@ -3,7 +3,7 @@
 SB3's vector-env conventions differ from Gymnasium's: episodes reset in the *same* step that
 ends them; the last observation of the finished episode is in ``infos[n]["terminal_observation"]``
 and ``infos[n]["TimeLimit.truncated"]`` tells a time limit from a termination. This class
-implements them directly on :class:`capsule_env.core.CapsuleBatch` (no per-env Python objects),
+implements them directly on :class:`capsule_env.batch.CapsuleBatch` (no per-env Python objects),
 so a step of N vehicles costs one kernel call. ``seed(s)`` gives the vehicles the streams of the
 native vector env's ``reset(seed=s)`` (``numpy.random.SeedSequence(s).spawn(num_envs)``, not
 SB3's usual ``s + n``, so that training seeds never share a vehicle's stream); the same seed
@@ -19,8 +19,11 @@ import numpy as np
 from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig, check_num_envs, check_seed
-from capsule_env.envs.capsule_suspension import _render_one, _spaces
+from capsule_env.batch import CapsuleBatch
+from capsule_env.config import EnvConfig, check_num_envs, check_seed
+from capsule_env.envs.capsule_suspension import env_spaces
+from capsule_env.layout import SIGNAL_NAMES
+from capsule_env.render import render_vehicle
 
 __all__ = ["CapsuleSuspensionSB3VecEnv", "make_sb3_vec_env"]
 
@@ -34,7 +37,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
     info_signals : add the physical signals and reward terms (``SIGNAL_NAMES``) to every
         step's info dicts (costs time for large batches; off by default).
     render_mode : None or ``"rgb_array"``.
-    **kwargs : any ``CapsuleSuspension-v0`` argument (:class:`capsule_env.core.EnvConfig`).
+    **kwargs : any ``CapsuleSuspension-v0`` argument (:class:`capsule_env.config.EnvConfig`).
     """
 
     def __init__(
@@ -47,7 +50,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         self.config = EnvConfig.from_kwargs(**kwargs)
         num_envs = check_num_envs(num_envs)
         self.batch = CapsuleBatch(self.config, num_envs)
-        action_space, observation_space = _spaces(self.config)
+        action_space, observation_space = env_spaces(self.config)
         self.render_mode = render_mode
         super().__init__(num_envs, observation_space, action_space)
         self.info_signals = bool(info_signals)
@@ -116,7 +119,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **kwargs: Any
     ) -> list[Any]:
         if method_name == "render":
-            return [_render_one(self.batch, n) for n in self._get_indices(indices)]
+            return [render_vehicle(self.batch, n) for n in self._get_indices(indices)]
         method = getattr(self, method_name)
         return [method(*method_args, **kwargs) for _ in self._get_indices(indices)]
 
@@ -124,7 +127,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         return [False] * self._count(indices)
 
     def get_images(self) -> Sequence[np.ndarray | None]:
-        return [_render_one(self.batch, n) for n in range(self.num_envs)]
+        return [render_vehicle(self.batch, n) for n in range(self.num_envs)]
 
     def _get_indices(self, indices: VecEnvIndices) -> Iterable[int]:
         if indices is None:

@@ -1,4 +1,4 @@
-"""The 2-DOF vertical 1/4-car model of the capsule vehicle (MODEL.md section 2).
+"""The 2-DOF vertical 1/4-car model of the capsule vehicle (docs/model.md, section 2).
 
 State vector ``[car_body_displacement, car_body_velocity, bogie_displacement, bogie_velocity]``
 (m, m/s), input the guideway irregularity ``z_g`` (m) under the EDS levitation "spring" and the
@@ -43,7 +43,7 @@ _RANGES = {
 class VehicleParams:
     """Parameters of the 1/4-car capsule vehicle.
 
-    Provenance: the form is standard; the values are **[reconstructed]** (MODEL.md section 2) to
+    Provenance: the form is standard; the values are **[reconstructed]** (docs/model.md, section 2) to
     put the undamped modes at about 1.30 Hz (car body) and 5.42 Hz (bogie), inside the paper's
     bands. Every field can be overridden.
 

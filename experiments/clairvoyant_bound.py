@@ -42,13 +42,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.classical import classical_controllers  # noqa: E402
 from capsule_env import metrics  # noqa: E402
-from capsule_env.dynamics import N_OUTPUTS, step_batch  # noqa: E402
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv  # noqa: E402
 from capsule_env.evaluation import (  # noqa: E402
     EVALUATION_GUIDEWAY_SEED,
     episode_metrics,
     run_episodes,
 )
+from capsule_env.layout import N_PLANT_OUTPUTS  # noqa: E402
+from capsule_env.plant import Route, make_plant_params, step_batch  # noqa: E402
 
 SKYHOOK = "skyhook-cont-biexp"
 
@@ -73,17 +74,18 @@ class Episode:
         """Applied currents (M, N) -> body acceleration, body displacement, stroke (M, N)."""
         m = currents.shape[0]
         tile = lambda row: np.ascontiguousarray(np.tile(row, (m, 1)))  # noqa: E731
-        dp, vp, state = tile(self.dp), tile(self.vp), tile(self.state0)
-        idx = np.full(m, self.profile_index, dtype=np.int64)
-        x0, speed, gain = np.full(m, self.start), np.full(m, self.speed), np.full(m, self.gain)
         table = self.table if substeps is None else substeps
-        out = np.empty((m, N_OUTPUTS))
+        plant = make_plant_params(self.code, tile(self.dp), tile(self.vp), table,
+                                  self.profiles, self.spacing, self.dt)  # fmt: skip
+        route = Route(np.full(m, self.profile_index, dtype=np.int64), np.full(m, self.start),
+                      np.full(m, self.speed), np.full(m, self.gain))  # fmt: skip
+        state = tile(self.state0)
+        out = np.empty((m, N_PLANT_OUTPUTS))
         acc, disp, stroke = (np.empty((m, self.n_steps)) for _ in range(3))
         cmd = np.empty(m)
         for t in range(self.n_steps):
             cmd[:] = currents[:, t]
-            step_batch(self.code, dp, vp, state, cmd, self.profiles, idx, self.spacing, x0,
-                       speed, self.dt, table, out, gain)  # fmt: skip
+            step_batch(self.code, plant, state, cmd, route, self.dt, out)
             acc[:, t], disp[:, t], stroke[:, t] = out[:, 1], state[:, 0], state[:, 0] - state[:, 2]
         return acc, disp, stroke
 

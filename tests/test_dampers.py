@@ -1,9 +1,9 @@
 """Tests of the damper models (capsule_env.dampers) against independent facts.
 
-Loops under a steady 1 Hz, +-25 mm sinusoidal stroke (the damper test rig of MODEL.md 6):
-energy dissipated per cycle, growth with current, MODEL.md 4.1's peak forces of the reference
+Loops under a steady 1 Hz, +-25 mm sinusoidal stroke (the damper test rig of docs/model.md 6):
+energy dissipated per cycle, growth with current, docs/model.md 4.2's peak forces of the reference
 damper, and an independent ``solve_ivp`` integration of Spencer's model. The force laws and
-state derivatives of MODEL.md 4 are written out here and compared with ``damper_force``.
+state derivatives of docs/model.md 4 are written out here and compared with ``damper_force``.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
 from capsule_env.dampers import (
     DAMPER_NAMES,
     BiExponentialDamper,
@@ -24,7 +25,6 @@ from capsule_env.dampers import (
     damper_force,
     make_damper,
 )
-from capsule_env.dynamics import simulate_damper, sinusoidal_stroke
 
 FREQ_HZ, AMP_M, CYCLES, SPC = 1.0, 0.025, 3, 2000
 CURRENTS = np.arange(7) * 0.25  # 0, 0.25, ..., 1.5 A
@@ -112,14 +112,14 @@ def test_loops_have_reached_steady_state(stroke):
 
 
 def test_reference_peak_forces_match_model_md(loops):
-    # MODEL.md 4.1: about 2.06 kN at 0 A and 7.10 kN at 1.5 A under 1 Hz, +-25 mm.
+    # docs/model.md 4.2: about 2.06 kN at 0 A and 7.10 kN at 1.5 A under 1 Hz, +-25 mm.
     forces = loops["reference"][3]
     assert np.max(np.abs(forces[0])) == pytest.approx(2060.0, rel=0.03)
     assert np.max(np.abs(forces[-1])) == pytest.approx(7100.0, rel=0.03)
 
 
 def spencer_rhs(i, p):
-    """MODEL.md 4.1 written out: d/dt [z, y] under the prescribed stroke x = X sin(w t)."""
+    """docs/model.md 4.2 written out: d/dt [z, y] under the prescribed stroke x = X sin(w t)."""
     w = 2.0 * math.pi * FREQ_HZ
     c0, c1, alpha = p["c0a"] + p["c0b"] * i, p["c1a"] + p["c1b"] * i, p["aa"] + p["ab"] * i
 
@@ -141,7 +141,7 @@ def spencer_rhs(i, p):
 
 @pytest.mark.parametrize("current", [0.0, 1.5])
 def test_reference_loop_matches_independent_integration(stroke, current):
-    # Spencer's published values x 5 in force, u = 1.5 V/A * i (MODEL.md 4.1 table).
+    # Spencer's published values x 5 in force, u = 1.5 V/A * i (docs/model.md 4.2 table).
     p = dict(
         c0a=1.05e4,
         c0b=2.625e3,
@@ -203,7 +203,7 @@ def test_bouc_wen_force_and_state_derivative_formula():
     z = rng.uniform(-0.0064, 0.0064, n)
     state = np.stack([z, np.zeros(n)], axis=-1)
     f, ds = damper_force(d, x, v, i, state)
-    # MODEL.md 4.2 with n = 2.
+    # docs/model.md 4.3 with n = 2.
     alpha = d.alpha_a + d.alpha_b * i
     c0 = d.c0a + d.c0b * i
     expected_f = c0 * v + d.k0 * (x - d.x0) + alpha * z
@@ -221,7 +221,7 @@ def test_reference_force_and_state_derivative_formula():
     i = rng.uniform(0.0, 1.5, n)
     z, y = rng.uniform(-0.0064, 0.0064, n), rng.uniform(-0.05, 0.05, n)
     f, ds = damper_force(d, x, v, i, np.stack([z, y], axis=-1))
-    # MODEL.md 4.1 with n = 2.
+    # docs/model.md 4.2 with n = 2.
     c0, c1 = d.c0a + d.c0b * i, d.c1a + d.c1b * i
     alpha = d.alpha_a + d.alpha_b * i
     yd = (alpha * z + c0 * v + d.k0 * (x - y)) / (c0 + c1)
@@ -249,7 +249,7 @@ def test_algebraic_models_force_formula():
     f, ds = damper_force(LinearDamper(2.2e4), x, v, i)
     np.testing.assert_allclose(f, 2.2e4 * v, rtol=1e-14)
     np.testing.assert_array_equal(ds, 0.0)
-    # tanh, MODEL.md 4.3 with c, k, alpha, f0 linear in i; sign(x) blended over 0.1 mm.
+    # tanh, docs/model.md 4.4 with c, k, alpha, f0 linear in i; sign(x) blended over 0.1 mm.
     d = TanhDamper(f0_a=30.0, f0_b=-12.0, k_b=400.0)
     sx = 2.0 * _upper_weight(x, 1e-4) - 1.0
     assert np.all(sx[np.abs(x) >= 1e-4] == np.sign(x[np.abs(x) >= 1e-4]))
@@ -263,7 +263,7 @@ def test_algebraic_models_force_formula():
     f, ds = damper_force(d, x, v, i)
     np.testing.assert_allclose(f, expected, rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(ds, 0.0)
-    # Bi-exponential, MODEL.md 4.4: upper set for x >= 0.1 mm, lower set for x <= -0.1 mm,
+    # Bi-exponential, docs/model.md 4.5: upper set for x >= 0.1 mm, lower set for x <= -0.1 mm,
     # every parameter blended in between.
     d = BiExponentialDamper(upper_d=30.0, lower_d=45.0, lower_a0=900.0)
     w = _upper_weight(x, 1e-4)
@@ -312,7 +312,7 @@ def test_make_damper_builds_every_model_and_applies_overrides():
 
 def test_reference_defaults_are_model_md_values():
     d = ReferenceDamper()
-    # MODEL.md 4.1 table (Spencer x 5 in force, u = 1.5 V/A * i).
+    # docs/model.md 4.2 table (Spencer x 5 in force, u = 1.5 V/A * i).
     assert (d.c0a, d.c0b, d.c1a, d.c1b) == (1.05e4, 2.625e3, 1.415e5, 2.2125e3)
     assert (d.alpha_a, d.alpha_b, d.k0, d.k1, d.x0) == (7.0e4, 5.2125e5, 2.345e4, 2.5e3, 0.0)
     assert (d.gamma, d.beta, d.a_coef, d.max_current_a) == (3.63e6, 3.63e6, 301.0, 1.5)

@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 import capsule_env
-from capsule_env.core import SIGNAL_NAMES, CapsuleBatch, EnvConfig
+from capsule_env.batch import CapsuleBatch
+from capsule_env.config import EnvConfig
 from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
+from capsule_env.layout import SIGNAL_NAMES
 from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
 
 ENV_ID = "CapsuleSuspension-v0"
@@ -318,7 +320,7 @@ def test_sensor_noise_is_white_gaussian_with_the_documented_std():
     # SENSOR_NOISE_STD * sensor_noise. The residuals must have that std, zero mean, a Gaussian
     # kurtosis (3) and no correlation between channels (noise comes in Box-Muller pairs) or
     # from one step to the next.
-    from capsule_env.core import SENSOR_NOISE_STD
+    from capsule_env.config import SENSOR_NOISE_STD
 
     config = EnvConfig(setting="hils", observation="full_state")
     batch = CapsuleBatch(config, 64)

@@ -1,7 +1,7 @@
 """Tests of capsule_env.identification and its CLI against independent facts.
 
 Facts used: exact recovery of known parameters from noise-free loops of the same model form;
-the scale invariance of the Bouc-Wen model; the figures MODEL.md states for the reference damper
+the scale invariance of the Bouc-Wen model; the figures docs/model.md states for the reference damper
 (peak forces, the Bi-exponential RMSE at fixed d); the measured-data README (units, offsets,
 velocity = derivative of displacement); the paper's qualitative claims (yield force grows with
 current, upper/lower hysteresis offsets of opposite sign).
@@ -70,7 +70,7 @@ def reference():
 
 # ------------------------------------------------------------------------------------ loops
 def test_reference_loops_match_model_md_peak_forces():
-    # MODEL.md 4.1: peak force about 2.06 kN at 0 A and 7.10 kN at 1.5 A (1 Hz, +-25 mm).
+    # docs/model.md 4.2: peak force about 2.06 kN at 0 A and 7.10 kN at 1.5 A (1 Hz, +-25 mm).
     loops = reference_loops(currents=(0.0, 1.5))
     assert [lp.current_a for lp in loops] == [0.0, 1.5]
     assert loops[0].peak_force_n == pytest.approx(2.06e3, rel=0.02)
@@ -174,7 +174,7 @@ def test_bouc_wen_scale_degeneracy_is_removed():
 def test_reference_fits_are_good_and_physical(reference):
     peak = reference.peak_force_n
     assert reference.rmse_current_a == 1.5
-    assert peak == pytest.approx(7.10e3, rel=0.02)  # MODEL.md 4.1
+    assert peak == pytest.approx(7.10e3, rel=0.02)  # docs/model.md 4.2
     # Bounds with margin over what these model forms can do on a Spencer damper: the paper's
     # mean-d Bi-exponential and the plain Bouc-Wen miss its low-velocity roll-off.
     bounds = {"bi_exponential": 0.10, "bouc_wen": 0.15, "tanh": 0.05}
@@ -193,7 +193,7 @@ def test_reference_fits_are_good_and_physical(reference):
         assert table[branch]["d"] == pytest.approx(
             np.mean(reference.bi_exponential.free[branch]["d"])
         )
-    # Hysteresis offset: positive on the upper branch, negative on the lower (MODEL.md 4.4).
+    # Hysteresis offset: positive on the upper branch, negative on the lower (docs/model.md 4.5).
     currents = reference.bi_exponential.currents_a
     up, lo = table["upper"], table["lower"]
     assert np.all(up["c0"] + up["c1"] * currents > 0.0)
@@ -203,7 +203,7 @@ def test_reference_fits_are_good_and_physical(reference):
 
 
 def test_reference_bi_exponential_matches_model_md_figures(reference):
-    # MODEL.md 6.4: free d near 38 s/m with an RMSE near 240 N at 1.5 A; with d fixed at
+    # docs/model.md 6: free d near 38 s/m with an RMSE near 240 N at 1.5 A; with d fixed at
     # 15.35 s/m the RMSE at 1.5 A is near 390 N.
     free = reference.bi_exponential.free
     for branch in ("upper", "lower"):

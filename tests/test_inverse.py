@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from capsule_env.damper_rig import sinusoidal_stroke
 from capsule_env.dampers import BiExponentialDamper, BoucWenDamper, TanhDamper, damper_force
-from capsule_env.dynamics import sinusoidal_stroke
 from capsule_env.hysteresis import hysteresis_update
 from capsule_env.inverse import (
     CSDCInverse,
@@ -77,7 +77,7 @@ def test_zero_velocity_never_divides_by_zero():
 
 
 def test_closed_form_matches_paper_formula():
-    """i* = (F_d - a0 S - b0 v - c0)/(a1 S + b1 v + c1), upper set for x >= 0 (MODEL.md 5)."""
+    """i* = (F_d - a0 S - b0 v - c0)/(a1 S + b1 v + c1), upper set for x >= 0 (docs/model.md 5)."""
     d = BiExponentialDamper()
     x, v = 0.01, 0.12
     s = 1.0 - np.exp(-d.upper_d * v)

@@ -1,6 +1,6 @@
 """The automatic substep rule against a much finer step, vehicle by vehicle.
 
-The promise (``capsule_env.dynamics.substep_tables``): the damper force stays within 0.5 % RMS
+The promise (``capsule_env.plant.substeps.substep_tables``): the damper force stays within 0.5 % RMS
 of a run with 10 times as many substeps (at least 100 per control step) for *every* vehicle,
 for every plant damper, both settings and randomised vehicles. Each vehicle's substeps come
 from its own parameters, so a light, stiff randomised vehicle gets more than the nominal one.
@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env.core import PLANT_DAMPERS, CapsuleBatch, EnvConfig
-from capsule_env.dynamics import MAX_AUTO_SUBSTEPS, substep_tables
+from capsule_env.batch import CapsuleBatch
+from capsule_env.config import PLANT_DAMPERS, EnvConfig
+from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, substep_tables
 
 TOLERANCE = 0.005
 

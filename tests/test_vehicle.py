@@ -1,6 +1,6 @@
 """Tests of capsule_env.vehicle against independent facts.
 
-The 2-DOF plant of MODEL.md section 2 is written out here by hand (equations of motion, the
+The 2-DOF plant of docs/model.md, section 2 is written out here by hand (equations of motion, the
 closed-form characteristic polynomial det(K - w^2 M) = 0) and the module's matrices, modes and
 frequency responses are checked against it.
 """
@@ -20,7 +20,7 @@ from capsule_env.vehicle import (
     state_space,
 )
 
-# MODEL.md section 2 values, typed in independently of the code's defaults.
+# docs/model.md, section 2 values, typed in independently of the code's defaults.
 M_C, M_B, K_S, K_P, C_S = 6000.0, 2400.0, 4.95e5, 2.25e6, 1.5e4
 
 
@@ -35,7 +35,7 @@ def closed_form_frequencies_hz(mc: float, mb: float, ks: float, kp: float) -> np
 
 
 def equations_of_motion(state, force, zg, mc, mb, ks, kp, c):
-    """MODEL.md 2 written out: returns d/dt [z_c, z_c', z_b, z_b']."""
+    """docs/model.md 2 written out: returns d/dt [z_c, z_c', z_b, z_b']."""
     zc, vc, zb, vb = state
     secondary = ks * (zc - zb) + c * (vc - vb) + force
     return np.array([vc, -secondary / mc, vb, (secondary - kp * (zb - zg)) / mb])
@@ -52,7 +52,7 @@ def test_default_parameters_are_model_md_values():
 def test_natural_frequencies_default_plant():
     f = natural_frequencies_hz()
     assert f.shape == (2,)
-    # MODEL.md 2: about 1.30 Hz (body) and 5.42 Hz (bogie).
+    # docs/model.md 2: about 1.30 Hz (body) and 5.42 Hz (bogie).
     assert f[0] == pytest.approx(1.30, abs=0.01)
     assert f[1] == pytest.approx(5.42, abs=0.01)
     # Independent: closed-form roots of the 2-DOF characteristic equation.
@@ -171,7 +171,7 @@ def test_frequency_response_static_limits_and_formula():
     # Static limit: the whole plant follows the guideway (unit gain, zero velocity).
     h0 = frequency_response(np.array([1e-9]), secondary_damping_n_s_per_m=C_S)[0]
     np.testing.assert_allclose(h0, [1.0, 0.0, 1.0, 0.0], atol=1e-6)
-    # Independent 2x2 dynamic-stiffness solve of MODEL.md 2 at s = j w.
+    # Independent 2x2 dynamic-stiffness solve of docs/model.md 2 at s = j w.
     f = np.array([0.5, 1.3, 2.0, 5.42, 10.0, 30.0])
     h = frequency_response(f, secondary_damping_n_s_per_m=C_S)
     assert h.shape == (f.size, 4)

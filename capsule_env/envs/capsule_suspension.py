@@ -1,7 +1,7 @@
 """CapsuleSuspension-v0: semi-active MR-damper secondary suspension of a Hyperloop capsule.
 
 The single environment and its native vector environment. Both are thin shells over
-:class:`capsule_env.core.CapsuleBatch` (one compiled kernel for 1 or thousands of vehicles).
+:class:`capsule_env.batch.CapsuleBatch` (one compiled kernel for 1 or thousands of vehicles).
 """
 
 from __future__ import annotations
@@ -16,24 +16,20 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from capsule_env.core import (
-    SIGNAL_NAMES,
-    CapsuleBatch,
-    EnvConfig,
-    check_num_envs,
-    check_seed,
-    observation_bounds,
-)
-from capsule_env.render import draw_quarter_car
+from capsule_env.batch import CapsuleBatch
+from capsule_env.config import EnvConfig, check_num_envs, check_seed, observation_bounds
+from capsule_env.layout import SIGNAL_NAMES
+from capsule_env.render import render_vehicle
 
-__all__ = ["CapsuleSuspensionEnv", "CapsuleSuspensionVectorEnv"]
+__all__ = ["CapsuleSuspensionEnv", "CapsuleSuspensionVectorEnv", "env_spaces"]
 
 
 #: Keys ``reset(options=...)`` accepts (none yet: every option is a constructor argument).
 RESET_OPTIONS: tuple[str, ...] = ()
 
 
-def _spaces(config: EnvConfig) -> tuple[spaces.Box, spaces.Box]:
+def env_spaces(config: EnvConfig) -> tuple[spaces.Box, spaces.Box]:
+    """``(action_space, observation_space)`` of one vehicle of an env with these options."""
     action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
     low, high = observation_bounds(config, config.max_current_a)
     return action_space, spaces.Box(low, high, dtype=np.float32)
@@ -70,7 +66,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     over an irregular guideway (a random FRA-shaped profile scaled to 8 mm peak by default).
     Each control step (200 Hz) the agent chooses the MR damper's action; the goal is ride
     comfort, a small car-body acceleration. The physics, the damper models and their inverses
-    follow Kim et al.'s capsule study (``capsule_env/`` docs and ``MODEL.md``): in ``sim`` the
+    follow the capsule-vehicle study (Measurement and Control, 2022, doi:10.1177/00202940221101675;
+    the equations with their provenance in ``docs/model.md``): in ``sim`` the
     plant's damper is the very model the controller inverts (the paper's simulation); in
     ``hils`` the plant is the reference Spencer damper with coil lag, sensor noise and a control
     delay while the controller inverts an identified model (the paper's HILS test emulated).
@@ -161,7 +158,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     ## Arguments
 
     ``gymnasium.make("CapsuleSuspension-v0", **kwargs)`` with any field of
-    :class:`capsule_env.core.EnvConfig`, each validated (a bad value raises ``ValueError``
+    :class:`capsule_env.config.EnvConfig`, each validated (a bad value raises ``ValueError``
     naming the argument and the accepted values):
 
     - ``action_mode``: ``"force"`` | ``"current"``.
@@ -201,7 +198,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         self.render_mode = render_mode
         # infos are copied into a dict every step: no fresh signal arrays needed
         self._batch = CapsuleBatch(self.config, 1, fresh_signals=False)
-        self.action_space, self.observation_space = _spaces(self.config)
+        self.action_space, self.observation_space = env_spaces(self.config)
         self._needs_reset = True
 
     @property
@@ -256,7 +253,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        return _render_one(self._batch, 0)
+        return render_vehicle(self._batch, 0)
 
 
 def _single_action(action: Any) -> float:
@@ -276,20 +273,6 @@ def _single_action(action: Any) -> float:
     return float(a.reshape(-1)[0])
 
 
-def _render_one(batch: CapsuleBatch, n: int) -> np.ndarray:
-    span = np.linspace(-30.0, 30.0, 121)
-    profile = batch.profiles[batch.profile_index[n]]
-    t = batch.state[n, 7]
-    pos = batch.start_position[n] + batch.speed[n] * t + span
-    elevation = batch.gain[n] * np.interp(pos / batch.spacing, np.arange(profile.size), profile)
-    return draw_quarter_car(
-        batch.state[n, 0],
-        batch.state[n, 2],
-        elevation,
-        coil_current_fraction=batch.state[n, 6] / max(batch.i_max, 1e-9),
-    )
-
-
 class CapsuleSuspensionVectorEnv(VectorEnv):
     """Native batched ``CapsuleSuspension-v0``: ``num_envs`` vehicles in one compiled kernel.
 
@@ -302,7 +285,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     gives vehicle ``n`` the stream of the single env seeded ``s_n``. ``info`` is a dict of
     arrays (one entry per vehicle, fresh arrays every step) with Gymnasium's ``_key`` masks.
     Actions: shape ``(num_envs, 1)`` (the action space) or ``(num_envs,)``. Batches of 64 or
-    more are split across threads (:mod:`capsule_env._threads`).
+    more are split across threads (:mod:`capsule_env.kernels`).
     """
 
     metadata = {
@@ -333,7 +316,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
                 )
             # As Gymnasium's TimeLimit on the single env: the earlier of the two limits.
             self._batch.max_steps = min(self._batch.max_steps, int(max_episode_steps))
-        self.single_action_space, self.single_observation_space = _spaces(self.config)
+        self.single_action_space, self.single_observation_space = env_spaces(self.config)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
@@ -389,4 +372,4 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     def render(self) -> tuple[np.ndarray, ...] | None:
         if self.render_mode != "rgb_array":
             return None
-        return tuple(_render_one(self._batch, n) for n in range(self.num_envs))
+        return tuple(render_vehicle(self._batch, n) for n in range(self.num_envs))

@@ -1,15 +1,15 @@
-"""Identification of MR-damper forward models from force loops (MODEL.md section 6).
+"""Identification of MR-damper forward models from force loops (docs/model.md, section 6).
 
 The paper built its damper models from measured force loops: a sinusoidal stroke at a set of
 constant coil currents, the force recorded against displacement and velocity. This package does
 the same for three forward models of :mod:`capsule_env.dampers`, from loops of the reference
-damper (the "hardware" in simulation, MODEL.md 4.1) or from measured laboratory files:
+damper (the "hardware" in simulation, docs/model.md 4.2) or from measured laboratory files:
 
-- **Bi-exponential** (MODEL.md 4.4, paper eq. 4): per current and stroke-sign branch, then
+- **Bi-exponential** (docs/model.md 4.5, paper eq. 4): per current and stroke-sign branch, then
   linear laws in current (the paper's Table 2, Figures 5 and 6).
-- **Bouc-Wen** (MODEL.md 4.2, n = 2): least squares of the simulated response over all loops
+- **Bouc-Wen** (docs/model.md 4.3, n = 2): least squares of the simulated response over all loops
   at once, with ``A = 1`` fixed to remove the model's scale degeneracy.
-- **tanh** (MODEL.md 4.3, paper eq. 3): ``c, k, alpha, f0`` linear in current, ``beta, delta``
+- **tanh** (docs/model.md 4.4, paper eq. 3): ``c, k, alpha, f0`` linear in current, ``beta, delta``
   constant.
 
 All three fits use *variable projection* (a search over a few shape parameters around a linear

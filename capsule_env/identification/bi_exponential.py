@@ -1,4 +1,4 @@
-"""Identification of the Bi-exponential MR-damper model (MODEL.md 4.4 and 6.2, paper eq. 4).
+"""Identification of the Bi-exponential MR-damper model (docs/model.md 4.5 and 6.2, paper eq. 4).
 
 Split each loop by the sign of the stroke (upper branch ``x >= 0``, lower ``x < 0``); per
 current and branch fit ``a, b, c, d`` of ``F = a S_d(v) + b v + c`` with
@@ -81,12 +81,12 @@ def fit_bi_exponential(
     grid_points: int = 41,
     d_rule: str = "mean",
 ) -> tuple[BiExponentialDamper, BiExponentialTrends]:
-    """Identify the Bi-exponential model (MODEL.md 4.4 and 6.2) from force loops.
+    """Identify the Bi-exponential model (docs/model.md 4.5 and 6.2) from force loops.
 
     Per current and branch (upper ``x >= 0``, lower ``x < 0``): ``a, b, c, d`` by variable
     projection (``a, b, c`` by linear least squares inside a search over ``d``: a log grid of
     ``grid_points`` values, then a bounded scalar search around the best). Then, with
-    ``d_rule="mean"`` (the paper's procedure, MODEL.md 6.2): ``d`` per branch = the mean over
+    ``d_rule="mean"`` (the paper's procedure, docs/model.md 6): ``d`` per branch = the mean over
     currents, ``a, b, c`` refitted at that ``d`` per current, and each fitted as a line in
     current (with one distinct current: ``p0`` = the value, ``p1 = 0``, and each branch keeps
     its own fitted ``d``). With ``d_rule="joint"`` (an alternative, not the paper's): per

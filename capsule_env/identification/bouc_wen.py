@@ -1,4 +1,4 @@
-"""Identification of the Bouc-Wen MR-damper model (MODEL.md 4.2, n = 2) and its loop simulation.
+"""Identification of the Bouc-Wen MR-damper model (docs/model.md 4.3, n = 2) and its loop simulation.
 
 Least squares of the simulated response over all loops at once. The model has a scale
 degeneracy (``z -> s z``, ``A -> s A``, ``gamma, beta -> /s``, ``alpha -> /s`` leave the force
@@ -94,7 +94,7 @@ def _bw_shape(log_zy: float, ratio: float) -> tuple[float, float]:
 
 
 def fit_bouc_wen(loops: Sequence[Loop], starts: int = 3) -> BoucWenDamper:
-    """Identify the Bouc-Wen model (MODEL.md 4.2, n = 2, A = 1) from force loops.
+    """Identify the Bouc-Wen model (docs/model.md 4.3, n = 2, A = 1) from force loops.
 
     ``F = c0 v + k0 (x - x0) + alpha z`` with ``alpha = alpha_a + alpha_b i``,
     ``c0 = c0a + c0b i``; ``z' = -gamma |v| z |z| - beta v z^2 + v``. With ``A = 1`` fixed (the

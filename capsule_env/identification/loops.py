@@ -2,7 +2,7 @@
 
 A :class:`Loop` is one test at a constant coil current: time, stroke, stroke rate and force.
 :func:`reference_loops` makes steady loops of a damper model under a sinusoidal stroke
-(MODEL.md 6.1); :mod:`capsule_env.identification.measured` reads laboratory files into loops.
+(docs/model.md 6); :mod:`capsule_env.identification.measured` reads laboratory files into loops.
 The helpers check a list of loops, group it by current, stack its samples, and build the
 warm-up sequence (one period of stroke ahead of the loop) that models with internal states
 are simulated over.
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from capsule_env._validation import check_in_range, check_positive
+from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
 from capsule_env.dampers import DamperParams, ReferenceDamper
-from capsule_env.dynamics import simulate_damper, sinusoidal_stroke
 
 __all__ = [
     "DEFAULT_CURRENTS_A",
@@ -100,7 +100,7 @@ class Loop:
 
     @property
     def upper(self) -> np.ndarray:
-        """Boolean mask of the upper-branch samples (``x >= 0``, MODEL.md 1)."""
+        """Boolean mask of the upper-branch samples (``x >= 0``, docs/model.md 1)."""
         return self.stroke_m >= 0.0
 
 
@@ -113,11 +113,11 @@ def reference_loops(
     samples_per_cycle: int = 1000,
     substeps: int = 4,
 ) -> list[Loop]:
-    """Steady force loops of a damper model under a sinusoidal stroke (MODEL.md 6.1).
+    """Steady force loops of a damper model under a sinusoidal stroke (docs/model.md 6).
 
     The stroke ``x = amplitude sin(2 pi f t)`` runs for ``cycles`` periods at each constant
     ``current`` (the model's internal states start at zero,
-    :func:`capsule_env.dynamics.simulate_damper`); the last full period is kept, sampled at
+    :func:`capsule_env.damper_rig.simulate_damper`); the last full period is kept, sampled at
     ``samples_per_cycle`` points over ``[0, T)`` (it starts at ``x = 0``, ``v > 0``).
 
     Parameters

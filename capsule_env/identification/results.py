@@ -153,7 +153,7 @@ def _rmse_per_current(damper: DamperParams, loops: Sequence[Loop]) -> dict[float
 def identify_loops(
     loops: Sequence[Loop], source: str | None = None, d_rule: str = "mean"
 ) -> IdentificationResult:
-    """Fit the Bi-exponential, Bouc-Wen and tanh models to a set of loops (MODEL.md 6).
+    """Fit the Bi-exponential, Bouc-Wen and tanh models to a set of loops (docs/model.md 6).
 
     Each model's RMSE is evaluated with the package's own forward model
     (:func:`predict_force`) on every loop; ``rmse_n`` is the RMSE at the largest current.

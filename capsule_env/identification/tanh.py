@@ -1,4 +1,4 @@
-"""Identification of the hyperbolic-tangent MR-damper model (MODEL.md 4.3, paper eq. 3).
+"""Identification of the hyperbolic-tangent MR-damper model (docs/model.md 4.4, paper eq. 3).
 
 ``F = c v + k x + alpha tanh(beta v + delta sign(x)) + f0`` with ``c, k, alpha, f0`` linear in
 current and ``beta, delta`` constant. Variable projection: the linear coefficients by linear
@@ -42,7 +42,7 @@ def _tanh_design(
 
 
 def fit_tanh(loops: Sequence[Loop], starts: int = 3) -> TanhDamper:
-    """Identify the hyperbolic-tangent model (MODEL.md 4.3) from force loops.
+    """Identify the hyperbolic-tangent model (docs/model.md 4.4) from force loops.
 
     ``F = c v + k x + alpha tanh(beta v + delta sign(x)) + f0`` with ``c, k, alpha, f0`` linear in
     current (``p = p_a + p_b i``; with one distinct current the ``_b`` terms are 0) and

@@ -1,9 +1,9 @@
-"""Tests of the time integration (capsule_env.dynamics) against independent facts.
+"""Tests of the time integration (capsule_env.plant) against independent facts.
 
 * Linear plant: steady-state sine responses fitted from ``simulate`` against the analytic
   transfer function ``(j w I - A)^-1 E`` of the state-space matrices.
 * Reference damper + plant: the default substep against a 10x finer one, and against an
-  independent ``scipy.integrate.solve_ivp`` (LSODA) integration of MODEL.md 2 + 4.1 written out
+  independent ``scipy.integrate.solve_ivp`` (LSODA) integration of docs/model.md 2 and 4.2 written out
   here.
 * Robustness at stroke rates up to ~2 m/s, the coil lag's exact exponential, and the batched
   kernel (identical rows, single vehicle, serial vs parallel bit for bit).
@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from capsule_env import dynamics
-from capsule_env._threads import PARALLEL_THRESHOLD
+from capsule_env.damper_rig import simulate_damper
 from capsule_env.dampers import (
     DAMPER_NAMES,
     N_DAMPER_PARAMS,
@@ -26,23 +25,28 @@ from capsule_env.dampers import (
     ReferenceDamper,
     make_damper,
 )
-from capsule_env.dynamics import (
-    N_OUTPUTS,
-    STATE_SIZE,
+from capsule_env.guideway import random_profile, sine_profile
+from capsule_env.kernels import PARALLEL_THRESHOLD, PLANT, kernels
+from capsule_env.layout import N_PLANT_OUTPUTS as N_OUTPUTS
+from capsule_env.layout import STATE_SIZE
+from capsule_env.plant import (
+    Route,
+    block,
     default_substeps,
     initial_state,
+    make_plant_params,
     simulate,
-    simulate_damper,
     step_batch,
+    stiffness_rates,
+    substep_tables,
 )
-from capsule_env.guideway import random_profile, sine_profile
 from capsule_env.vehicle import VehicleParams, frequency_response, state_space
 
 SPEED = 225.0  # m/s (810 km/h)
 DT = 0.005  # control interval, s
 I_MAX = 1.5
 
-# MODEL.md section 2 and 4.1 values, typed in independently of the code's defaults.
+# docs/model.md sections 2 and 4.2 values, typed in independently of the code's defaults.
 MC, MB, KS, KP = 6000.0, 2400.0, 4.95e5, 2.25e6
 SPENCER = dict(
     c0a=1.05e4,
@@ -181,7 +185,7 @@ def test_default_substeps_meet_documented_accuracy(accuracy_runs):
 
 def test_default_substeps_of_reference_damper():
     # RK4 is stable only for |lambda| h <= 2.785: Spencer's pre-yield rate
-    # (alpha A + k0) / (c0 + c1) at 1.5 A, from MODEL.md 4.1, bounds the substeps from below.
+    # (alpha A + k0) / (c0 + c1) at 1.5 A, from docs/model.md 4.2, bounds the substeps from below.
     damper = ReferenceDamper()
     n = default_substeps(damper, DT)
     p = SPENCER
@@ -200,13 +204,13 @@ def test_stiffness_rates_of_passive_plant_match_state_space_eigenvalues():
         params = VehicleParams(*(rng.uniform(0.3, 1.7, 4) * [MC, MB, KS, KP]))
         a, _, _ = state_space(params, c)
         lam = np.linalg.eigvals(a)
-        rate, omega = dynamics.stiffness_rates(LinearDamper(c), params.as_array(), 0.0)
+        rate, omega = stiffness_rates(LinearDamper(c), params.as_array(), 0.0)
         assert rate[0, 0] == pytest.approx(np.abs(lam.real).max(), rel=1e-9)
         assert omega[0, 0] == pytest.approx(np.abs(lam.imag).max(), rel=1e-9)
 
 
 def reference_plant_rhs(profile: np.ndarray, spacing: float, i_cmd: float):
-    """MODEL.md 2 + 4.1 written out: d/dt [z_c, z_c', z_b, z_b', z, y, i]."""
+    """docs/model.md 2 and 4.2 written out: d/dt [z_c, z_c', z_b, z_b', z, y, i]."""
     p = SPENCER
     positions = np.arange(profile.size) * spacing
 
@@ -323,7 +327,7 @@ ROUNDING = 1.0 + 1e-9
 
 
 def force_bound(name: str, v_max: float, x_max: float) -> float:
-    """Upper bound on |F| from MODEL.md 4's force laws at |v| <= v_max, |x| <= x_max.
+    """Upper bound on |F| from docs/model.md 4's force laws at |v| <= v_max, |x| <= x_max.
 
     Every coefficient is linear in i on [0, 1.5 A], so its magnitude is at most
     |p_a| + |p_b| 1.5; the hysteretic z of Bouc-Wen stays within sqrt(A / (gamma + beta)), and
@@ -468,27 +472,15 @@ def run_batch(code: int, inp: dict, rows: slice | None = None, substeps: int = 5
         c(inp["speed"]),
     )
     n = dp.shape[0]
+    plant = make_plant_params(code, dp, vp, substeps, inp["profiles"], inp["spacing"], DT)
+    route = Route(idx, x0, speed, np.ones(n))
     state = initial_state(n)
     out = np.empty((n, N_OUTPUTS))
     states = np.empty((BATCH_STEPS, n, STATE_SIZE))
     outs = np.empty((BATCH_STEPS, n, N_OUTPUTS))
     for k in range(BATCH_STEPS):
         cmd = np.ascontiguousarray(inp["cmd"][k, rows])
-        step_batch(
-            code,
-            dp,
-            vp,
-            state,
-            cmd,
-            inp["profiles"],
-            idx,
-            inp["spacing"],
-            x0,
-            speed,
-            DT,
-            substeps,
-            out,
-        )
+        step_batch(code, plant, state, cmd, route, DT, out)
         states[k], outs[k] = state, out
     return states, outs
 
@@ -551,36 +543,37 @@ def _block_inputs(damper, n: int, seed: int = 4):
         speed=rng.uniform(150.0, 225.0, n),
         gain=np.ones(n),
         cmd=rng.uniform(0.0, I_MAX, (BATCH_STEPS, n)),
-        table=dynamics.substep_tables(damper, DT, vp),  # each vehicle its own table
+        table=substep_tables(damper, DT, vp),  # each vehicle its own table
     )
 
 
-def _run_kernel(kernels, inp, n, code, threaded=False):
-    """Step ``(serial, parallel)`` kernels over ``n`` vehicles: serial, or on all cores."""
+def _run_kernel(mode, inp, n, code, threaded=False):
+    """Step the plant kernels of ``mode`` over ``n`` vehicles: serial, or on all cores."""
+    serial, parallel = kernels(PLANT, code, mode)
+    plant = make_plant_params(code, inp["dp"], inp["vp"], inp["table"], inp["profiles"],
+                              inp["spacing"], DT)  # fmt: skip
+    route = Route(inp["idx"], inp["x0"], inp["speed"], inp["gain"])
     state, out = initial_state(n), np.empty((n, N_OUTPUTS))
-    derived = dynamics.block_constants(code, inp["dp"], DT, inp["table"])
     states = np.empty((BATCH_STEPS, n, STATE_SIZE))
     for k in range(BATCH_STEPS):
-        args = (inp["dp"], inp["vp"], state, np.ascontiguousarray(inp["cmd"][k]),
-                inp["profiles"], inp["idx"], inp["spacing"], inp["x0"], inp["speed"],
-                inp["gain"], DT, inp["table"], derived, out)  # fmt: skip
+        args = (plant, state, np.ascontiguousarray(inp["cmd"][k]), route, DT, out)
         if threaded:
-            kernels[1](n, *args)
+            parallel(n, *args)
         else:
-            kernels[0](0, n, *args)
+            serial(0, n, *args)
         states[k] = state
     return states
 
 
 BLOCK_CASES = {
-    "reference": (ReferenceDamper(), dynamics.KERNEL_BLOCK),
+    "reference": (ReferenceDamper(), block.KERNEL_BLOCK),
     "reference_beta_gt_gamma": (
         ReferenceDamper(gamma=1.0e6, beta=6.26e6),
-        dynamics.KERNEL_BLOCK_TANH_UNLOAD,
+        block.KERNEL_BLOCK_TANH_UNLOAD,
     ),
-    "bi_exponential": (make_damper("bi_exponential"), dynamics.KERNEL_BLOCK),
-    "tanh": (make_damper("tanh"), dynamics.KERNEL_BLOCK),
-    "passive": (make_damper("passive"), dynamics.KERNEL_BLOCK),
+    "bi_exponential": (make_damper("bi_exponential"), block.KERNEL_BLOCK),
+    "tanh": (make_damper("tanh"), block.KERNEL_BLOCK),
+    "passive": (make_damper("passive"), block.KERNEL_BLOCK),
 }
 
 
@@ -595,12 +588,11 @@ def test_vectorised_block_kernel_matches_scalar_kernel(case):
     damper, mode = BLOCK_CASES[case]
     n = 10
     inp = _block_inputs(damper, n)
-    assert dynamics.block_kernel_mode(damper.code, inp["dp"]) == mode | dynamics.KERNEL_UNIFORM
-    scalar = dynamics.step_kernels(dynamics.KERNEL_SCALAR, damper.code)
-    s_ref = _run_kernel(scalar, inp, n, damper.code)
+    assert block.block_kernel_mode(damper.code, inp["dp"]) == mode | block.KERNEL_UNIFORM
+    s_ref = _run_kernel(block.KERNEL_SCALAR, inp, n, damper.code)
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
-    for variant in (mode | dynamics.KERNEL_UNIFORM, mode):
-        s_vec = _run_kernel(dynamics.step_kernels(variant, damper.code), inp, n, damper.code)
+    for variant in (mode | block.KERNEL_UNIFORM, mode):
+        s_vec = _run_kernel(variant, inp, n, damper.code)
         assert np.all(np.isfinite(s_vec))
         assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     assert np.ptp(s_vec[-1, :, 0]) > 0.0  # the vehicles really differ
@@ -617,30 +609,30 @@ def test_block_kernel_honours_per_vehicle_damper_rows():
     for col in (0, 2, 4):  # c0a, c1a, alpha_a
         dp[:, col] *= factors
     inp["dp"] = np.ascontiguousarray(dp)
-    mode = dynamics.block_kernel_mode(base.code, dp)
-    assert mode == dynamics.KERNEL_BLOCK  # not uniform
-    s_vec = _run_kernel(dynamics.step_kernels(mode, base.code), inp, n, base.code)
-    s_ref = _run_kernel(dynamics.step_kernels(dynamics.KERNEL_SCALAR, base.code), inp, n,
+    mode = block.block_kernel_mode(base.code, dp)
+    assert mode == block.KERNEL_BLOCK  # not uniform
+    s_vec = _run_kernel(mode, inp, n, base.code)
+    s_ref = _run_kernel(block.KERNEL_SCALAR, inp, n,
                         base.code)  # fmt: skip
     scale = np.max(np.abs(s_ref), axis=(0, 1)) + 1e-30
     assert np.max(np.abs(s_vec - s_ref) / scale) < 1e-9
     # and the rows matter: the same vehicles with the base damper end elsewhere
     uniform = dict(inp, dp=np.ascontiguousarray(np.tile(base.as_array(), (n, 1))))
-    s_base = _run_kernel(dynamics.step_kernels(mode, base.code), uniform, n, base.code)
+    s_base = _run_kernel(mode, uniform, n, base.code)
     assert np.max(np.abs(s_base - s_vec) / scale) > 1e-3
 
 
 def test_block_kernel_mode_falls_back_to_scalar_where_it_must():
     bw = make_damper("bouc_wen")
-    assert dynamics.block_kernel_mode(bw.code, bw.as_array()[None]) == dynamics.KERNEL_SCALAR
+    assert block.block_kernel_mode(bw.code, bw.as_array()[None]) == block.KERNEL_SCALAR
     ref = ReferenceDamper()
     unload_tan = ReferenceDamper(gamma=5.0e6, beta=2.26e6)  # beta < gamma: tan/atan branch
     rows = np.stack([ref.as_array(), unload_tan.as_array()])
-    assert dynamics.block_kernel_mode(ref.code, rows[1:]) == dynamics.KERNEL_SCALAR
-    assert dynamics.block_kernel_mode(ref.code, rows) == dynamics.KERNEL_SCALAR  # rows disagree
-    uniform = dynamics.KERNEL_BLOCK | dynamics.KERNEL_UNIFORM
-    assert dynamics.block_kernel_mode(ref.code, rows[:1]) == uniform
-    assert dynamics.block_kernel_mode(ref.code, np.stack([rows[0], rows[0]])) == uniform
+    assert block.block_kernel_mode(ref.code, rows[1:]) == block.KERNEL_SCALAR
+    assert block.block_kernel_mode(ref.code, rows) == block.KERNEL_SCALAR  # rows disagree
+    uniform = block.KERNEL_BLOCK | block.KERNEL_UNIFORM
+    assert block.block_kernel_mode(ref.code, rows[:1]) == uniform
+    assert block.block_kernel_mode(ref.code, np.stack([rows[0], rows[0]])) == uniform
 
 
 @pytest.mark.slow
@@ -651,13 +643,10 @@ def test_adaptive_substeps_batch_equals_each_vehicle_alone():
     damper = ReferenceDamper()
     n = PARALLEL_THRESHOLD + 7
     inp = _block_inputs(damper, n, seed=8)
-    mode = dynamics.block_kernel_mode(damper.code, inp["dp"])
-    kernels = dynamics.step_kernels(mode, damper.code)
-    s_all = _run_kernel(kernels, inp, n, damper.code, threaded=True)
+    mode = block.block_kernel_mode(damper.code, inp["dp"])
+    s_all = _run_kernel(mode, inp, n, damper.code, threaded=True)
     for row in (0, 5, 33, 63, 64, n - 1):
         one = {k: (v[row : row + 1] if isinstance(v, np.ndarray) and k != "profiles"
                    else v) for k, v in inp.items()}  # fmt: skip
         one["cmd"] = np.ascontiguousarray(inp["cmd"][:, row : row + 1])
-        np.testing.assert_array_equal(
-            _run_kernel(kernels, one, 1, damper.code)[:, 0], s_all[:, row]
-        )
+        np.testing.assert_array_equal(_run_kernel(mode, one, 1, damper.code)[:, 0], s_all[:, row])

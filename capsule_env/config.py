@@ -1,0 +1,422 @@
+"""Every option of ``CapsuleSuspension-v0``, checked once, and what follows from them.
+
+:class:`EnvConfig` is a frozen dataclass of the env's arguments; it validates each (a
+``TypeError`` or ``ValueError`` naming the argument and the accepted range), refuses a
+configuration too stiff to integrate or too large for the machine's memory before anything is
+allocated, and derives the rest as properties (the plant's damper, the inverted model, the
+guideway, the substep tables, the episode length). No Gym import.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from capsule_env._validation import (
+    available_memory_bytes,
+    check_choice,
+    check_in_range,
+    check_integer,
+    check_nonnegative,
+    check_positive,
+    format_bytes,
+)
+from capsule_env.dampers import (
+    BI_EXPONENTIAL,
+    BOUC_WEN,
+    TANH,
+    BiExponentialDamper,
+    BoucWenDamper,
+    DamperParams,
+    TanhDamper,
+    make_damper,
+)
+from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
+from capsule_env.inverse import INVERSE_NAMES
+from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
+from capsule_env.vehicle import VehicleParams
+
+__all__ = [
+    "ACTION_MODES",
+    "SETTINGS",
+    "OBSERVATION_SETS",
+    "PLANT_DAMPERS",
+    "SENSOR_NAMES",
+    "FULL_STATE_NAMES",
+    "SENSOR_NOISE_STD",
+    "INVERSE_CODES",
+    "EnvConfig",
+    "observation_bounds",
+    "check_seed",
+    "check_num_envs",
+]
+
+ACTION_MODES = ("force", "current")
+SETTINGS = ("sim", "hils")
+OBSERVATION_SETS = ("sensors", "full_state")
+PLANT_DAMPERS = ("reference", "bouc_wen", "bi_exponential", "tanh", "passive")
+#: The plant damper of the ``sim`` setting: the model the controller inverts
+#: (docs/model.md, section 8).
+SIM_PLANT_FOR_INVERSE = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}
+
+SENSOR_NAMES = (
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "last_current_command_a",
+)
+FULL_STATE_NAMES = (
+    "car_body_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_displacement_m",
+    "bogie_velocity_m_s",
+    "guideway_elevation_m",
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "coil_current_a",
+)
+#: Standard deviation of the measurement noise at ``sensor_noise=1`` [reconstructed: a few per
+#: cent of each channel's typical level on the default guideway; the HILS default]. Entries:
+#: car body and bogie acceleration (m/s^2), stroke (m), stroke rate (m/s), then for the
+#: ``full_state`` set: car body displacement (m), car body velocity (m/s), bogie displacement
+#: (m), bogie velocity (m/s), guideway elevation (m).
+SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4])
+#: Damper code of the model each ``inverse_model`` inverts.
+INVERSE_CODES = {"bi_exponential": BI_EXPONENTIAL, "tanh": TANH, "csdc": BOUC_WEN}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Every option of ``CapsuleSuspension-v0`` (see the env docstring for the full story).
+
+    Options left as ``None`` take the value of the chosen ``setting``: ``sim`` (the plant's
+    damper is the model the controller inverts, ideal coil, no noise, no delay: the paper's
+    simulation) or ``hils`` (the reference Spencer damper with its coil lag, sensor noise and a
+    one-step control delay: the paper's HILS test emulated).
+    """
+
+    action_mode: str = "force"
+    inverse_model: str = "bi_exponential"
+    setting: str = "sim"
+    damper: str | None = None
+    coil_time_constant_s: float | None = None
+    sensor_noise: float | None = None
+    control_delay_steps: int | None = None
+    guideway: str = "random"
+    guideway_params: dict = field(default_factory=dict)
+    speed_kmh: float = 810.0
+    guideway_seed: int = 0
+    guideway_bank_size: int = 16
+    control_rate_hz: float = 200.0
+    episode_length_s: float = 10.0
+    substeps: int | None = None
+    observation: str = "sensors"
+    max_force_n: float = 8000.0
+    reward_acceleration_weight: float = 1.0
+    reward_stroke_weight: float = 0.1
+    reward_energy_weight: float = 0.01
+    reward_velocity_weight: float = 0.0
+    acceleration_scale_m_s2: float = 0.5
+    stroke_scale_m: float = 0.02
+    velocity_scale_m_s: float = 0.05
+    stroke_limit_m: float = 0.06
+    bump_stop_penalty: float = 100.0
+    vehicle_params: dict = field(default_factory=dict)
+    damper_params: dict = field(default_factory=dict)
+    inverse_params: dict = field(default_factory=dict)
+    vehicle_randomization: float = 0.0
+    speed_range_kmh: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        check_choice("action_mode", self.action_mode, ACTION_MODES)
+        check_choice("inverse_model", self.inverse_model, INVERSE_NAMES)
+        check_choice("setting", self.setting, SETTINGS)
+        if self.damper is not None:
+            check_choice("damper", self.damper, PLANT_DAMPERS)
+        if self.coil_time_constant_s is not None:
+            check_in_range("coil_time_constant_s", self.coil_time_constant_s, 0.0, 10.0)
+        if self.sensor_noise is not None:
+            check_in_range("sensor_noise", self.sensor_noise, 0.0, 1e3)
+        if self.control_delay_steps is not None:
+            check_integer("control_delay_steps", self.control_delay_steps, 0, 100)
+        check_choice("guideway", self.guideway, GUIDEWAY_KINDS)
+        check_in_range("speed_kmh", self.speed_kmh, 1e-3, 1e4)
+        check_seed("guideway_seed", self.guideway_seed)
+        check_integer("guideway_bank_size", self.guideway_bank_size, 1, 4096)
+        check_in_range("control_rate_hz", self.control_rate_hz, 1.0, 10_000.0)
+        check_positive("episode_length_s", self.episode_length_s)
+        if self.episode_length_s * self.control_rate_hz < 0.5:
+            raise ValueError(
+                f"episode_length_s must be at least one control step (1 / control_rate_hz = "
+                f"{1.0 / self.control_rate_hz:g} s), got {self.episode_length_s!r}"
+            )
+        if self.substeps is not None:
+            check_integer("substeps", self.substeps, 1, 10_000)
+        check_choice("observation", self.observation, OBSERVATION_SETS)
+        check_positive("max_force_n", self.max_force_n)
+        for name in (
+            "reward_acceleration_weight",
+            "reward_stroke_weight",
+            "reward_energy_weight",
+            "reward_velocity_weight",
+            "bump_stop_penalty",
+        ):
+            check_nonnegative(name, getattr(self, name))
+        check_positive("acceleration_scale_m_s2", self.acceleration_scale_m_s2)
+        check_positive("stroke_scale_m", self.stroke_scale_m)
+        check_positive("velocity_scale_m_s", self.velocity_scale_m_s)
+        check_positive("stroke_limit_m", self.stroke_limit_m)
+        check_in_range("vehicle_randomization", self.vehicle_randomization, 0.0, 0.9)
+        if self.speed_range_kmh is not None:
+            _check_speed_range(self.speed_range_kmh)
+        for name in ("guideway_params", "vehicle_params", "damper_params", "inverse_params"):
+            if not isinstance(getattr(self, name), dict):
+                raise TypeError(f"{name} must be a dict of parameter overrides")
+        for key, arg in (("speed_kmh", "speed_kmh"), ("kind", "guideway")):
+            if key in self.guideway_params:
+                raise ValueError(
+                    f"guideway_params[{key!r}] is not accepted: the env argument {arg!r} sets it "
+                    "(one source of truth for the guideway and the vehicle)"
+                )
+        # Build everything once so that bad overrides fail here, with the parameter named.
+        _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+        self._check_substeps()
+        self.check_memory(1)
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
+        """Build from keyword arguments, rejecting unknown names with the accepted list."""
+        known = {f.name for f in fields(cls)}
+        for key in kwargs:
+            if key not in known:
+                raise ValueError(
+                    f"unknown environment argument {key!r}; accepted: {', '.join(sorted(known))}"
+                )
+        if isinstance(kwargs.get("speed_range_kmh"), list):  # e.g. from JSON
+            kwargs["speed_range_kmh"] = tuple(kwargs["speed_range_kmh"])
+        return cls(**kwargs)
+
+    # ---- derived values (properties, not stored copies) ----
+    @property
+    def hils(self) -> bool:
+        return self.setting == "hils"
+
+    @property
+    def plant_damper_name(self) -> str:
+        if self.damper is not None:
+            return self.damper
+        return "reference" if self.hils else SIM_PLANT_FOR_INVERSE[self.inverse_model]
+
+    @property
+    def vehicle(self) -> VehicleParams:
+        return _build("vehicle_params", VehicleParams, self.vehicle_params)
+
+    @property
+    def plant_damper(self) -> DamperParams:
+        name = self.plant_damper_name
+        damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
+        tau = self.effective_coil_time_constant_s
+        if name != "passive":
+            damper = replace(damper, coil_time_constant_s=tau)
+        return damper
+
+    @property
+    def effective_coil_time_constant_s(self) -> float:
+        if self.coil_time_constant_s is not None:
+            return float(self.coil_time_constant_s)
+        return 1.0 / 190.0 if self.hils else 0.0
+
+    @property
+    def effective_sensor_noise(self) -> float:
+        if self.sensor_noise is not None:
+            return float(self.sensor_noise)
+        return 1.0 if self.hils else 0.0
+
+    @property
+    def effective_control_delay_steps(self) -> int:
+        if self.control_delay_steps is not None:
+            return int(self.control_delay_steps)
+        return 1 if self.hils else 0
+
+    @property
+    def inverse_damper(self) -> BiExponentialDamper | BoucWenDamper | TanhDamper:
+        name = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}[
+            self.inverse_model
+        ]
+        return make_damper(name, **self.inverse_params)
+
+    @property
+    def guideway_spec(self) -> GuidewayParams:
+        params = {"kind": self.guideway, "speed_kmh": self.speed_kmh, **self.guideway_params}
+        return _build("guideway_params", GuidewayParams, params)
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.control_rate_hz
+
+    @property
+    def max_episode_steps(self) -> int:
+        return int(round(self.episode_length_s * self.control_rate_hz))
+
+    @property
+    def max_current_a(self) -> float:
+        damper = self.plant_damper
+        return float(getattr(damper, "max_current_a", self.inverse_damper.max_current_a))
+
+    def substep_tables(self, vehicle_params: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
+        """Substeps per control step, per vehicle (rows of packed ``vehicle_params``, each at its
+        own ``speed_mps``) and coil-current bin (:func:`capsule_env.plant.substeps.substep_tables`),
+        or the fixed ``substeps``."""
+        n = np.atleast_2d(vehicle_params).shape[0]
+        if self.substeps is not None:
+            return np.full((n, SUBSTEP_BINS), int(self.substeps), dtype=np.int64)
+        rate = self.input_rate_rad_s(np.asarray(speed_mps, dtype=float))
+        return substep_tables(self.plant_damper, self.dt_s, vehicle_params, rate)
+
+    def input_rate_rad_s(self, speed_mps: np.ndarray | float) -> np.ndarray:
+        """Highest angular frequency of the guideway input at ``speed_mps`` (rad/s)."""
+        gw = self.guideway_spec
+        speed = np.asarray(speed_mps, dtype=float)
+        if gw.kind == "sine":
+            return np.full_like(speed, 2.0 * math.pi * gw.frequency_hz)
+        if gw.kind == "swept_sine":
+            return np.full_like(speed, 2.0 * math.pi * max(gw.start_hz, gw.stop_hz))
+        shortest = {
+            "random": gw.min_wavelength_m,
+            "bump": gw.bump_length_m,
+            "step": max(2.0 * gw.ramp_length_m, 4.0 * gw.spacing_m),
+        }[gw.kind]
+        return 2.0 * math.pi * speed / shortest
+
+    @property
+    def speed_range_mps(self) -> tuple[float, float]:
+        """Lowest and highest vehicle speed (m/s)."""
+        lo, hi = self.speed_range_kmh or (self.speed_kmh, self.speed_kmh)
+        return float(lo) / 3.6, float(hi) / 3.6
+
+    @property
+    def window_m(self) -> float:
+        """Guideway one episode covers at the highest speed, plus a margin (m)."""
+        return self.speed_range_mps[1] * self.episode_length_s + 4 * self.guideway_spec.spacing_m
+
+    @property
+    def bank_samples(self) -> int:
+        """Samples per guideway profile of the bank (four windows for a random guideway, so
+        that episodes start at random places; one window otherwise)."""
+        gw = self.guideway_spec
+        length = (4.0 if gw.kind == "random" else 1.0) * self.window_m
+        return int(round(length / gw.spacing_m)) + 1 + 8
+
+    def memory_bytes(self, num_envs: int = 1) -> int:
+        """Memory a batch of ``num_envs`` vehicles needs at its peak (bytes): the guideway
+        bank (its profiles, twice while they are stacked, and the FFT that makes one), and
+        about 2 KiB per vehicle."""
+        gw = self.guideway_spec
+        profiles = self.guideway_bank_size if gw.kind == "random" else 1
+        bank = 2 * profiles * self.bank_samples * 8
+        if gw.kind == "random":
+            n_fft = fft_length(4.0 * self.window_m, gw.spacing_m, gw.max_wavelength_m)
+            bank += 40 * n_fft
+        delay = (self.effective_control_delay_steps + 1) * 8
+        return bank + num_envs * (2048 + delay)
+
+    def check_memory(self, num_envs: int = 1) -> None:
+        """Refuse (``ValueError`` naming the arguments to change) a batch that would need more
+        than 80 % of the memory available now."""
+        need, free = self.memory_bytes(num_envs), available_memory_bytes()
+        if need > 0.8 * free:
+            gw = self.guideway_spec
+            raise ValueError(
+                f"this configuration needs about {format_bytes(need)} of memory "
+                f"(num_envs={num_envs}; a guideway bank of {self.guideway_bank_size} profiles "
+                f"of {self.bank_samples} samples), more than 80 % of the {format_bytes(free)} "
+                f"available: lower episode_length_s ({self.episode_length_s:g} s), "
+                f"guideway_bank_size ({self.guideway_bank_size}) or num_envs, or raise "
+                f"guideway_params['spacing_m'] ({gw.spacing_m:g} m)"
+            )
+
+    @property
+    def randomizes_substeps(self) -> bool:
+        """Whether vehicles differ in what sets their substeps (randomised parameters or
+        speed): then each vehicle's table is computed at its reset."""
+        lo, hi = self.speed_range_mps
+        return self.substeps is None and (self.vehicle_randomization > 0.0 or hi > lo)
+
+    def _check_substeps(self) -> None:
+        """Refuse a configuration whose stiffest vehicle (the randomisation corner with the
+        lightest masses, stiffest springs and highest speed) needs more than
+        ``MAX_AUTO_SUBSTEPS`` substeps per control step."""
+        if self.substeps is not None:
+            return
+        r = self.vehicle_randomization
+        corner = self.vehicle.as_array() * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r])
+        speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
+        need = int(self.substep_tables(corner, np.array([speed])).max())
+        if need > MAX_AUTO_SUBSTEPS:
+            raise ValueError(
+                f"this configuration needs {need} RK4 substeps per control step (more than "
+                f"{MAX_AUTO_SUBSTEPS}): the damper or the vehicle is too stiff for "
+                f"control_rate_hz={self.control_rate_hz:g} (check vehicle_params masses and "
+                "stiffnesses, damper_params, vehicle_randomization, speed_kmh); raise "
+                "control_rate_hz, or set substeps explicitly"
+            )
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        return SENSOR_NAMES if self.observation == "sensors" else FULL_STATE_NAMES
+
+
+def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(low, high)`` of the observation space: generous physical limits at which the sensors
+    saturate (accelerations 100 m/s^2, stroke 2 x the bump stop, rates 10 m/s, displacements
+    1 m, current [0, i_max])."""
+    x_lim = 2.0 * config.stroke_limit_m
+    if config.observation == "sensors":
+        high = [100.0, 100.0, x_lim, 10.0, i_max]
+        low = [-100.0, -100.0, -x_lim, -10.0, 0.0]
+    else:
+        high = [1.0, 10.0, 1.0, 10.0, 1.0, 100.0, 100.0, x_lim, 10.0, i_max]
+        low = [-1.0, -10.0, -1.0, -10.0, -1.0, -100.0, -100.0, -x_lim, -10.0, 0.0]
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+def _check_speed_range(value: Any) -> None:
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise TypeError(f"speed_range_kmh must be None or (low, high) in km/h, got {value!r}")
+    lo = check_in_range("speed_range_kmh[0]", value[0], 1e-3, 1e4)
+    hi = check_in_range("speed_range_kmh[1]", value[1], 1e-3, 1e4)
+    if hi < lo:
+        raise ValueError(f"speed_range_kmh must be (low, high) with high >= low, got {value!r}")
+
+
+def check_seed(name: str, seed: Any) -> int:
+    """``seed`` as an int, or a ``TypeError``/``ValueError`` naming ``name``: seeds are integers
+    in ``[0, 2**63)`` (not bools, not floats)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer in [0, 2**63), got {seed!r}")
+    if not 0 <= int(seed) < 2**63:
+        raise ValueError(f"{name} must be an integer in [0, 2**63), got {seed!r}")
+    return int(seed)
+
+
+def check_num_envs(num_envs: Any) -> int:
+    """``num_envs`` as an int >= 1, or a ``TypeError``/``ValueError`` saying so."""
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
+        raise TypeError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    return int(num_envs)
+
+
+def _build(name: str, cls: type, overrides: dict) -> Any:
+    known = {f.name for f in fields(cls)}
+    for key in overrides:
+        if key not in known:
+            raise ValueError(f"unknown key {key!r} in {name}; accepted: {', '.join(sorted(known))}")
+    return cls(**overrides)

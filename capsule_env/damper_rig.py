@@ -1,0 +1,114 @@
+"""A damper on a test rig: the damper alone under a prescribed stroke (the loops of a rig).
+
+Identification fits models to such loops (:mod:`capsule_env.identification`): the reference
+damper's response to a sinusoidal stroke at constant currents plays the part of the paper's
+measured loops. The internal states (Spencer's ``y``, the hysteretic ``z``) are advanced with
+RK4 substeps between samples, ``z`` by the exact closed-form update over each stage's
+deformation increment (the plant's integrator, :mod:`capsule_env.plant.rk4`, with the stroke
+prescribed instead of computed).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from capsule_env.dampers import DamperParams, damper_eval, hysteresis_params
+from capsule_env.hysteresis import hysteresis_update
+from capsule_env.layout import COIL_TAU
+
+__all__ = ["simulate_damper", "sinusoidal_stroke"]
+
+
+@njit(cache=True)
+def _damper_response(model, dp, t, x, v, i_cmd, n_sub, force, z_out, y_out, i_out):
+    a_coef, gamma, beta = hysteresis_params(model, dp)
+    hysteretic = a_coef > 0.0
+    tau = dp[COIL_TAU]
+    z = 0.0
+    y = 0.0
+    ic = i_cmd[0]
+    for k in range(t.shape[0]):
+        if k > 0:
+            dt = t[k] - t[k - 1]
+            h = dt / n_sub
+            e_half = math.exp(-0.5 * h / tau) if tau > 0.0 else 0.0
+            cmd = i_cmd[k - 1]
+            for j in range(n_sub):
+                f0 = j / n_sub
+                fm = (j + 0.5) / n_sub
+                f1 = (j + 1.0) / n_sub
+                xa = x[k - 1] + f0 * (x[k] - x[k - 1])
+                xm = x[k - 1] + fm * (x[k] - x[k - 1])
+                xb = x[k - 1] + f1 * (x[k] - x[k - 1])
+                va = v[k - 1] + f0 * (v[k] - v[k - 1])
+                vm = v[k - 1] + fm * (v[k] - v[k - 1])
+                vb = v[k - 1] + f1 * (v[k] - v[k - 1])
+                ic_half = cmd + (ic - cmd) * e_half
+                ic1 = cmd + (ic_half - cmd) * e_half
+                u0 = xa - y
+                _, d1, _ = damper_eval(model, dp, xa, va, y, z, ic)
+                ys = y + 0.5 * h * d1
+                zs = hysteresis_update(z, xm - ys - u0, a_coef, gamma, beta) if hysteretic else z
+                _, d2, _ = damper_eval(model, dp, xm, vm, ys, zs, ic_half)
+                ys = y + 0.5 * h * d2
+                zs = hysteresis_update(z, xm - ys - u0, a_coef, gamma, beta) if hysteretic else z
+                _, d3, _ = damper_eval(model, dp, xm, vm, ys, zs, ic_half)
+                ys = y + h * d3
+                zs = hysteresis_update(z, xb - ys - u0, a_coef, gamma, beta) if hysteretic else z
+                _, d4, _ = damper_eval(model, dp, xb, vb, ys, zs, ic1)
+                y_new = y + h / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+                if hysteretic:
+                    z = hysteresis_update(z, xb - y_new - u0, a_coef, gamma, beta)
+                y = y_new
+                ic = ic1 if tau > 0.0 else cmd
+        force[k], _, _ = damper_eval(model, dp, x[k], v[k], y, z, ic)
+        z_out[k] = z
+        y_out[k] = y
+        i_out[k] = ic
+
+
+def simulate_damper(
+    damper: DamperParams,
+    time_s: np.ndarray,
+    stroke_m: np.ndarray,
+    stroke_rate_m_s: np.ndarray,
+    current_a: np.ndarray | float,
+    substeps: int = 4,
+) -> dict[str, np.ndarray]:
+    """Damper alone under a prescribed stroke (the loops of a damper test rig).
+
+    The stroke and its rate are sampled at ``time_s`` and interpolated linearly between
+    samples; ``current_a`` (scalar or per sample) is the commanded current, followed through the
+    model's coil lag. Internal states start at zero. Returns ``force_n``, ``hysteretic_z_m``,
+    ``internal_displacement_m`` and ``coil_current_a`` per sample.
+    """
+    t = np.ascontiguousarray(time_s, dtype=float)
+    x = np.ascontiguousarray(np.broadcast_to(np.asarray(stroke_m, float), t.shape))
+    v = np.ascontiguousarray(np.broadcast_to(np.asarray(stroke_rate_m_s, float), t.shape))
+    i = np.ascontiguousarray(np.broadcast_to(np.asarray(current_a, float), t.shape))
+    i_max = getattr(damper, "max_current_a", np.inf)
+    if not np.all(np.isfinite(i)) or i.min() < 0.0 or i.max() > i_max:
+        raise ValueError(f"current_a must be finite and in [0, {i_max}] A")
+    if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0.0):
+        raise ValueError("time_s must be a 1-D strictly increasing array of at least 2 samples")
+    force, z, y, ic = (np.empty_like(t) for _ in range(4))
+    _damper_response(damper.code, damper.as_array(), t, x, v, i, int(substeps), force, z, y, ic)
+    return {
+        "force_n": force,
+        "hysteretic_z_m": z,
+        "internal_displacement_m": y,
+        "coil_current_a": ic,
+    }
+
+
+def sinusoidal_stroke(
+    frequency_hz: float, amplitude_m: float, cycles: float, samples_per_cycle: int = 2000
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(time_s, stroke_m, stroke_rate_m_s)`` of ``x = amplitude sin(2 pi f t)``."""
+    n = int(round(cycles * samples_per_cycle)) + 1
+    t = np.linspace(0.0, cycles / frequency_hz, n)
+    w = 2.0 * np.pi * frequency_hz
+    return t, amplitude_m * np.sin(w * t), amplitude_m * w * np.cos(w * t)

@@ -1,0 +1,199 @@
+"""The one kernel factory: compiled kernels for a damper model, serial and on all cores.
+
+Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
+(:func:`capsule_env.plant.step_batch`) and the whole env step (:class:`capsule_env.batch.CapsuleBatch`:
+commands, plant, sensors, reward). For each (kind, damper model, kernel mode), :func:`kernels`
+makes a pair:
+
+- ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
+- ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
+
+``args`` are those of :func:`step_range`.
+
+The kind, model and mode are closure constants, so numba compiles each pair only for what it
+uses (the model-specific code is specialised on the constant: see :mod:`capsule_env.plant.block`)
+and caches it on disk. A vehicle's numbers do not depend on its chunk or thread: both kernels
+give the same bits. :class:`BatchedKernel` calls the right one for a batch size and skips
+numba's argument dispatch once the kernel is compiled (it would cost a few microseconds per
+call on the named-structure arguments: a large part of a single env's step).
+
+Fork: numba's fastest threading layer here is GNU OpenMP, which terminates a child process that
+launches a parallel region after its parent did (``fork() called from a process already using
+GNU OpenMP``: ``AsyncVectorEnv(context="fork")``, multiprocessing pools). A forked child of a
+process that has launched one therefore runs the serial kernels: correct and as fast per core,
+never killed. (Numba's fork-safe ``workqueue`` layer and a pool of Python threads were measured
+slower than the serial kernel at N = 64: their thread wake-up costs 50-80 us a step.)
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from numba import njit, prange, types
+from numba.extending import overload
+
+from capsule_env.env_kernel import EnvOutputs, EnvParams, EnvState, env_commands, env_sense
+from capsule_env.layout import VF_APPLIED
+from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_step
+from capsule_env.plant.params import PlantParams, Route
+from capsule_env.plant.scalar import scalar_step
+
+__all__ = ["ENV", "PLANT", "PARALLEL_THRESHOLD", "BatchedKernel", "kernels"]
+
+#: Kernel kinds.
+ENV, PLANT = 0, 1
+#: Batches at least this large are stepped by the multi-threaded kernel.
+PARALLEL_THRESHOLD = 64
+
+_launched_parallel = False  # this process has launched a parallel region
+_serial_only = False  # a forked child of a process that had: never launch one
+
+
+def _after_fork_in_child() -> None:
+    global _serial_only
+    _serial_only = _serial_only or _launched_parallel
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+@njit(cache=True)
+def work_item_size(n: int) -> int:
+    """Vehicles per work item of the parallel kernels: one block for large batches, smaller (a
+    multiple of 8, at least 4 items) for small ones so that every core gets work."""
+    return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
+
+
+def step_range(kind, model, mode, lo, hi, args):
+    """Step vehicles ``lo .. hi-1``, block by block: for an ``ENV`` kernel, ``args`` is
+    ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a ``PLANT`` kernel,
+    ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``. Compiled once per
+    (kind, model, mode): only their code compiles."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(step_range, prefer_literal=True, jit_options={"cache": True})
+def _step_range(kind, model, mode, lo, hi, args):
+    if not all(isinstance(a, types.IntegerLiteral) for a in (kind, model, mode)):
+        return None
+    if isinstance(lo, types.Literal) or isinstance(hi, types.Literal):
+        return None  # specialise on the kind, model and mode only
+    k, m, md = kind.literal_value, model.literal_value, mode.literal_value
+
+    def impl(kind, model, mode, lo, hi, args):
+        for b in range(lo, hi, BLOCK):
+            e = min(hi, b + BLOCK)
+            if k == ENV:
+                actions, params, plant, state, out = args
+                env_commands(b, e, actions, params, state, out)
+                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
+                dt, plant_out = params.dt_s, out.plant
+            else:
+                plant, x, i_cmd, route, dt, plant_out = args
+            if md == KERNEL_SCALAR:
+                scalar_step(m, b, e, plant, x, i_cmd, route, dt, plant_out)
+            else:
+                block_step(m, md, b, e, plant, x, i_cmd, route, dt, plant_out)
+            if k == ENV:
+                env_sense(b, e, params, state, out)
+
+    return impl
+
+
+def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
+    # numba's parallel loops cannot capture tuples (the named structures): the parallel
+    # kernels take them apart into arrays and scalars before the loop and put them together
+    # again in each chunk.
+    if kind == ENV:
+
+        @njit(cache=True)
+        def serial(lo, hi, actions, params, plant, state, out):
+            step_range(kind, model, mode, lo, hi, (actions, params, plant, state, out))
+
+        @njit(cache=True, parallel=True)
+        def parallel(n, actions, params, plant, state, out):
+            (f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, b0, i0, i1, b1, a0, a1, a2) = params
+            dp, vp, table, constants, profiles, spacing = plant
+            x, route, floats, step_count, noise_key, measured, delay, slots = state
+            r0, r1, r2, r3 = route
+            obs, reward, terminated, signals, plant_out = out
+            chunk = work_item_size(n)
+            for c in prange((n + chunk - 1) // chunk):
+                args = (
+                    actions,
+                    EnvParams(
+                        f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, b0, i0, i1, b1, a0, a1, a2
+                    ),  # fmt: skip
+                    PlantParams(dp, vp, table, constants, profiles, spacing),
+                    EnvState(
+                        x,
+                        Route(r0, r1, r2, r3),
+                        floats,
+                        step_count,
+                        noise_key,
+                        measured,
+                        delay,
+                        slots,
+                    ),  # fmt: skip
+                    EnvOutputs(obs, reward, terminated, signals, plant_out),
+                )
+                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
+
+    else:
+
+        @njit(cache=True)
+        def serial(lo, hi, plant, x, i_cmd, route, dt, out):
+            step_range(kind, model, mode, lo, hi, (plant, x, i_cmd, route, dt, out))
+
+        @njit(cache=True, parallel=True)
+        def parallel(n, plant, x, i_cmd, route, dt, out):
+            dp, vp, table, constants, profiles, spacing = plant
+            r0, r1, r2, r3 = route
+            chunk = work_item_size(n)
+            for c in prange((n + chunk - 1) // chunk):
+                args = (PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
+                        Route(r0, r1, r2, r3), dt, out)  # fmt: skip
+                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
+
+    return serial, parallel
+
+
+_KERNELS: dict[tuple[int, int, int], tuple[Any, Any]] = {}
+
+
+def kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
+    """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode
+    (memoised; compiled when first called, then loaded from numba's disk cache)."""
+    key = (int(kind), int(model), int(mode))
+    if key not in _KERNELS:
+        _KERNELS[key] = _make_kernels(*key)
+    return _KERNELS[key]
+
+
+class BatchedKernel:
+    """Calls ``serial(0, n, *args)`` for a small batch (or in a forked child, see the module
+    docstring) and ``parallel(n, *args)`` for a large one, through the compiled entry points
+    once they exist (the argument types of a batch never change)."""
+
+    def __init__(self, kind: int, model: int, mode: int, num_envs: int) -> None:
+        self.serial, self.parallel = kernels(kind, model, mode)
+        self.num_envs = num_envs
+        self._entry: dict[bool, Any] = {}
+
+    def __call__(self, *args: Any) -> None:
+        global _launched_parallel
+        n = self.num_envs
+        threaded = n >= PARALLEL_THRESHOLD and not _serial_only
+        head = (n,) if threaded else (0, n)
+        entry = self._entry.get(threaded)
+        if entry is not None:
+            entry(*head, *args)
+            return
+        dispatcher = self.parallel if threaded else self.serial
+        _launched_parallel |= threaded
+        dispatcher(*head, *args)  # compiles (or loads from the cache) on the first call
+        signature = tuple(dispatcher.typeof_pyval(a) for a in (*head, *args))
+        compiled = dispatcher.overloads.get(signature)
+        if compiled is not None:
+            self._entry[threaded] = compiled.entry_point

@@ -1,0 +1,189 @@
+"""Named layouts of every packed array the compiled kernels read.
+
+The kernels see numbers in arrays, not dataclasses; this module gives each slot a name, once.
+Every index is derived from a tuple of names (``name.index(...)``), so a layout and its
+constants cannot disagree, and every kernel reads ``state[n, BODY_VEL]`` or
+``signals[SIG_STROKE, n]``, never ``state[n, 1]``. Module-level integers are compile-time
+constants for numba: naming costs no speed.
+
+| array | shape | layout |
+| --- | --- | --- |
+| plant state | (N, STATE_SIZE) | :data:`STATE_NAMES` |
+| vehicle parameters | (N, 4) | :data:`VEHICLE_PARAM_NAMES` |
+| damper parameters | (N, N_DAMPER_PARAMS) | :data:`DAMPER_PARAM_NAMES` per model, then the shared slots |
+| plant outputs | (N, N_PLANT_OUTPUTS) | :data:`PLANT_OUTPUT_NAMES` |
+| env signals (``info``) | (N_SIGNALS, N) | :data:`SIGNAL_NAMES` |
+| measurements | (N_MEASUREMENTS, N) | :data:`MEASUREMENT_NAMES` |
+| per-vehicle floats of the env | (N_VEHICLE_FLOATS, N) | :data:`VEHICLE_FLOAT_NAMES` |
+| sensor-noise channels | (N_NOISE_CHANNELS, block) | :data:`NOISE_CHANNEL_NAMES` |
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "STATE_NAMES",
+    "VEHICLE_PARAM_NAMES",
+    "DAMPER_PARAM_NAMES",
+    "PLANT_OUTPUT_NAMES",
+    "SIGNAL_NAMES",
+    "MEASUREMENT_NAMES",
+    "VEHICLE_FLOAT_NAMES",
+    "NOISE_CHANNEL_NAMES",
+]
+
+# --------------------------------------------------------------------------- plant state
+#: Columns of the plant state of one vehicle (SI units).
+STATE_NAMES = (
+    "car_body_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_displacement_m",
+    "bogie_velocity_m_s",
+    "hysteretic_z_m",  # Bouc-Wen / Spencer hysteretic variable
+    "damper_internal_displacement_m",  # Spencer's y
+    "coil_current_a",  # actual current, after the coil lag
+    "time_s",
+)
+BODY_DISP, BODY_VEL, BOGIE_DISP, BOGIE_VEL, HYST_Z, DAMPER_Y, COIL_CURRENT, TIME = (
+    STATE_NAMES.index(n) for n in STATE_NAMES
+)
+STATE_SIZE = len(STATE_NAMES)
+
+# --------------------------------------------------------------------------- vehicle
+#: Packed vehicle parameters (``VehicleParams.as_array``).
+VEHICLE_PARAM_NAMES = (
+    "car_body_mass_kg",
+    "bogie_mass_kg",
+    "secondary_stiffness_n_per_m",
+    "levitation_stiffness_n_per_m",
+)
+MASS_BODY, MASS_BOGIE, STIFF_SECONDARY, STIFF_LEVITATION = range(len(VEHICLE_PARAM_NAMES))
+N_VEHICLE_PARAMS = len(VEHICLE_PARAM_NAMES)
+
+# --------------------------------------------------------------------------- dampers
+#: Model parameters of each damper model, in packed order (``DamperParams.as_array``); the
+#: slots after them are shared by every model (:data:`SHARED_DAMPER_SLOTS`).
+DAMPER_PARAM_NAMES = {
+    "passive": ("damping_n_s_per_m",),
+    "reference": (
+        "c0a",
+        "c0b",
+        "c1a",
+        "c1b",
+        "alpha_a",
+        "alpha_b",
+        "k0",
+        "k1",
+        "x0",
+        "gamma",
+        "beta",
+        "a_coef",
+    ),  # fmt: skip
+    "bouc_wen": ("c0a", "c0b", "alpha_a", "alpha_b", "k0", "x0", "gamma", "beta", "a_coef"),
+    "tanh": ("c_a", "c_b", "k_a", "k_b", "alpha_a", "alpha_b", "f0_a", "f0_b", "beta", "delta"),
+    "bi_exponential": tuple(
+        f"{branch}_{p}"
+        for branch in ("upper", "lower")
+        for p in ("a0", "a1", "b0", "b1", "c0", "c1", "d")
+    ),
+}
+#: Slots every model has, after its own parameters.
+SHARED_DAMPER_SLOTS = ("max_current_a", "coil_time_constant_s", "branch_blend_m")
+I_MAX, COIL_TAU, BRANCH_BLEND = 14, 15, 16
+N_DAMPER_PARAMS = 17
+
+_REF = DAMPER_PARAM_NAMES["reference"]
+SP_C0A, SP_C0B, SP_C1A, SP_C1B, SP_ALPHA_A, SP_ALPHA_B, SP_K0, SP_K1, SP_X0 = (
+    _REF.index(n) for n in ("c0a", "c0b", "c1a", "c1b", "alpha_a", "alpha_b", "k0", "k1", "x0")
+)
+SP_GAMMA, SP_BETA, SP_A = (_REF.index(n) for n in ("gamma", "beta", "a_coef"))
+_BW = DAMPER_PARAM_NAMES["bouc_wen"]
+BW_C0A, BW_C0B, BW_ALPHA_A, BW_ALPHA_B, BW_K0, BW_X0, BW_GAMMA, BW_BETA, BW_A = (
+    _BW.index(n) for n in _BW
+)
+_TH = DAMPER_PARAM_NAMES["tanh"]
+TH_C_A, TH_C_B, TH_K_A, TH_K_B, TH_ALPHA_A, TH_ALPHA_B, TH_F0_A, TH_F0_B, TH_BETA, TH_DELTA = (
+    _TH.index(n) for n in _TH
+)
+_BX = DAMPER_PARAM_NAMES["bi_exponential"]
+#: Offsets of the upper (x >= 0) and lower (x < 0) Bi-exponential branches, and of each
+#: parameter within a branch.
+BX_UPPER, BX_LOWER = _BX.index("upper_a0"), _BX.index("lower_a0")
+BX_A0, BX_A1, BX_B0, BX_B1, BX_C0, BX_C1, BX_D = range(7)
+PV_DAMPING = 0
+assert all(len(v) <= I_MAX for v in DAMPER_PARAM_NAMES.values())
+
+# --------------------------------------------------------------------------- plant outputs
+#: Columns of the plant kernel's per-step outputs, at the end of the control interval.
+PLANT_OUTPUT_NAMES = ("damper_force_n", "body_acc_m_s2", "bogie_acc_m_s2", "guideway_m")
+OUT_FORCE, OUT_BODY_ACC, OUT_BOGIE_ACC, OUT_GUIDEWAY = range(len(PLANT_OUTPUT_NAMES))
+N_PLANT_OUTPUTS = len(PLANT_OUTPUT_NAMES)
+
+# --------------------------------------------------------------------------- env signals
+#: Per-step physical signals and reward terms (the env's ``info`` keys), one row each.
+SIGNAL_NAMES = (
+    "car_body_displacement_m",
+    "bogie_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_velocity_m_s",
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "damper_force_n",
+    "desired_force_n",
+    "current_command_a",
+    "coil_current_a",
+    "guideway_elevation_m",
+    "cost_acceleration",
+    "cost_stroke",
+    "cost_energy",
+    "cost_velocity",
+)
+(SIG_BODY_DISP, SIG_BOGIE_DISP, SIG_BODY_VEL, SIG_BOGIE_VEL, SIG_BODY_ACC, SIG_BOGIE_ACC,
+ SIG_STROKE, SIG_STROKE_RATE, SIG_FORCE, SIG_DESIRED_FORCE, SIG_CURRENT_COMMAND, SIG_COIL_CURRENT,
+ SIG_GUIDEWAY, SIG_COST_ACC, SIG_COST_STROKE, SIG_COST_ENERGY, SIG_COST_VEL) = (
+    SIGNAL_NAMES.index(n) for n in SIGNAL_NAMES
+)  # fmt: skip
+N_SIGNALS = len(SIGNAL_NAMES)
+
+# --------------------------------------------------------------------------- measurements
+#: What the vehicle's sensors read this step (with noise), one row each: what the inverse
+#: model and the observations use.
+MEASUREMENT_NAMES = (
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "last_current_command_a",
+)
+MEAS_BODY_ACC, MEAS_BOGIE_ACC, MEAS_STROKE, MEAS_STROKE_RATE, MEAS_COMMAND = (
+    MEASUREMENT_NAMES.index(n) for n in MEASUREMENT_NAMES
+)
+N_MEASUREMENTS = len(MEASUREMENT_NAMES)
+
+# --------------------------------------------------------------------------- env per vehicle
+#: Per-vehicle floats of the env (one row each): the CSDC inverse's hysteresis estimate and the
+#: stroke it was last advanced to, and the current applied to the plant this step (the command
+#: after the control delay).
+VEHICLE_FLOAT_NAMES = ("csdc_z_estimate", "csdc_last_stroke_m", "applied_current_a")
+VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED = range(len(VEHICLE_FLOAT_NAMES))
+N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)
+
+# --------------------------------------------------------------------------- sensor noise
+#: Sensor-noise channels, in the order their standard normals are drawn (channel ``c`` is
+#: member ``c % 2`` of Box-Muller pair ``c // 2``): a channel keeps its noise whatever other
+#: channels an observation set reads.
+NOISE_CHANNEL_NAMES = (
+    "car_body_acceleration_m_s2",
+    "bogie_acceleration_m_s2",
+    "stroke_m",
+    "stroke_rate_m_s",
+    "car_body_displacement_m",
+    "car_body_velocity_m_s",
+    "bogie_displacement_m",
+    "bogie_velocity_m_s",
+    "guideway_elevation_m",
+)
+(NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE, NOISE_BODY_DISP,
+ NOISE_BODY_VEL, NOISE_BOGIE_DISP, NOISE_BOGIE_VEL, NOISE_GUIDEWAY) = range(len(NOISE_CHANNEL_NAMES))  # fmt: skip
+N_NOISE_CHANNELS = len(NOISE_CHANNEL_NAMES)

@@ -1,0 +1,427 @@
+"""The vectorised (SIMD) block kernel: up to :data:`BLOCK` vehicles advanced side by side.
+
+A core spends most of an RK4 substep waiting on the latency of divisions and exponentials,
+because the stages depend on each other. This kernel does the same arithmetic with the vehicles
+of a block side by side: their state is copied into a scratch array with one row per quantity
+and one column per vehicle, and each RK4 substep is a loop over the columns whose body makes no
+calls (:mod:`capsule_env._fastmath`), which LLVM vectorises, two vehicles per iteration (two
+dependency chains). Vehicles are sorted by their number of substeps, so substep ``s`` loops only
+over those that still need it. Each vehicle's result does not depend on its block mates or its
+SIMD lane (the same operations in the same order): a batch of one and a batch of thousands
+agree bit for bit.
+
+Models: reference (Spencer), Bi-exponential, tanh, passive. Bouc-Wen (its unloading branch
+needs tan/atan) and Spencer parameters with ``gamma > beta`` use the scalar kernel
+(:func:`block_kernel_mode`). The damper model and the kernel variant are compile-time constants
+(:func:`plant_block` is specialised on them), so only the code of the model in use compiles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, types
+from numba.extending import overload
+
+from capsule_env._fastmath import FAST
+from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
+from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
+from capsule_env.layout import (
+    COIL_CURRENT,
+    COIL_TAU,
+    I_MAX,
+    MASS_BODY,
+    MASS_BOGIE,
+    N_DAMPER_PARAMS,
+    OUT_BODY_ACC,
+    OUT_BOGIE_ACC,
+    OUT_FORCE,
+    OUT_GUIDEWAY,
+    SP_A,
+    SP_BETA,
+    SP_GAMMA,
+    STATE_SIZE,
+    STIFF_LEVITATION,
+    STIFF_SECONDARY,
+    TIME,
+)
+from capsule_env.plant.rk4 import (
+    HYST_FAST_LINEAR_UNLOAD,
+    HYST_FAST_TANH_UNLOAD,
+    HYST_NONE,
+    plant_outputs,
+    rk4_substep,
+)
+
+__all__ = [
+    "BLOCK",
+    "KERNEL_SCALAR",
+    "KERNEL_BLOCK",
+    "KERNEL_BLOCK_TANH_UNLOAD",
+    "KERNEL_UNIFORM",
+    "block_constants",
+    "block_kernel_mode",
+    "guideway_elevation",
+]
+
+#: Vehicles per block of the vectorised kernel.
+BLOCK = 64
+#: :func:`block_kernel_mode` results.
+KERNEL_SCALAR, KERNEL_BLOCK, KERNEL_BLOCK_TANH_UNLOAD = 0, 1, 2
+#: Flag added to a block mode when every row has the same damper parameters (an env's plant):
+#: the kernel then reads them as constants instead of copying them into every vehicle's lane.
+KERNEL_UNIFORM = 4
+
+# Scratch rows of one half of a block: the state, then the per-vehicle values of the interval,
+# the Riccati constants and the damper parameters (each row HALF long).
+_SCRATCH_ROWS = (
+    "z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t",  # the plant state, in STATE_NAMES order
+    "h", "i_cmd", "e_half", "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end",
+)  # fmt: skip
+(_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
+ _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = range(len(_SCRATCH_ROWS))  # fmt: skip
+_W_A = len(_SCRATCH_ROWS)  # N_RICCATI_CONSTANTS rows
+_W_P = _W_A + N_RICCATI_CONSTANTS  # N_DAMPER_PARAMS rows
+_W_ROWS = _W_P + N_DAMPER_PARAMS
+#: The scratch array holds two halves (even and odd sorted ranks), rows HALF apart.
+HALF = BLOCK // 2
+_W_HALF_SIZE = _W_ROWS * HALF
+#: Columns of :func:`block_constants`: the Riccati constants, then the coil-lag factor
+#: ``exp(-h / (2 tau))`` of each substep-table bin.
+_D_EHALF = N_RICCATI_CONSTANTS
+
+
+def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
+    """Which kernel steps these damper rows: ``KERNEL_SCALAR`` (Bouc-Wen, or Spencer rows whose
+    unloading branch is not of tanh/linear form, or rows that disagree on it),
+    ``KERNEL_BLOCK`` or ``KERNEL_BLOCK_TANH_UNLOAD`` (Spencer with beta > gamma), plus
+    ``KERNEL_UNIFORM`` when all rows are equal (the same numbers, fewer copies)."""
+    mode = _block_kernel_family(damper_code, damper_params)
+    p = np.asarray(damper_params).reshape(-1, np.shape(damper_params)[-1])
+    if mode != KERNEL_SCALAR and np.all(p == p[:1]):
+        mode |= KERNEL_UNIFORM
+    return mode
+
+
+def _block_kernel_family(damper_code: int, damper_params: np.ndarray) -> int:
+    if damper_code in (BI_EXPONENTIAL, TANH, PASSIVE):
+        return KERNEL_BLOCK
+    if damper_code != REFERENCE:
+        return KERNEL_SCALAR
+    p = np.asarray(damper_params).reshape(-1, damper_params.shape[-1])
+    a_coef, gamma, beta = p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA]
+    if np.any(a_coef <= 0.0) or np.any(gamma < 0.0) or np.any(gamma + beta <= 0.0):
+        return KERNEL_SCALAR
+    unload = beta - gamma
+    if np.all(unload == 0.0):
+        return KERNEL_BLOCK
+    if np.all(unload > 0.0):
+        return KERNEL_BLOCK_TANH_UNLOAD
+    return KERNEL_SCALAR
+
+
+def block_constants(
+    damper_code: int, damper_params: np.ndarray, dt_s: float, table: np.ndarray
+) -> np.ndarray:
+    """Per-vehicle constants of the block kernel, computed once rather than every step: the
+    Riccati constants of the Spencer hysteresis (1 where unused; ``hysteresis.riccati_constants``)
+    and the coil-lag factor ``exp(-h / (2 tau))`` at each table bin's substep ``h = dt / n``
+    (0 without coil lag). ``table``: one (bins,) table for every row, or (N, bins)."""
+    p = np.atleast_2d(np.asarray(damper_params, dtype=float))
+    out = np.ones((p.shape[0], _D_EHALF + np.shape(table)[-1]))
+    if damper_code == REFERENCE:
+        out[:, :_D_EHALF] = riccati_constants(p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA])
+    tau = p[:, COIL_TAU][:, None]
+    h = dt_s / np.broadcast_to(np.asarray(table, dtype=float), (p.shape[0], np.shape(table)[-1]))
+    lag = tau > 0.0
+    out[:, _D_EHALF:] = np.where(lag, np.exp(-0.5 * h / np.where(lag, tau, 1.0)), 0.0)
+    return np.ascontiguousarray(out)
+
+
+@njit(**FAST, inline="always")
+def guideway_elevation(profiles, k, spacing, last, position):
+    """Profile ``k`` at ``position`` (m), linear between samples, held beyond both ends
+    (``last = profiles.shape[1] - 1.0``); clamps instead of branches."""
+    s = min(max(position / spacing, 0.0), last)
+    j = min(int(s), int(last) - 1)
+    f = s - j
+    return profiles[k, j] * (1.0 - f) + profiles[k, j + 1] * f
+
+
+@njit(**FAST, inline="always")
+def _slot(rank):
+    """Flat offset of the sorted vehicle ``rank`` in the scratch array: even ranks in the first
+    half, odd ranks in the second, ``rank // 2`` within it (rows ``HALF`` apart)."""
+    return (rank & 1) * _W_HALF_SIZE + (rank >> 1)
+
+
+@njit(**FAST, inline="always")
+def _lane_values(wv, j):
+    """The scratch values of one vehicle (rows z_c .. zg_end) as a tuple (offset ``j``)."""
+    return (
+        wv[j], wv[j + HALF], wv[j + 2 * HALF], wv[j + 3 * HALF], wv[j + 4 * HALF],
+        wv[j + 5 * HALF], wv[j + 6 * HALF], wv[j + 7 * HALF], wv[j + 8 * HALF],
+        wv[j + 9 * HALF], wv[j + 10 * HALF], wv[j + 11 * HALF], wv[j + 12 * HALF],
+        wv[j + 13 * HALF], wv[j + 14 * HALF], wv[j + 15 * HALF], wv[j + 16 * HALF],
+        wv[j + 17 * HALF],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _lane_constants(wv, j):
+    """The Riccati constants of one vehicle from the scratch view."""
+    b = j + _W_A * HALF
+    return (
+        wv[b], wv[b + HALF], wv[b + 2 * HALF], wv[b + 3 * HALF], wv[b + 4 * HALF],
+        wv[b + 5 * HALF], wv[b + 6 * HALF], wv[b + 7 * HALF], wv[b + 8 * HALF],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _lane_params(wv, j):
+    """The packed damper parameters of one vehicle from the scratch view."""
+    b = j + _W_P * HALF
+    return (
+        wv[b], wv[b + HALF], wv[b + 2 * HALF], wv[b + 3 * HALF], wv[b + 4 * HALF],
+        wv[b + 5 * HALF], wv[b + 6 * HALF], wv[b + 7 * HALF], wv[b + 8 * HALF],
+        wv[b + 9 * HALF], wv[b + 10 * HALF], wv[b + 11 * HALF], wv[b + 12 * HALF],
+        wv[b + 13 * HALF], wv[b + 14 * HALF], wv[b + 15 * HALF], wv[b + 16 * HALF],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def row_params(dp, n):
+    """Row ``n`` of the packed damper parameters as a tuple (a value: no array view, whose
+    reference counting costs in a per-vehicle loop; and loop constants of a uniform batch)."""
+    return (
+        dp[n, 0], dp[n, 1], dp[n, 2], dp[n, 3], dp[n, 4], dp[n, 5], dp[n, 6], dp[n, 7],
+        dp[n, 8], dp[n, 9], dp[n, 10], dp[n, 11], dp[n, 12], dp[n, 13], dp[n, 14], dp[n, 15],
+        dp[n, 16],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _row_constants(derived, n):
+    """The Riccati constants of :func:`block_constants` row ``n`` as a tuple."""
+    return (
+        derived[n, 0], derived[n, 1], derived[n, 2], derived[n, 3], derived[n, 4],
+        derived[n, 5], derived[n, 6], derived[n, 7], derived[n, 8],
+    )  # fmt: skip
+
+
+@njit(**FAST, inline="always")
+def _store_lane(wv, j, new, active):
+    """Write a vehicle's new state (rows z_c .. t and zg_start) if ``active`` (a select)."""
+    wv[j + 0 * HALF] = new[0] if active else wv[j + 0 * HALF]
+    wv[j + 1 * HALF] = new[1] if active else wv[j + 1 * HALF]
+    wv[j + 2 * HALF] = new[2] if active else wv[j + 2 * HALF]
+    wv[j + 3 * HALF] = new[3] if active else wv[j + 3 * HALF]
+    wv[j + 4 * HALF] = new[4] if active else wv[j + 4 * HALF]
+    wv[j + 5 * HALF] = new[5] if active else wv[j + 5 * HALF]
+    wv[j + 6 * HALF] = new[6] if active else wv[j + 6 * HALF]
+    wv[j + 7 * HALF] = new[7] if active else wv[j + 7 * HALF]
+    wv[j + _W_ZG0 * HALF] = new[8] if active else wv[j + _W_ZG0 * HALF]
+
+
+@njit(cache=True, error_model="numpy")
+def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
+    """Guideway elevation at the middle and end of the substep of the sorted vehicles
+    ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
+    last = profiles.shape[1] - 1.0
+    for rank in range(first, nb):
+        n = order[rank]
+        o = _slot(rank)
+        t, h = w[o + _W_T * HALF], w[o + _W_H * HALF]
+        k, g, p0, sp = route.profile[n], route.gain[n], route.start_m[n], route.speed_mps[n]
+        w[o + _W_ZGH * HALF] = g * guideway_elevation(
+            profiles, k, spacing, last, p0 + sp * (t + 0.5 * h)
+        )
+        w[o + _W_ZG1 * HALF] = g * guideway_elevation(profiles, k, spacing, last, p0 + sp * (t + h))
+
+
+def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
+    """One RK4 substep of the sorted vehicles ``first .. nb-1``: the SIMD loop.
+
+    Each iteration advances two vehicles, one from each half of the scratch array (even and odd
+    ranks): two independent dependency chains, so the core overlaps their latencies. A vehicle
+    outside ``first .. nb-1`` that shares an iteration is computed and not stored (a select).
+    The view starts at the first column and every access is a constant offset from it, so LLVM
+    sees no negative indices and no overlap and vectorises the loop. With ``uniform`` the damper
+    parameters and Riccati constants are ``p_uniform``/``hc_uniform`` (loop constants) instead of
+    scratch rows. Compiled once per (model, hysteresis, uniform): see the overload below."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(substep_lanes, prefer_literal=True, jit_options=FAST)
+def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
+    if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
+        return None  # specialise on the model, hysteresis and uniform flag only
+    m, hyst, uni = model.literal_value, hysteresis.literal_value, uniform.literal_value
+
+    def impl(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
+        col0 = first >> 1
+        first_a = (first + 1) >> 1  # first active column of the even half
+        end = (nb + 1) >> 1
+        end_b = nb >> 1  # odd half: columns < end_b are vehicles
+        wv = w[col0:]  # one view: the odd half sits at the constant offset _W_HALF_SIZE
+        # A multiple of 4 iterations: a partial SIMD group runs as masked lanes rather than as
+        # the loop's scalar remainder (4x slower per vehicle). Lanes past the end only read.
+        for j in range((end - col0 + 3) & -4):
+            col = col0 + j
+            jb = j + _W_HALF_SIZE
+            if uni:
+                p_a, p_b, hc_a, hc_b = p_uniform, p_uniform, hc_uniform, hc_uniform
+            else:
+                p_a, p_b = _lane_params(wv, j), _lane_params(wv, jb)
+                hc_a, hc_b = _lane_constants(wv, j), _lane_constants(wv, jb)
+            new_a = rk4_substep(m, hyst, _lane_values(wv, j), p_a, hc_a)
+            new_b = rk4_substep(m, hyst, _lane_values(wv, jb), p_b, hc_b)
+            _store_lane(wv, j, new_a, col >= first_a and col < end)
+            _store_lane(wv, jb, new_b, col < end_b)
+
+    return impl
+
+
+def output_lanes(model, uniform, wv, count, p_uniform):
+    """Force and accelerations at the end of the interval (into rows zg_mid, zg_end, h) of the
+    first ``count`` columns of one half. Compiled once per (model, uniform)."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(output_lanes, prefer_literal=True, jit_options=FAST)
+def _output_lanes(model, uniform, wv, count, p_uniform):
+    if not isinstance(model, types.IntegerLiteral):
+        return None
+    m, uni = model.literal_value, uniform.literal_value
+
+    def impl(model, uniform, wv, count, p_uniform):
+        for j in range(count):
+            v = _lane_values(wv, j)
+            p = p_uniform if uni else _lane_params(wv, j)
+            zc, vc, zb, vb, z, y, ic = v[0:7]
+            ks, kp, inv_mc, inv_mb, zg0 = v[_W_KS], v[_W_KP], v[_W_INV_MC], v[_W_INV_MB], v[_W_ZG0]
+            force, acc_c, acc_b = plant_outputs(m, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb,
+                                                ks, kp, zg0)  # fmt: skip
+            wv[j + _W_ZGH * HALF] = force
+            wv[j + _W_ZG1 * HALF] = acc_c
+            wv[j + _W_H * HALF] = acc_b
+
+    return impl
+
+
+@njit(cache=True)
+def _sort_by_substeps(nsub_of, nb, lo, order):
+    """Stable sort of the block's vehicles by their substep count (insertion sort: a block has
+    at most 64 vehicles, mostly in order already): ``order[rank]`` = vehicle index."""
+    for m in range(nb):
+        ns = nsub_of[m]
+        r = m
+        while r > 0 and nsub_of[order[r - 1] - lo] > ns:
+            order[r] = order[r - 1]
+            r -= 1
+        order[r] = lo + m
+
+
+def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+    """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt`` with the vectorised kernel
+    (``mode`` a block mode of :func:`block_kernel_mode`). Compiled once per (model, mode)."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(block_step, prefer_literal=True, jit_options={"cache": True, "error_model": "numpy"})
+def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+    if not isinstance(model, types.IntegerLiteral):
+        return None
+    m, md = model.literal_value, mode.literal_value
+    uni = (md & KERNEL_UNIFORM) != 0
+    family = md & ~KERNEL_UNIFORM
+    if m != REFERENCE:
+        hyst = HYST_NONE
+    elif family == KERNEL_BLOCK_TANH_UNLOAD:
+        hyst = HYST_FAST_TANH_UNLOAD
+    else:
+        hyst = HYST_FAST_LINEAR_UNLOAD
+
+    def impl(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+        dp, vp, table, derived = plant.damper, plant.vehicle, plant.substeps, plant.constants
+        profiles, spacing = plant.profiles, plant.spacing_m
+        nb = hi - lo
+        # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD
+        # lanes. The columns that only masked lanes read are zeroed, so that no lane computes
+        # on denormal garbage (slow on x86); the rest is written below.
+        w = np.empty(2 * _W_HALF_SIZE + 8)
+        w[2 * _W_HALF_SIZE :] = 0.0
+        end = (nb + 1) >> 1
+        for col in range(end, min(end + 3, HALF)):
+            for r in range(_W_ROWS):
+                w[r * HALF + col] = 0.0
+                w[_W_HALF_SIZE + r * HALF + col] = 0.0
+        nsub_of = np.empty(BLOCK, dtype=np.int64)
+        bin_of = np.empty(BLOCK, dtype=np.int64)
+        nsub = np.empty(BLOCK, dtype=np.int64)
+        order = np.empty(BLOCK, dtype=np.int64)
+        n_bins = table.shape[1]
+        for j in range(nb):  # substeps per vehicle (from the highest current of the interval)
+            n = lo + j
+            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
+            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
+            i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
+            b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
+            b = min(max(b, 0), n_bins - 1)
+            nsub_of[j] = table[n, b]
+            bin_of[j] = b
+        _sort_by_substeps(nsub_of, nb, lo, order)
+        last = profiles.shape[1] - 1.0
+        for rank in range(nb):
+            n = order[rank]
+            o = _slot(rank)
+            ns = nsub_of[n - lo]
+            nsub[rank] = ns
+            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
+            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
+            for j in range(STATE_SIZE):
+                w[o + j * HALF] = x[n, j]
+            if tau <= 0.0:
+                w[o + COIL_CURRENT * HALF] = cmd
+            w[o + _W_H * HALF] = dt / ns
+            w[o + _W_ICMD * HALF] = cmd
+            w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
+            w[o + _W_INV_MC * HALF] = 1.0 / vp[n, MASS_BODY]
+            w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
+            w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
+            w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
+            position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
+            w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
+                profiles, route.profile[n], spacing, last, position
+            )
+            if not uni:  # else read as loop constants
+                for j in range(N_DAMPER_PARAMS):
+                    w[o + (_W_P + j) * HALF] = dp[n, j]
+                for j in range(_D_EHALF):
+                    w[o + (_W_A + j) * HALF] = derived[n, j]
+        if nb & 1:  # the odd half's last column has no vehicle: give it real numbers
+            src, dst = _slot(nb - 1), _slot(nb)
+            for j in range(_W_ROWS):
+                w[dst + j * HALF] = w[src + j * HALF]
+        p_uniform, hc_uniform = row_params(dp, lo), _row_constants(derived, lo)
+        # substep s advances the tail of the vehicles that need more than s substeps
+        first = 0
+        s = 0
+        while first < nb:
+            _guideway_lanes(w, first, nb, order, profiles, spacing, route)
+            substep_lanes(m, hyst, uni, w, first, nb, p_uniform, hc_uniform)
+            s += 1
+            while first < nb and nsub[first] <= s:
+                first += 1
+        output_lanes(m, uni, w[:_W_HALF_SIZE], min(HALF, (((nb + 1) >> 1) + 3) & -4), p_uniform)
+        output_lanes(m, uni, w[_W_HALF_SIZE:], min(HALF, ((nb >> 1) + 3) & -4), p_uniform)
+        for rank in range(nb):
+            n = order[rank]
+            o = _slot(rank)
+            for j in range(STATE_SIZE):
+                x[n, j] = w[o + j * HALF]
+            out[n, OUT_FORCE] = w[o + _W_ZGH * HALF]
+            out[n, OUT_BODY_ACC] = w[o + _W_ZG1 * HALF]
+            out[n, OUT_BOGIE_ACC] = w[o + _W_H * HALF]
+            out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]
+
+    return impl
