@@ -33,10 +33,11 @@ from capsule_env.env_kernel import (
     DELAY_READ,
     DELAY_WRITE,
     OBS_FULL_STATE,
-    OBS_SENSORS,
+    OBSERVATION_CODES,
     EnvOutputs,
     EnvParams,
     EnvState,
+    noise_pairs,
 )
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.kernels import ENV, BatchedKernel
@@ -150,11 +151,13 @@ class CapsuleBatch:
             bump_stop_penalty=float(config.bump_stop_penalty),
             current_mode=config.action_mode == "current",
             inverse_code=int(INVERSE_CODES[config.inverse_model]),
-            observation=OBS_FULL_STATE if config.observation == "full_state" else OBS_SENSORS,
+            observation=OBSERVATION_CODES[config.observation],
             noisy=bool(np.any(noise_std > 0.0)),
             inverse_params=self.inverse.as_array(),
             noise_std=noise_std,
+            noise_pairs=noise_pairs(OBSERVATION_CODES[config.observation]),
             obs_bounds=np.array(observation_bounds(config, self.i_max), dtype=np.float64),
+            estimator=config.velocity_estimator_coefficients(),
         )
         # What each vehicle's plant is made of (vehicles may differ, after their resets).
         self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))

@@ -41,6 +41,8 @@ from capsule_env.layout import (
     NOISE_BOGIE_ACC,
     NOISE_BOGIE_DISP,
     NOISE_BOGIE_VEL,
+    NOISE_CURRENT,
+    NOISE_GAP,
     NOISE_GUIDEWAY,
     NOISE_STROKE,
     NOISE_STROKE_RATE,
@@ -51,9 +53,11 @@ from capsule_env.layout import (
     SIG_BODY_ACC,
     SIG_BODY_DISP,
     SIG_BODY_VEL,
+    SIG_BODY_VEL_EST,
     SIG_BOGIE_ACC,
     SIG_BOGIE_DISP,
     SIG_BOGIE_VEL,
+    SIG_BOGIE_VEL_EST,
     SIG_COIL_CURRENT,
     SIG_COST_ACC,
     SIG_COST_ENERGY,
@@ -68,14 +72,50 @@ from capsule_env.layout import (
     VF_APPLIED,
     VF_CSDC_STROKE,
     VF_CSDC_Z,
+    VF_EST_BODY_1,
+    VF_EST_BODY_2,
+    VF_EST_BOGIE_1,
+    VF_EST_BOGIE_2,
 )
 from capsule_env.plant.block import row_params
 from capsule_env.plant.params import Route
 
-__all__ = ["EnvParams", "EnvState", "EnvOutputs", "OBS_SENSORS", "OBS_FULL_STATE"]
+__all__ = [
+    "EnvParams",
+    "EnvState",
+    "EnvOutputs",
+    "OBS_SENSORS",
+    "OBS_FULL_STATE",
+    "OBS_MEASURED",
+    "OBSERVATION_CODES",
+    "noise_pairs",
+]
 
-#: Observation sets (``EnvParams.observation``).
-OBS_SENSORS, OBS_FULL_STATE = 0, 1
+#: Observation sets (``EnvParams.observation``), by the names of ``EnvConfig.observation``.
+OBS_SENSORS, OBS_FULL_STATE, OBS_MEASURED = 0, 1, 2
+OBSERVATION_CODES = {"sensors": OBS_SENSORS, "full_state": OBS_FULL_STATE, "measured": OBS_MEASURED}
+#: Noise channels each observation set reads (the rest are not drawn).
+_CHANNELS_READ = {
+    OBS_SENSORS: (NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE),
+    OBS_FULL_STATE: tuple(range(NOISE_GAP)),
+    OBS_MEASURED: (
+        NOISE_BODY_ACC,
+        NOISE_BOGIE_ACC,
+        NOISE_STROKE,
+        NOISE_STROKE_RATE,
+        NOISE_GAP,
+        NOISE_CURRENT,
+    ),  # fmt: skip
+}
+#: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
+EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
+
+
+def noise_pairs(observation: int) -> np.ndarray:
+    """The Box-Muller pairs an observation set needs drawn (pair ``c // 2`` for channel ``c``)."""
+    return np.array(sorted({c // 2 for c in _CHANNELS_READ[observation]}), dtype=np.int64)
+
+
 #: Rows of ``EnvParams.obs_bounds``.
 LOW, HIGH = 0, 1
 #: Rows of ``EnvState.delay_slots``: where this step's command is written in the delay ring,
@@ -100,11 +140,13 @@ class EnvParams(NamedTuple):
     bump_stop_penalty: float
     current_mode: bool  # action_mode == "current"
     inverse_code: int  # damper code of the model the controller inverts
-    observation: int  # OBS_SENSORS or OBS_FULL_STATE
+    observation: int  # OBS_SENSORS, OBS_FULL_STATE or OBS_MEASURED
     noisy: bool  # any sensor noise
     inverse_params: np.ndarray  # (N_DAMPER_PARAMS,) the inverted model's packed parameters
     noise_std: np.ndarray  # (N_NOISE_CHANNELS,) standard deviation of each channel
+    noise_pairs: np.ndarray  # (k,) int64: the Box-Muller pairs the observation set reads
     obs_bounds: np.ndarray  # (2, obs_dim) rows LOW, HIGH: where the sensors saturate
+    estimator: np.ndarray  # (5,) the velocity estimator's biquad, rows EST_B0 .. EST_A2
 
 
 class EnvState(NamedTuple):
@@ -231,10 +273,9 @@ def env_sense(lo, hi, params, state, out):
     if not params.noisy:
         noise[:] = 0.0
     else:
-        channels = N_NOISE_CHANNELS if params.observation == OBS_FULL_STATE else NOISE_BODY_DISP
         keys, steps = state.noise_key[lo:hi], state.step_count[lo:hi]
-        for j in range((channels + 1) // 2):
-            _noise_lanes(keys, steps, j, nb, noise[2 * j], noise[2 * j + 1])
+        for pair in params.noise_pairs:
+            _noise_lanes(keys, steps, pair, nb, noise[2 * pair], noise[2 * pair + 1])
     # 2. sensors, reward, signals: one loop over the block (one contiguous row of meas and sig
     # per channel; every parameter is read into a local first, so no load is conditional)
     s_acc_c, s_acc_b = std[NOISE_BODY_ACC], std[NOISE_BOGIE_ACC]
@@ -245,7 +286,10 @@ def env_sense(lo, hi, params, state, out):
     w_energy, w_vel = params.reward_energy_weight, params.reward_velocity_weight
     stroke_limit, penalty = params.stroke_limit_m, params.bump_stop_penalty
     has_current = i_max > 0.0
-    applied = state.floats[VF_APPLIED]
+    vf = state.floats
+    applied = vf[VF_APPLIED]
+    est = params.estimator
+    e_b0, e_b1, e_b2, e_a1, e_a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
     for n in range(lo, hi):
         m = n - lo
         zc, vc = x[n, BODY_DISP], x[n, BODY_VEL]
@@ -259,6 +303,17 @@ def env_sense(lo, hi, params, state, out):
         meas[MEAS_STROKE, n] = stroke + s_stroke * noise[NOISE_STROKE, m]
         meas[MEAS_STROKE_RATE, n] = rate + s_rate * noise[NOISE_STROKE_RATE, m]
         meas[MEAS_COMMAND, n] = sig[SIG_CURRENT_COMMAND, n]
+        # on-board velocity estimates: the accelerometers through the estimator's biquad
+        ab, s1, s2 = meas[MEAS_BODY_ACC, n], vf[VF_EST_BODY_1, n], vf[VF_EST_BODY_2, n]
+        v_body = e_b0 * ab + s1
+        vf[VF_EST_BODY_1, n] = e_b1 * ab - e_a1 * v_body + s2
+        vf[VF_EST_BODY_2, n] = e_b2 * ab - e_a2 * v_body
+        ab, s1, s2 = meas[MEAS_BOGIE_ACC, n], vf[VF_EST_BOGIE_1, n], vf[VF_EST_BOGIE_2, n]
+        v_bogie = e_b0 * ab + s1
+        vf[VF_EST_BOGIE_1, n] = e_b1 * ab - e_a1 * v_bogie + s2
+        vf[VF_EST_BOGIE_2, n] = e_b2 * ab - e_a2 * v_bogie
+        sig[SIG_BODY_VEL_EST, n] = v_body
+        sig[SIG_BOGIE_VEL_EST, n] = v_bogie
         # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
         acc_rel = acc_c / acc_ref
         stroke_rel = stroke / stroke_ref
@@ -299,6 +354,18 @@ def env_sense(lo, hi, params, state, out):
             for j in range(MEAS_STROKE_RATE + 1):  # the same (noisy) measurements as the inverse
                 obs[n, 5 + j] = meas[j, n]
             obs[n, 9] = x[n, COIL_CURRENT]
+    elif params.observation == OBS_MEASURED:
+        s_gap, s_current = std[NOISE_GAP], std[NOISE_CURRENT]
+        for n in range(lo, hi):
+            m = n - lo
+            for j in range(MEAS_STROKE_RATE + 1):  # accelerations, stroke and its rate
+                obs[n, j] = meas[j, n]
+            gap = x[n, BOGIE_DISP] - sig[SIG_GUIDEWAY, n]
+            obs[n, 4] = gap + s_gap * noise[NOISE_GAP, m]
+            obs[n, 5] = x[n, COIL_CURRENT] + s_current * noise[NOISE_CURRENT, m]
+            obs[n, 6] = meas[MEAS_COMMAND, n]
+            obs[n, 7] = sig[SIG_BODY_VEL_EST, n]
+            obs[n, 8] = sig[SIG_BOGIE_VEL_EST, n]
     else:
         for n in range(lo, hi):
             for j in range(MEAS_COMMAND + 1):

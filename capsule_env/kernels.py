@@ -113,7 +113,9 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
 
         @njit(cache=True, parallel=True)
         def parallel(n, actions, params, plant, state, out):
-            (f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, b0, i0, i1, b1, a0, a1, a2) = params
+            # EnvParams: 12 floats, 4 flags and codes, 5 arrays (taken apart and put back in order)
+            (f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3, a0, a1, a2, a3,
+             a4) = params  # fmt: skip
             dp, vp, table, constants, profiles, spacing = plant
             x, route, floats, step_count, noise_key, measured, delay, slots = state
             r0, r1, r2, r3 = route
@@ -123,7 +125,27 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
                 args = (
                     actions,
                     EnvParams(
-                        f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, b0, i0, i1, b1, a0, a1, a2
+                        f0,
+                        f1,
+                        f2,
+                        f3,
+                        f4,
+                        f5,
+                        f6,
+                        f7,
+                        f8,
+                        f9,
+                        f10,
+                        f11,
+                        c0,
+                        c1,
+                        c2,
+                        c3,
+                        a0,
+                        a1,
+                        a2,
+                        a3,
+                        a4,
                     ),  # fmt: skip
                     PlantParams(dp, vp, table, constants, profiles, spacing),
                     EnvState(

@@ -138,12 +138,13 @@ SIGNAL_NAMES = (
     "cost_stroke",
     "cost_energy",
     "cost_velocity",
+    "car_body_velocity_estimate_m_s",  # the on-board estimator's, from the accelerometers
+    "bogie_velocity_estimate_m_s",
 )
 (SIG_BODY_DISP, SIG_BOGIE_DISP, SIG_BODY_VEL, SIG_BOGIE_VEL, SIG_BODY_ACC, SIG_BOGIE_ACC,
  SIG_STROKE, SIG_STROKE_RATE, SIG_FORCE, SIG_DESIRED_FORCE, SIG_CURRENT_COMMAND, SIG_COIL_CURRENT,
- SIG_GUIDEWAY, SIG_COST_ACC, SIG_COST_STROKE, SIG_COST_ENERGY, SIG_COST_VEL) = (
-    SIGNAL_NAMES.index(n) for n in SIGNAL_NAMES
-)  # fmt: skip
+ SIG_GUIDEWAY, SIG_COST_ACC, SIG_COST_STROKE, SIG_COST_ENERGY, SIG_COST_VEL, SIG_BODY_VEL_EST,
+ SIG_BOGIE_VEL_EST) = (SIGNAL_NAMES.index(n) for n in SIGNAL_NAMES)  # fmt: skip
 N_SIGNALS = len(SIGNAL_NAMES)
 
 # --------------------------------------------------------------------------- measurements
@@ -163,16 +164,32 @@ N_MEASUREMENTS = len(MEASUREMENT_NAMES)
 
 # --------------------------------------------------------------------------- env per vehicle
 #: Per-vehicle floats of the env (one row each): the CSDC inverse's hysteresis estimate and the
-#: stroke it was last advanced to, and the current applied to the plant this step (the command
-#: after the control delay).
-VEHICLE_FLOAT_NAMES = ("csdc_z_estimate", "csdc_last_stroke_m", "applied_current_a")
-VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED = range(len(VEHICLE_FLOAT_NAMES))
+#: stroke it was last advanced to, the current applied to the plant this step (the command
+#: after the control delay), and the two states of each velocity estimator's filter.
+VEHICLE_FLOAT_NAMES = (
+    "csdc_z_estimate",
+    "csdc_last_stroke_m",
+    "applied_current_a",
+    "body_estimator_state_1",
+    "body_estimator_state_2",
+    "bogie_estimator_state_1",
+    "bogie_estimator_state_2",
+)
+(
+    VF_CSDC_Z,
+    VF_CSDC_STROKE,
+    VF_APPLIED,
+    VF_EST_BODY_1,
+    VF_EST_BODY_2,
+    VF_EST_BOGIE_1,
+    VF_EST_BOGIE_2,
+) = range(len(VEHICLE_FLOAT_NAMES))
 N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)
 
 # --------------------------------------------------------------------------- sensor noise
 #: Sensor-noise channels, in the order their standard normals are drawn (channel ``c`` is
 #: member ``c % 2`` of Box-Muller pair ``c // 2``): a channel keeps its noise whatever other
-#: channels an observation set reads.
+#: channels an observation set reads; new channels are appended.
 NOISE_CHANNEL_NAMES = (
     "car_body_acceleration_m_s2",
     "bogie_acceleration_m_s2",
@@ -183,7 +200,10 @@ NOISE_CHANNEL_NAMES = (
     "bogie_displacement_m",
     "bogie_velocity_m_s",
     "guideway_elevation_m",
+    "levitation_gap_m",
+    "coil_current_a",
 )
 (NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE, NOISE_BODY_DISP,
- NOISE_BODY_VEL, NOISE_BOGIE_DISP, NOISE_BOGIE_VEL, NOISE_GUIDEWAY) = range(len(NOISE_CHANNEL_NAMES))  # fmt: skip
+ NOISE_BODY_VEL, NOISE_BOGIE_DISP, NOISE_BOGIE_VEL, NOISE_GUIDEWAY, NOISE_GAP,
+ NOISE_CURRENT) = range(len(NOISE_CHANNEL_NAMES))  # fmt: skip
 N_NOISE_CHANNELS = len(NOISE_CHANNEL_NAMES)

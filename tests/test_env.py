@@ -26,6 +26,8 @@ COMBOS = [
     {"action_mode": "force", "setting": "sim", "inverse_model": "csdc"},
     {"action_mode": "force", "setting": "hils", "inverse_model": "tanh"},
     {"observation": "full_state", "setting": "hils"},
+    {"observation": "measured", "setting": "hils"},
+    {"observation": "measured", "setting": "sim", "action_mode": "current"},
 ]
 
 
@@ -99,26 +101,27 @@ def test_same_seed_same_trajectory(kwargs):
     assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
 
 
+@pytest.mark.parametrize("observation", ["sensors", "measured"])
 @pytest.mark.parametrize("setting", ["sim", "hils"])
-def test_single_native_vector_and_sb3_vec_env_agree(setting):
+def test_single_native_vector_and_sb3_vec_env_agree(setting, observation):
     n, steps, seed = 3, 250, 11
     rng = np.random.default_rng(1)
     actions = rng.uniform(-1, 1, (steps, n, 1)).astype(np.float32)
     # The native vector env and the SB3 VecEnv seeded with the same int: the same vehicles.
-    vec = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting)
-    sb3 = CapsuleSuspensionSB3VecEnv(num_envs=n, setting=setting)
+    vec = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting, observation=observation)
+    sb3 = CapsuleSuspensionSB3VecEnv(num_envs=n, setting=setting, observation=observation)
     sb3.seed(seed)
     v_obs, _ = vec.reset(seed=seed)
     s_obs = sb3.reset()
     np.testing.assert_array_equal(v_obs, s_obs)
     # Single envs seeded s_k against a vector env seeded with the list [s_0, s_1, ...];
     # and vehicle 0 of the int-seeded vector env is the single env seeded ``seed``.
-    listed = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting)
+    listed = CapsuleSuspensionVectorEnv(num_envs=n, setting=setting, observation=observation)
     l_obs, _ = listed.reset(seed=[seed + 100 * k for k in range(n)])
-    singles = [CapsuleSuspensionEnv(setting=setting) for _ in range(n)]
+    singles = [CapsuleSuspensionEnv(setting=setting, observation=observation) for _ in range(n)]
     single_obs = [env.reset(seed=seed + 100 * k)[0] for k, env in enumerate(singles)]
     np.testing.assert_array_equal(np.stack(single_obs), l_obs)
-    first = CapsuleSuspensionEnv(setting=setting)
+    first = CapsuleSuspensionEnv(setting=setting, observation=observation)
     first.reset(seed=seed)
     for t in range(steps):
         v_obs, v_rew, *_ = vec.step(actions[t])
@@ -342,7 +345,7 @@ def test_sensor_noise_is_white_gaussian_with_the_documented_std():
             res[:, channel_of_column[col]] = obs[:, col] - batch.signals[SIGNAL_NAMES.index(name)]
         residuals.append(res)
     r = np.stack(residuals)  # (steps, vehicles, channels)
-    std = SENSOR_NOISE_STD * config.effective_sensor_noise
+    std = (SENSOR_NOISE_STD * config.effective_sensor_noise)[:9]
     z = (r / std).reshape(-1, 9)  # 19200 samples per channel
     assert np.all(np.abs(z.mean(axis=0)) < 0.05)
     np.testing.assert_allclose(z.std(axis=0), 1.0, atol=0.03)
@@ -352,3 +355,33 @@ def test_sensor_noise_is_white_gaussian_with_the_documented_std():
     assert np.max(np.abs(corr - np.eye(9))) < 0.04
     lag1 = np.mean(r[1:] * r[:-1], axis=(0, 1)) / np.mean(r**2, axis=(0, 1))
     assert np.max(np.abs(lag1)) < 0.04
+
+
+def test_measured_set_noise_of_gap_and_current_sensors():
+    # hils, measured: the gap sensor reads z_b - z_g and the current sensor the coil current,
+    # each with its own documented noise (channels 9 and 10), independent of each other and of
+    # the accelerometers.
+    from capsule_env.config import SENSOR_NOISE_STD
+
+    config = EnvConfig(setting="hils", observation="measured")
+    batch = CapsuleBatch(config, 64)
+    batch.seed(4)
+    batch.reset()
+    rng = np.random.default_rng(1)
+    sig = {name: SIGNAL_NAMES.index(name) for name in SIGNAL_NAMES}
+    residuals = []
+    for _ in range(300):
+        batch.step(rng.uniform(-1.0, 1.0, 64))
+        obs = batch.obs.astype(np.float64)
+        gap = (
+            batch.signals[sig["bogie_displacement_m"]] - batch.signals[sig["guideway_elevation_m"]]
+        )
+        acc = batch.signals[sig["car_body_acceleration_m_s2"]]
+        residuals.append(np.stack([obs[:, 4] - gap, obs[:, 5] - batch.signals[sig["coil_current_a"]],
+                                   obs[:, 0] - acc], axis=1))  # fmt: skip
+    r = np.stack(residuals).reshape(-1, 3)
+    std = SENSOR_NOISE_STD[[9, 10, 0]]
+    z = r / std
+    np.testing.assert_allclose(z.std(axis=0), 1.0, atol=0.03)
+    assert np.all(np.abs(z.mean(axis=0)) < 0.05)
+    assert np.max(np.abs(np.corrcoef(z.T) - np.eye(3))) < 0.04
