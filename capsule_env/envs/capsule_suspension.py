@@ -115,6 +115,25 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     | 8 | stroke rate | m/s |
     | 9 | actual coil current (after the coil lag) | A |
 
+    ``observation="measured"``, what a capsule's own sensors read (with noise in ``hils``) and
+    the on-board estimates of the absolute velocities, computed inside the env at the control
+    rate from those same noisy accelerometers (band-limited integration, ``H(s) = s / (s^2 + 2
+    zeta w_c s + w_c^2)``: corner ``velocity_estimator_corner_hz`` 0.1 Hz and damping
+    ``velocity_estimator_damping`` 1/sqrt(2) by default; about 12 % RMS error on the body
+    velocity and 16 % on the bogie's in ``hils``, no drift):
+
+    | index | observation | unit |
+    |-------|-------------|------|
+    | 0 | car body vertical acceleration (accelerometer) | m/s^2 |
+    | 1 | bogie vertical acceleration (accelerometer) | m/s^2 |
+    | 2 | damper stroke (LVDT) | m |
+    | 3 | stroke rate | m/s |
+    | 4 | levitation gap change ``z_b - z_g`` (gap sensor) | m |
+    | 5 | coil current (the driver's measurement) | A |
+    | 6 | last coil current command | A |
+    | 7 | car body absolute velocity estimate | m/s |
+    | 8 | bogie absolute velocity estimate | m/s |
+
     ## Rewards
 
     A ride-comfort cost with stroke and energy terms, per step::
@@ -153,7 +172,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     Every step: the physical signals ``car_body_displacement_m``, ``bogie_displacement_m``,
     velocities, accelerations, ``stroke_m``, ``stroke_rate_m_s``, ``damper_force_n``,
     ``desired_force_n`` (0 in current mode), ``current_command_a``, ``coil_current_a``,
-    ``guideway_elevation_m`` and the reward terms.
+    ``guideway_elevation_m``, the reward terms, and the on-board velocity estimates
+    (``car_body_velocity_estimate_m_s``, ``bogie_velocity_estimate_m_s``).
 
     ## Arguments
 
@@ -173,7 +193,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       fields, e.g. ``{"peak_m": 0.008}``), ``speed_kmh`` (810), ``guideway_seed`` (0),
       ``guideway_bank_size`` (16).
     - Timing: ``control_rate_hz`` (200), ``episode_length_s`` (10), ``substeps`` (auto).
-    - ``observation``: ``"sensors"`` | ``"full_state"``.
+    - ``observation``: ``"sensors"`` | ``"full_state"`` | ``"measured"``; the velocity
+      estimator of ``"measured"``: ``velocity_estimator_corner_hz`` (0.1),
+      ``velocity_estimator_damping`` (1/sqrt(2)).
     - Reward: ``reward_acceleration_weight``, ``reward_stroke_weight``,
       ``reward_energy_weight``, ``reward_velocity_weight``, ``acceleration_scale_m_s2``,
       ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``;
@@ -186,7 +208,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
     ## Version History
 
-    - v0: initial release.
+    - v0: initial release; later additions keep v0 (new options default to the old behaviour):
+      the ``measured`` observation set and its velocity estimator; per-vehicle substeps; the
+      branch blend of the sign-of-stroke damper models; independent seed streams per vehicle.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}

@@ -4,7 +4,7 @@ It advances each vehicle with the same RK4 substep as the vectorised kernel
 (:func:`capsule_env.plant.rk4.rk4_substep`) but with the general closed-form hysteresis update,
 so it serves every case the block kernel does not (the Bouc-Wen model, whose unloading branch
 needs tan/atan; Spencer parameters with ``gamma > beta``), and it is the reference the block
-kernel is tested against (``tests/test_dynamics.py``). Compiled once per damper model.
+kernel is tested against (``tests/test_plant.py``). Compiled once per damper model.
 """
 
 from __future__ import annotations
