@@ -24,6 +24,8 @@ from numba import njit
 from capsule_env.config import (
     INVERSE_CODES,
     SENSOR_NOISE_STD,
+    SURVEY_NOISE_BAND_M,
+    SURVEY_OFFSET_BAND_M,
     EnvConfig,
     check_num_envs,
     check_seed,
@@ -53,6 +55,7 @@ from capsule_env.layout import (
     SIG_GUIDEWAY,
     STATE_SIZE,
     VF_APPLIED,
+    VF_POSITION_ERROR,
 )
 from capsule_env.plant.block import block_constants, block_kernel_mode
 from capsule_env.plant.params import PlantParams, Route
@@ -158,6 +161,9 @@ class CapsuleBatch:
             noise_pairs=noise_pairs(OBSERVATION_CODES[config.observation]),
             obs_bounds=np.array(observation_bounds(config, self.i_max), dtype=np.float64),
             estimator=config.velocity_estimator_coefficients(),
+            preview_points=int(config.preview_points),
+            preview_step_s=float(config.preview_horizon_s / max(config.preview_points, 1)),
+            survey_error=self._build_survey_error(),
         )
         # What each vehicle's plant is made of (vehicles may differ, after their resets).
         self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
@@ -230,6 +236,35 @@ class CapsuleBatch:
         duration = cfg.window_m / (cfg.speed_kmh / 3.6)
         return np.ascontiguousarray(make_profile(gw, duration)[None, :])
 
+    def _build_survey_error(self) -> np.ndarray:
+        """The survey map's error on the bank's grid, one row per profile (a (1, 1) zero array
+        without preview): a long-wavelength offset and a short-wavelength error, each a random
+        FRA-shaped profile in its band (``config.SURVEY_OFFSET_BAND_M``,
+        ``SURVEY_NOISE_BAND_M``) scaled to its standard deviation, from a stream of the
+        guideway seed (the map belongs to the guideway, not to a vehicle)."""
+        cfg = self.config
+        if cfg.preview_points == 0:
+            return np.zeros((1, 1))
+        length = (self.profiles.shape[1] - 1) * self.spacing
+        seeds = np.random.SeedSequence([cfg.guideway_seed, 1]).generate_state(
+            2 * self.profiles.shape[0]
+        )
+        rows = []
+        for k in range(self.profiles.shape[0]):
+            error = np.zeros(self.profiles.shape[1])
+            for seed, std, band in (
+                (seeds[2 * k], cfg.survey_offset_m, SURVEY_OFFSET_BAND_M),
+                (seeds[2 * k + 1], cfg.survey_noise_m, SURVEY_NOISE_BAND_M),
+            ):
+                if std > 0.0:
+                    part = random_profile(
+                        length, self.spacing, int(seed), peak_m=None, min_wavelength_m=band[0],
+                        max_wavelength_m=band[1],
+                    )[: error.size]  # fmt: skip
+                    error[: part.size] += std * part / np.std(part)
+            rows.append(error)
+        return np.ascontiguousarray(np.stack(rows))
+
     # ---------------------------------------------------------------- seeding / reset
     def seed(self, seed: int | list[int] | None) -> None:
         """Re-seed every vehicle's generator (:func:`vehicle_streams`)."""
@@ -277,12 +312,23 @@ class CapsuleBatch:
             self.obs[n] = 0.0
             if self.params.observation == OBS_FULL_STATE:  # displacements and elevation
                 self.obs[n, 0] = self.obs[n, 2] = self.obs[n, 4] = zg0
+            if cfg.preview_points:  # from the episode's noise key: the vehicle's own stream
+                # gives the same episodes with or without preview
+                draw = np.random.default_rng(int(self.noise_key[n])).standard_normal()
+                self.floats[VF_POSITION_ERROR, n] = cfg.position_error_m * draw
+                self._reset_preview(n)
         if cfg.randomizes_substeps:
             rows = np.fromiter(ids, dtype=np.int64)
             self.sub_table[rows] = cfg.substep_tables(self.vehicle_params[rows], self.speed[rows])
             self.block_constants[rows] = block_constants(
                 self.plant.code, self.damper_params[rows], self.dt, self.sub_table[rows]
             )
+
+    def _reset_preview(self, n: int) -> None:
+        """The first observation's preview columns (the kernel writes them at every step)."""
+        from capsule_env.env_kernel import preview_row
+
+        preview_row(n, self.params, self.plant_params, self.env_state, self.obs)
 
     # ---------------------------------------------------------------- step
     def step(self, actions: np.ndarray) -> None:

@@ -110,6 +110,13 @@ OBSERVATION_NAMES = {
 SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 1e-4, 0.01])
 #: Damper code of the model each ``inverse_model`` inverts.
 INVERSE_CODES = {"bi_exponential": BI_EXPONENTIAL, "tanh": TANH, "csdc": BOUC_WEN}
+#: Most guideway preview points an observation may carry.
+MAX_PREVIEW_POINTS = 64
+#: Wavelength bands (m) of the survey map's errors [reconstructed]: a long-wavelength offset
+#: of the map (datum drift between survey points) and a short-wavelength error (the survey's
+#: own resolution and noise).
+SURVEY_OFFSET_BAND_M = (50.0, 500.0)
+SURVEY_NOISE_BAND_M = (2.0, 50.0)
 
 
 @dataclass(frozen=True)
@@ -155,6 +162,11 @@ class EnvConfig:
     speed_range_kmh: tuple[float, float] | None = None
     velocity_estimator_corner_hz: float = 0.1
     velocity_estimator_damping: float = 0.7071067811865476
+    preview_points: int = 0
+    preview_horizon_s: float = 0.5
+    survey_offset_m: float = 5e-4
+    survey_noise_m: float = 1e-4
+    position_error_m: float = 0.05
 
     def __post_init__(self) -> None:
         check_choice("action_mode", self.action_mode, ACTION_MODES)
@@ -201,6 +213,13 @@ class EnvConfig:
         check_in_range("velocity_estimator_corner_hz", self.velocity_estimator_corner_hz, 1e-3,
                        0.1 * self.control_rate_hz)  # fmt: skip
         check_in_range("velocity_estimator_damping", self.velocity_estimator_damping, 0.1, 10.0)
+        check_integer("preview_points", self.preview_points, 0, MAX_PREVIEW_POINTS)
+        check_in_range("preview_horizon_s", self.preview_horizon_s, 1e-3, 10.0)
+        if self.preview_points and self.preview_horizon_s < self.preview_points * 1e-4:
+            raise ValueError("preview_horizon_s must leave at least 0.1 ms between preview points")
+        check_in_range("survey_offset_m", self.survey_offset_m, 0.0, 0.1)
+        check_in_range("survey_noise_m", self.survey_noise_m, 0.0, 0.1)
+        check_in_range("position_error_m", self.position_error_m, 0.0, 100.0)
         for name in ("guideway_params", "vehicle_params", "damper_params", "inverse_params"):
             if not isinstance(getattr(self, name), dict):
                 raise TypeError(f"{name} must be a dict of parameter overrides")
@@ -346,6 +365,8 @@ class EnvConfig:
         gw = self.guideway_spec
         profiles = self.guideway_bank_size if gw.kind == "random" else 1
         bank = 2 * profiles * self.bank_samples * 8
+        if self.preview_points:  # the survey map's error profiles
+            bank += 2 * profiles * self.bank_samples * 8
         if gw.kind == "random":
             n_fft = fft_length(4.0 * self.window_m, gw.spacing_m, gw.max_wavelength_m)
             bank += 40 * n_fft
@@ -395,7 +416,15 @@ class EnvConfig:
 
     @property
     def observation_names(self) -> tuple[str, ...]:
-        return OBSERVATION_NAMES[self.observation]
+        """The observation's columns: the chosen set, then the preview points (if any)."""
+        return OBSERVATION_NAMES[self.observation] + self.preview_names
+
+    @property
+    def preview_names(self) -> tuple[str, ...]:
+        """Columns of the guideway preview: ``preview_ahead_<k>`` is the surveyed elevation
+        ``k * preview_horizon_s / preview_points`` seconds ahead of the bogie, relative to the
+        surveyed elevation under it now (m)."""
+        return tuple(f"preview_ahead_{k}" for k in range(1, self.preview_points + 1))
 
     def velocity_estimator_coefficients(self) -> np.ndarray:
         """``(b0, b1, b2, a1, a2)`` of the on-board velocity estimator at the control rate.
@@ -423,7 +452,7 @@ class EnvConfig:
 def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.ndarray]:
     """``(low, high)`` of the observation space: generous physical limits at which the sensors
     saturate (accelerations 100 m/s^2, stroke 2 x the bump stop, rates and velocities 10 m/s,
-    displacements and the gap 1 m, commanded current [0, i_max], measured current
+    displacements, the gap and the preview 1 m, commanded current [0, i_max], measured current
     [-0.5, i_max + 0.5] A so that its noise is not clipped on one side)."""
     x_lim = 2.0 * config.stroke_limit_m
     if config.observation == "sensors":
@@ -435,6 +464,8 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
     else:
         high = [100.0, 100.0, x_lim, 10.0, 1.0, i_max + 0.5, i_max, 10.0, 10.0]
         low = [-100.0, -100.0, -x_lim, -10.0, -1.0, -0.5, 0.0, -10.0, -10.0]
+    high += [1.0] * config.preview_points
+    low += [-1.0] * config.preview_points
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 

@@ -69,6 +69,7 @@ from capsule_env.layout import (
     SIG_GUIDEWAY,
     SIG_STROKE,
     SIG_STROKE_RATE,
+    TIME,
     VF_APPLIED,
     VF_CSDC_STROKE,
     VF_CSDC_Z,
@@ -76,8 +77,9 @@ from capsule_env.layout import (
     VF_EST_BODY_2,
     VF_EST_BOGIE_1,
     VF_EST_BOGIE_2,
+    VF_POSITION_ERROR,
 )
-from capsule_env.plant.block import row_params
+from capsule_env.plant.block import guideway_elevation, row_params
 from capsule_env.plant.params import Route
 
 __all__ = [
@@ -147,6 +149,9 @@ class EnvParams(NamedTuple):
     noise_pairs: np.ndarray  # (k,) int64: the Box-Muller pairs the observation set reads
     obs_bounds: np.ndarray  # (2, obs_dim) rows LOW, HIGH: where the sensors saturate
     estimator: np.ndarray  # (5,) the velocity estimator's biquad, rows EST_B0 .. EST_A2
+    preview_points: int  # guideway preview columns after the observation set's (0: none)
+    preview_step_s: float  # time between preview points
+    survey_error: np.ndarray  # (K, L) the survey map's error, on the profiles' grid (m)
 
 
 class EnvState(NamedTuple):
@@ -262,7 +267,7 @@ def env_commands(lo, hi, actions, params, state, out):
 
 # ----------------------------------------------------------------------------- sensing
 @njit(cache=True, error_model="numpy")
-def env_sense(lo, hi, params, state, out):
+def env_sense(lo, hi, params, plant, state, out):
     """Vehicles ``lo .. hi-1`` after the plant step: sensor noise, measurements, reward,
     bump stop, signals and observations (clipped to where the sensors saturate)."""
     x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
@@ -370,6 +375,30 @@ def env_sense(lo, hi, params, state, out):
         for n in range(lo, hi):
             for j in range(MEAS_COMMAND + 1):
                 obs[n, j] = meas[j, n]
+    if params.preview_points > 0:
+        for n in range(lo, hi):
+            preview_row(n, params, plant, state, obs)
     for n in range(lo, hi):
         for j in range(obs.shape[1]):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
+
+
+@njit(cache=True, error_model="numpy")
+def preview_row(n, params, plant, state, obs):
+    """The guideway preview columns of vehicle ``n`` (the last ``preview_points`` of its
+    observation, clipped by the caller): the surveyed elevation ``k * preview_step_s`` ahead of
+    the bogie, ``k = 1 .. preview_points``, relative to the surveyed elevation under it now,
+    looked up in the survey map (the true profile plus the survey's error) at the vehicle's
+    estimated position (the true one plus its episode's position error)."""
+    profiles, spacing, err = plant.profiles, plant.spacing_m, params.survey_error
+    last = profiles.shape[1] - 1.0
+    route, vf = state.route, state.floats
+    first = obs.shape[1] - params.preview_points
+    k, g, speed = route.profile[n], route.gain[n], route.speed_mps[n]
+    here = route.start_m[n] + speed * state.plant[n, TIME] + vf[VF_POSITION_ERROR, n]
+    ref = g * guideway_elevation(profiles, k, spacing, last, here)
+    ref += guideway_elevation(err, k, spacing, last, here)
+    for j in range(params.preview_points):
+        ahead = here + speed * (j + 1) * params.preview_step_s
+        z = g * guideway_elevation(profiles, k, spacing, last, ahead)
+        obs[n, first + j] = z + guideway_elevation(err, k, spacing, last, ahead) - ref

@@ -96,7 +96,7 @@ def _step_range(kind, model, mode, lo, hi, args):
             else:
                 block_step(m, md, b, e, plant, x, i_cmd, route, dt, plant_out)
             if k == ENV:
-                env_sense(b, e, params, state, out)
+                env_sense(b, e, params, plant, state, out)
 
     return impl
 
@@ -111,11 +111,13 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
         def serial(lo, hi, actions, params, plant, state, out):
             step_range(kind, model, mode, lo, hi, (actions, params, plant, state, out))
 
+        # fmt: off
         @njit(cache=True, parallel=True)
         def parallel(n, actions, params, plant, state, out):
-            # EnvParams: 12 floats, 4 flags and codes, 5 arrays (taken apart and put back in order)
+            # EnvParams (taken apart and put back in order): 12 floats, 4 flags and codes, 5
+            # arrays, the preview's count, step and survey error
             (f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3, a0, a1, a2, a3,
-             a4) = params  # fmt: skip
+             a4, p0, p1, p2) = params
             dp, vp, table, constants, profiles, spacing = plant
             x, route, floats, step_count, noise_key, measured, delay, slots = state
             r0, r1, r2, r3 = route
@@ -124,43 +126,15 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
             for c in prange((n + chunk - 1) // chunk):
                 args = (
                     actions,
-                    EnvParams(
-                        f0,
-                        f1,
-                        f2,
-                        f3,
-                        f4,
-                        f5,
-                        f6,
-                        f7,
-                        f8,
-                        f9,
-                        f10,
-                        f11,
-                        c0,
-                        c1,
-                        c2,
-                        c3,
-                        a0,
-                        a1,
-                        a2,
-                        a3,
-                        a4,
-                    ),  # fmt: skip
+                    EnvParams(f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3,
+                              a0, a1, a2, a3, a4, p0, p1, p2),
                     PlantParams(dp, vp, table, constants, profiles, spacing),
-                    EnvState(
-                        x,
-                        Route(r0, r1, r2, r3),
-                        floats,
-                        step_count,
-                        noise_key,
-                        measured,
-                        delay,
-                        slots,
-                    ),  # fmt: skip
+                    EnvState(x, Route(r0, r1, r2, r3), floats, step_count, noise_key, measured,
+                             delay, slots),
                     EnvOutputs(obs, reward, terminated, signals, plant_out),
                 )
                 step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
+        # fmt: on
 
     else:
 

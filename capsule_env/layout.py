@@ -165,7 +165,8 @@ N_MEASUREMENTS = len(MEASUREMENT_NAMES)
 # --------------------------------------------------------------------------- env per vehicle
 #: Per-vehicle floats of the env (one row each): the CSDC inverse's hysteresis estimate and the
 #: stroke it was last advanced to, the current applied to the plant this step (the command
-#: after the control delay), and the two states of each velocity estimator's filter.
+#: after the control delay), the two states of each velocity estimator's filter, and the error
+#: of the vehicle's own estimate of its position along the guideway (for the preview).
 VEHICLE_FLOAT_NAMES = (
     "csdc_z_estimate",
     "csdc_last_stroke_m",
@@ -174,16 +175,10 @@ VEHICLE_FLOAT_NAMES = (
     "body_estimator_state_2",
     "bogie_estimator_state_1",
     "bogie_estimator_state_2",
+    "position_error_m",
 )
-(
-    VF_CSDC_Z,
-    VF_CSDC_STROKE,
-    VF_APPLIED,
-    VF_EST_BODY_1,
-    VF_EST_BODY_2,
-    VF_EST_BOGIE_1,
-    VF_EST_BOGIE_2,
-) = range(len(VEHICLE_FLOAT_NAMES))
+(VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED, VF_EST_BODY_1, VF_EST_BODY_2, VF_EST_BOGIE_1,
+ VF_EST_BOGIE_2, VF_POSITION_ERROR) = range(len(VEHICLE_FLOAT_NAMES))  # fmt: skip
 N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)
 
 # --------------------------------------------------------------------------- sensor noise
