@@ -17,7 +17,7 @@ from agents import (
     classical_controllers,
 )
 from agents.base import FULL
-from capsule_env.evaluation import METRIC_UNITS, episode_metrics, run_episodes
+from capsule_env.evaluation import METRIC_UNITS, Rollout, episode_metrics, run_episodes
 from capsule_env.vehicle import VehicleParams, state_space
 
 
@@ -78,11 +78,28 @@ def test_lqr_gain_stabilises_the_linear_plant():
     assert zeta(body_cl) > zeta(body_pass)
 
 
-def test_vre_of_passive_against_itself_is_zero():
+def test_vre_of_scaled_displacements_is_the_scale():
+    # The VRE compares band peaks of amplitude spectra, linear in the signal: a run whose
+    # displacements are the passive run's x 0.5 (body) and x 0.25 (bogie), on any guideway,
+    # has a VRE of exactly 50 % and 75 % in every band and every episode; the passive run
+    # against itself, 0 %.
     passive = PassiveController()
     roll = run_episodes(passive, {**passive.env_kwargs}, episodes=2, seed=3, episode_length_s=2)
-    m = episode_metrics(roll, roll)
-    assert all(abs(v) < 1e-12 for v in m["vre_pct"].values())
+    assert all(abs(v) < 1e-12 for v in episode_metrics(roll, roll)["vre_pct"].values())
+    scale = {"body": 0.5, "bogie": 0.25}
+    signals = dict(roll.signals)
+    signals["car_body_displacement_m"] = scale["body"] * signals["car_body_displacement_m"]
+    signals["bogie_displacement_m"] = scale["bogie"] * signals["bogie_displacement_m"]
+    scaled = Rollout(signals, roll.dt_s, roll.terminated, roll.action_mode)
+    m = episode_metrics(scaled, roll)
+    assert set(m["vre_pct"]) == {f"{p}_{mode}" for p in scale for mode in ("mode1", "mode2")}
+    for key, vre in m["vre_pct"].items():
+        part = key.split("_")[0]
+        assert vre == pytest.approx(100.0 * (1.0 - scale[part]), rel=1e-12), key
+        assert m["std"][f"vre_{key}_pct"] == pytest.approx(0.0, abs=1e-9), key
+    plain = episode_metrics(roll, None)
+    assert m["rms_body_disp_m"] == pytest.approx(0.5 * plain["rms_body_disp_m"], rel=1e-12)
+    assert plain["rms_body_disp_m"] > 0.0 and "vre_pct" not in plain
     # every metric's key ends with its unit, the spreads' too
     assert set(m) - {"std"} == set(METRIC_UNITS) - {"force_tracking_error_rel"}  # current mode
     suffixes = ("_m_s2", "_m", "_a", "_w", "_pct", "_rel")
@@ -118,7 +135,7 @@ def test_evaluate_end_to_end(tmp_path, capsys):
         assert set(entry["vre_pct"]) == {"body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"}
         for key in ("rms_body_acc_m_s2", "wk_rms_body_acc_m_s2", "rms_body_disp_m",
                     "max_stroke_m", "mean_current_a"):  # fmt: skip
-            assert np.isfinite(entry[key])
+            assert 0.0 < entry[key] < np.inf, key  # finite, and the vehicle moved
         assert 0.0 < entry["force_tracking_error_rel"] < 10.0
     assert len(list(plots.glob("*.png"))) == 6
     header = next(

@@ -1,43 +1,96 @@
-"""The benchmark scripts start and print their tables (a smoke test: no speed is asserted)."""
+"""The benchmark scripts run and report consistent figures (no speed is asserted: the
+machine decides it; what the report must get right is its arithmetic and its time line)."""
 
 from __future__ import annotations
 
 import json
+import math
+import os
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 
+from conftest import DT, NO_SB3
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_script(*argv: str) -> float:
+    """Run a benchmark script on this checkout's package (not an installed copy); returns the
+    wall time of its whole process, s."""
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    )
+    t0 = time.perf_counter()
+    result = subprocess.run(
+        [sys.executable, *argv], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    process_s = time.perf_counter() - t0
+    assert result.returncode == 0, result.stderr[-3000:]
+    return process_s
+
 
 @pytest.mark.slow
+@pytest.mark.rl
 def test_bench_env_quick_runs(tmp_path):
+    pytest.importorskip("stable_baselines3", reason=NO_SB3)  # its SB3 VecEnv section
     out = tmp_path / "bench.json"
-    subprocess.run(
-        [sys.executable, "benchmarks/bench_env.py", "--quick", "--json", str(out)], check=True,
-        capture_output=True,
-    )  # fmt: skip
+    process_s = run_script("benchmarks/bench_env.py", "--quick", "--json", str(out))
     data = json.loads(out.read_text())
     assert {"single", "vector", "sb3", "realtime", "memory", "startup"} <= set(data)
+    assert set(data["vector"]) == {f"{env}/N={n}" for n in (1, 64, 1024, 4096)
+                                   for env in ("CartPole-v1", "capsule-sim", "capsule-hils")}  # fmt: skip
+    assert set(data["sb3"]) == {f"capsule-{s}/N={n}" for n in (64, 1024) for s in ("sim", "hils")}
+    for section in ("single", "vector", "sb3"):
+        for name, rate in data[section].items():
+            assert 0.0 < rate < math.inf, (section, name)
+    # the real-time factor: simulated seconds per wall second, one step = one control interval
+    for setting in ("sim", "hils"):
+        expected = data["single"][f"capsule-{setting}"] * DT
+        assert data["realtime"][setting] == pytest.approx(expected, rel=1e-12)
+    assert data["memory"]["bytes_per_env"] > 0 and data["memory"]["guideway_bank_bytes"] > 0
+    # the fresh interpreter's import and first step ran inside this process's lifetime
+    startup = data["startup"]
+    assert 0.0 < startup["import_s"] and 0.0 < startup["first_step_s"]
+    assert startup["import_s"] + startup["first_step_s"] < process_s
 
 
-def test_bench_training_runs(tmp_path):
+@pytest.mark.rl
+def test_bench_training_reports_the_steps_it_ran(tmp_path):
+    pytest.importorskip("stable_baselines3", reason=NO_SB3)
     out = tmp_path / "train.json"
-    subprocess.run(
-        [sys.executable, "benchmarks/bench_training.py", "--timesteps", "512", "--num-envs", "4",
-         "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--json", str(out)],
-        check=True, capture_output=True,
+    timesteps, num_envs, n_steps = 300, 4, 64
+    process_s = run_script(
+        "benchmarks/bench_training.py", "--timesteps", str(timesteps), "--num-envs",
+        str(num_envs), "--n-steps", str(n_steps), "--batch-size", "64", "--n-epochs", "1",
+        "--json", str(out),
     )  # fmt: skip
     data = json.loads(out.read_text())
-    assert data["timesteps"] >= 512 and 0.0 < data["env_share_of_wall"] < 1.0
-    assert data["first_step_s"] > 0.0  # the one-time kernel load, reported apart
+    assert data["config"]["timesteps"] == timesteps and data["config"]["num_envs"] == num_envs
+    # PPO collects whole rollouts of num_envs x n_steps until it has the timesteps asked for:
+    # 300 asked, two rollouts of 256 run
+    rollout = num_envs * n_steps
+    assert data["timesteps"] == math.ceil(timesteps / rollout) * rollout == 512
+    wall = data["wall_s"]
+    assert data["env_steps_per_s"] == pytest.approx(data["timesteps"] / wall, rel=1e-12)
+    # the env's share: time inside the env's step, part of the training's wall time
+    share = data["env_share_of_wall"]
+    assert 0.0 < share < 1.0
+    env_only = data["env_only_steps_per_s"]
+    assert env_only == pytest.approx(data["timesteps"] / (share * wall), rel=1e-9)
+    assert data["env_steps_per_s"] < env_only < math.inf
+    # the first step (kernel load) is timed apart, before the training: both fit in the
+    # process's own wall time, one after the other
+    assert 0.0 < data["first_step_s"] and 0.0 < wall
+    assert data["first_step_s"] + wall < process_s
 
 
 def test_soak_quick_runs_and_counts(tmp_path):
     out = tmp_path / "soak.json"
-    subprocess.run(
-        [sys.executable, "benchmarks/soak.py", "--quick", "--json", str(out)], check=True,
-        capture_output=True,
-    )  # fmt: skip
+    run_script("benchmarks/soak.py", "--quick", "--json", str(out))
     data = json.loads(out.read_text())
     assert data["total"]["vehicle_steps"] == sum(r["vehicle_steps"] for r in data["configurations"])
     assert data["total"]["non_finite"] == 0 and data["total"]["out_of_space"] == 0

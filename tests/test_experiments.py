@@ -28,6 +28,7 @@ def test_short_search_replays_the_env_exactly_and_beats_skyhook(bound, tmp_path)
     argv = ["--episodes", "2", "--duration", "0.6", "--max-iter", "4", "--json", str(out)]
     assert bound.main(argv) == 0
     data = json.loads(out.read_text())
+    assert len(data["episodes_detail"]) == 2  # one row per episode asked for
     for row in data["episodes_detail"]:
         # Skyhook's commands, delayed by the env's control delay and replayed open loop
         # through step_batch, give the env's recorded body acceleration bit for bit.

@@ -21,7 +21,8 @@ from capsule_env.metrics import (
     wk_weighting,
 )
 
-DT = 0.005
+from conftest import DT
+
 T = np.arange(0, 10.0, DT)
 
 # ISO 2631-1:1997 Table 3, Wk weighting factors x 1000 (independent published values).

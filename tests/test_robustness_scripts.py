@@ -5,6 +5,10 @@ saves that leave the previous files intact; resumable checkpoints.
 Kills are simulated by an exception no handler catches (raised from a training callback), a
 full disk by a write that stores half its data and then raises ``OSError(ENOSPC)``, corrupt
 files by random bytes.
+
+The cases of SB3 policies and of train.py need the optional rl extra (``rl`` marker; skipped,
+with the reason, without it); those of safe_io, identify and evaluate.py's other arguments
+do not.
 """
 
 from __future__ import annotations
@@ -24,15 +28,13 @@ import numpy as np
 import pytest
 from scipy import io as sio
 
-pytest.importorskip("stable_baselines3")
+import evaluate
+from agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy
+from agents.sb3_policy import SB3Policy
+from capsule_env import identify
+from capsule_env.safe_io import StagedFiles, atomic_write_text
 
-import evaluate  # noqa: E402
-import train  # noqa: E402
-from agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy  # noqa: E402
-from agents.sb3_policy import SB3Policy  # noqa: E402
-from agents.training import make_env  # noqa: E402
-from capsule_env import identify  # noqa: E402
-from capsule_env.safe_io import StagedFiles, atomic_write_text  # noqa: E402
+from conftest import NO_SB3, NO_YAML
 
 ROOT = Path(__file__).resolve().parent.parent
 POLICY_ENV = {"setting": "hils", "action_mode": "force", "observation": "full_state"}
@@ -42,6 +44,16 @@ QUICK_EVAL = ["--controllers", "passive", "--episodes", "1", "--episode-length",
 
 
 # ------------------------------------------------------------------------------- helpers
+@pytest.fixture(scope="module")
+def train():
+    """The train.py module (it imports torch and stable-baselines3, and reads PyYAML files)."""
+    pytest.importorskip("stable_baselines3", reason=NO_SB3)
+    pytest.importorskip("yaml", reason=NO_YAML)
+    import train as module
+
+    return module
+
+
 def exit_of(main: Callable[[list[str]], Any], argv: list[str], capsys) -> tuple[int, str]:
     """Run a script's ``main`` in-process: its exit status and what it wrote to stderr (with
     the message of a ``SystemExit("...")``, which Python prints there)."""
@@ -68,9 +80,12 @@ def assert_one_line_error(code: int, err: str, *expected: str) -> None:
 def make_policy(stem: Path, name: str | None = "tiny", env: str = "capsule") -> Any:
     """Save an untrained PPO policy as train.py does (``stem.zip``, ``.vecnormalize.pkl``,
     ``.json``); ``env="pendulum"``: one trained on 3-dimensional observations. Returns the
-    model."""
+    model. Skips the calling test without stable-baselines3."""
+    pytest.importorskip("stable_baselines3", reason=NO_SB3)
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from agents.training import make_env
 
     if env == "pendulum":
         import gymnasium as gym
@@ -155,10 +170,10 @@ def test_atomic_write_on_a_full_disk_keeps_the_old_file(tmp_path, full_disk):
     assert files_of(tmp_path) == {"out.json": b'{"previous": true}'}
 
 
+@pytest.mark.rl
 @pytest.mark.parametrize("failing", ["model", "statistics"])
 def test_failed_policy_save_leaves_the_previous_files_intact(tmp_path, monkeypatch, failing):
-    from stable_baselines3.common.vec_env import VecNormalize
-
+    vec_env = pytest.importorskip("stable_baselines3.common.vec_env", reason=NO_SB3)
     stem = tmp_path / "best_model"
     model = make_policy(stem)
     before = files_of(tmp_path)
@@ -169,7 +184,7 @@ def test_failed_policy_save_leaves_the_previous_files_intact(tmp_path, monkeypat
         Path(path).write_bytes(b"PK\x03\x04 half a file")
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    cls = type(model) if failing == "model" else VecNormalize
+    cls = type(model) if failing == "model" else vec_env.VecNormalize
     monkeypatch.setattr(cls, "save", lambda self, path, *a, **k: half_then_full(path))
     with pytest.raises(OSError, match="No space"):
         save_policy(model, stem, {"algo": "ppo", "name": "tiny", "num_timesteps": 4096})
@@ -177,6 +192,7 @@ def test_failed_policy_save_leaves_the_previous_files_intact(tmp_path, monkeypat
     SB3Policy.load(stem.with_suffix(".zip"))
 
 
+@pytest.mark.rl
 def test_loader_refuses_a_model_mixed_with_another_saves_statistics(tmp_path):
     make_policy(tmp_path / "a" / "best_model")
     other = make_policy(tmp_path / "b" / "best_model", name="other")
@@ -202,6 +218,7 @@ def test_evaluate_json_on_a_full_disk_keeps_the_previous_file(tmp_path, full_dis
 
 
 # --------------------------------------------------------------------- evaluate.py (6, 15)
+@pytest.mark.rl
 def test_policies_with_the_same_name_get_distinct_rows(tmp_path, capsys):
     a = tmp_path / "runs" / "a" / "best_model"
     b = tmp_path / "runs" / "b" / "best_model"
@@ -231,6 +248,7 @@ def test_policies_with_the_same_name_get_distinct_rows(tmp_path, capsys):
     assert "uses_unmeasured_signals" in rows["passive"] and rows["passive#2"]["vre_pct"]
 
 
+@pytest.mark.rl
 def test_policy_without_statistics_is_refused_unless_allowed(tmp_path, capsys):
     stem = tmp_path / "best_model"
     make_policy(stem)
@@ -262,6 +280,7 @@ def _bad_evaluate_case(case: str, tmp: Path) -> tuple[list[str], list[str]]:
     if case == "missing policy":
         return ["--policy", str(tmp / "nope.zip")], ["nope.zip"]
     if case == "corrupt policy":
+        pytest.importorskip("stable_baselines3", reason=NO_SB3)  # SB3 reads the zip
         path = tmp / "corrupt.zip"
         path.write_bytes(np.random.default_rng(0).bytes(4096))
         shutil.copy(ROOT / "capsule_env/pretrained/ppo-hils.vecnormalize.pkl",
@@ -297,10 +316,13 @@ def _bad_evaluate_case(case: str, tmp: Path) -> tuple[list[str], list[str]]:
     raise KeyError(case)
 
 
-BAD_EVALUATE = ["missing policy", "corrupt policy", "empty policy", "corrupt statistics",
-                "other observation size", "negative seed", "zero episodes",
-                "shorter than a control step", "too short for the spectra", "json is a folder",
-                "json in a non-folder", "plots is a file"]  # fmt: skip
+NEEDS_SB3 = ["corrupt policy", "corrupt statistics", "other observation size"]
+BAD_EVALUATE = [pytest.param(case, marks=pytest.mark.rl) if case in NEEDS_SB3 else case
+                for case in ["missing policy", "corrupt policy", "empty policy",
+                             "corrupt statistics", "other observation size", "negative seed",
+                             "zero episodes", "shorter than a control step",
+                             "too short for the spectra", "json is a folder",
+                             "json in a non-folder", "plots is a file"]]  # fmt: skip
 
 
 @pytest.mark.parametrize("case", BAD_EVALUATE)
@@ -310,6 +332,7 @@ def test_evaluate_bad_input_is_one_line_before_the_run(case, tmp_path, capsys, n
     assert_one_line_error(code, err, "evaluate.py: error", *expected)
 
 
+@pytest.mark.rl
 def test_evaluate_cli_corrupt_policy(tmp_path):
     argv, expected = _bad_evaluate_case("corrupt policy", tmp_path)
     result = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), *QUICK_EVAL, *argv],
@@ -360,7 +383,8 @@ class Killed(Exception):
     """Stands for SIGKILL / a power cut: no handler in train.py runs."""
 
 
-def test_wall_time_checkpoints_survive_a_hard_kill(ppo_yml, tmp_path):
+@pytest.mark.rl
+def test_wall_time_checkpoints_survive_a_hard_kill(train, ppo_yml, tmp_path):
     # checkpoint_freq keeps its default (500k steps: never in this run); checkpoints by wall
     # time at every rollout boundary (1024, 2048), then a kill in the third rollout
     argv = ppo_argv(ppo_yml, tmp_path, "--total-timesteps", "4096", "--eval-freq", "0",
@@ -375,7 +399,8 @@ def test_wall_time_checkpoints_survive_a_hard_kill(ppo_yml, tmp_path):
     assert resumed["num_timesteps"] == 4096 and resumed["model"].num_timesteps == 4096
 
 
-def test_the_end_of_training_is_always_checkpointed(ppo_yml, tmp_path):
+@pytest.mark.rl
+def test_the_end_of_training_is_always_checkpointed(train, ppo_yml, tmp_path):
     argv = ppo_argv(ppo_yml, tmp_path, "--total-timesteps", "1024", "--eval-freq", "0",
                     "--checkpoint-freq", "0")  # fmt: skip
     train.train(train.parse_args(argv))
@@ -389,7 +414,7 @@ def test_the_end_of_training_is_always_checkpointed(ppo_yml, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def two_checkpoints(ppo_yml, tmp_path_factory) -> Path:
+def two_checkpoints(train, ppo_yml, tmp_path_factory) -> Path:
     """A finished 2048-step PPO run with checkpoints at 1024 and 2048 steps."""
     out = tmp_path_factory.mktemp("two-ckpts")
     train.train(train.parse_args(ppo_argv(ppo_yml, out, "--total-timesteps", "2048",
@@ -414,6 +439,7 @@ def _corrupt(ckpt_dir: Path, how: str) -> None:
         raise KeyError(how)
 
 
+@pytest.mark.rl
 @pytest.mark.parametrize(
     "how", ["random bytes in the zip", "truncated statistics", "no json", "garbage json"]
 )
@@ -426,8 +452,9 @@ def test_latest_checkpoint_skips_damaged_ones(two_checkpoints, tmp_path, capsys,
     assert "skipping" in err and "ckpt_000000002048" in err
 
 
+@pytest.mark.rl
 def test_resume_auto_falls_back_past_a_corrupt_newest_checkpoint(
-    two_checkpoints, ppo_yml, tmp_path, capsys
+    train, two_checkpoints, ppo_yml, tmp_path, capsys
 ):
     out = tmp_path / "run"
     shutil.copytree(two_checkpoints, out)
@@ -441,7 +468,8 @@ def test_resume_auto_falls_back_past_a_corrupt_newest_checkpoint(
     assert summary["num_timesteps"] == 3072
 
 
-def test_resume_explicit_corrupt_checkpoint_is_one_line(two_checkpoints, ppo_yml, tmp_path):
+@pytest.mark.rl
+def test_resume_explicit_corrupt_checkpoint_is_one_line(train, two_checkpoints, ppo_yml, tmp_path):
     out = tmp_path / "run"
     shutil.copytree(two_checkpoints, out)
     _corrupt(out / "checkpoints", "truncated statistics")
@@ -453,7 +481,7 @@ def test_resume_explicit_corrupt_checkpoint_is_one_line(two_checkpoints, ppo_yml
 
 
 @pytest.fixture
-def no_training(monkeypatch):
+def no_training(train, monkeypatch):
     """Fail the test if train.py builds its environment (i.e. starts)."""
 
     def refuse(*args: Any, **kwargs: Any) -> None:
@@ -462,8 +490,11 @@ def no_training(monkeypatch):
     monkeypatch.setattr(train, "make_env", refuse)
 
 
+@pytest.mark.rl
 @pytest.mark.parametrize("flag", ["--output-dir", "--tensorboard"])
-def test_unwritable_output_folders_stop_before_training(flag, ppo_yml, tmp_path, no_training):
+def test_unwritable_output_folders_stop_before_training(
+    train, flag, ppo_yml, tmp_path, no_training
+):
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
     argv = ppo_argv(ppo_yml, tmp_path / "out", "--total-timesteps", "1024")
@@ -473,6 +504,7 @@ def test_unwritable_output_folders_stop_before_training(flag, ppo_yml, tmp_path,
     assert_one_line_error(1, str(info.value.code), "train.py: error", flag, "a-file")
 
 
+@pytest.mark.rl
 @pytest.mark.parametrize(
     ("extra", "expected"),
     [
@@ -481,19 +513,21 @@ def test_unwritable_output_folders_stop_before_training(flag, ppo_yml, tmp_path,
         (["--eval-episodes", "0"], "--eval-episodes"),
     ],
 )
-def test_train_bad_arguments_are_one_line(extra, expected, capsys):
+def test_train_bad_arguments_are_one_line(train, extra, expected, capsys):
     code, err = exit_of(train.parse_args, extra, capsys)
     assert_one_line_error(code, err, "train.py: error", expected)
 
 
-def test_train_too_short_evaluation_episode_is_one_line(ppo_yml, tmp_path, no_training):
+@pytest.mark.rl
+def test_train_too_short_evaluation_episode_is_one_line(train, ppo_yml, tmp_path, no_training):
     argv = ppo_argv(ppo_yml, tmp_path, "--eval-episode-length", "0.1")
     with pytest.raises(SystemExit) as info:
         train.train(train.parse_args(argv))
     assert_one_line_error(1, str(info.value.code), "--eval-episode-length", "0.335 s")
 
 
-def test_train_cli_unwritable_output_is_one_line(tmp_path):
+@pytest.mark.rl
+def test_train_cli_unwritable_output_is_one_line(train, tmp_path):
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
     result = subprocess.run(
@@ -504,7 +538,8 @@ def test_train_cli_unwritable_output_is_one_line(tmp_path):
     assert_one_line_error(result.returncode, result.stderr, "--output-dir", "a-file")
 
 
-def test_off_policy_checkpoints_keep_only_the_newest_replay_buffers(tmp_path, capsys):
+@pytest.mark.rl
+def test_off_policy_checkpoints_keep_only_the_newest_replay_buffers(train, tmp_path, capsys):
     yml = edited_yml("sac", tmp_path, learning_starts=100, batch_size=32)
     out = tmp_path / "out"
     argv = [*FAST, "--hyperparams", str(yml), "--output-dir", str(out), "--algo", "sac",

@@ -32,7 +32,8 @@ def _forces(config: EnvConfig, actions: np.ndarray) -> tuple[np.ndarray, Capsule
 
 
 def _relative_errors(kwargs: dict, vehicles: int = 48, seconds: float = 2.0) -> np.ndarray:
-    """Per vehicle: RMS(F_auto - F_fine) / RMS(F_fine), random current commands."""
+    """Per vehicle: RMS(F_auto - F_fine) / RMS(F_fine), random current commands (NaN or inf
+    where either run is not finite: the callers' ``err.max() < TOLERANCE`` then fails)."""
     rate = kwargs.get("control_rate_hz", 200.0)
     steps = int(round(seconds * rate))
     actions = np.random.default_rng(5).uniform(-1.0, 1.0, (steps, vehicles))
@@ -40,7 +41,6 @@ def _relative_errors(kwargs: dict, vehicles: int = 48, seconds: float = 2.0) -> 
     auto, batch = _forces(EnvConfig(**kwargs), actions)
     fine_substeps = max(100, 10 * int(batch.sub_table.max()))
     fine, _ = _forces(EnvConfig(**kwargs, substeps=fine_substeps), actions)
-    assert np.all(np.isfinite(auto))
     scale = np.sqrt(np.mean(fine**2, axis=0))
     assert np.all(scale > 50.0)  # the guideway and the commands really work the damper
     return np.sqrt(np.mean((auto - fine) ** 2, axis=0)) / scale

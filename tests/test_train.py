@@ -14,12 +14,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-pytest.importorskip("stable_baselines3")
+from conftest import NO_SB3, NO_YAML
+
+pytest.importorskip("stable_baselines3", reason=NO_SB3)
+pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
 import evaluate  # noqa: E402
 import train  # noqa: E402
 from agents import hyperparams  # noqa: E402
 from agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
+
+pytestmark = pytest.mark.rl
 
 ROOT = Path(__file__).resolve().parent.parent
 # Small and fast: 4 vehicles, 256-step PPO rollouts (1024 samples per update), a 2-episode,

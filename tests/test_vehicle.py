@@ -20,8 +20,7 @@ from capsule_env.vehicle import (
     state_space,
 )
 
-# docs/model.md, section 2 values, typed in independently of the code's defaults.
-M_C, M_B, K_S, K_P, C_S = 6000.0, 2400.0, 4.95e5, 2.25e6, 1.5e4
+from conftest import C_S, K_P, K_S, M_B, M_C  # docs/model.md section 2, typed in
 
 
 def closed_form_frequencies_hz(mc: float, mb: float, ks: float, kp: float) -> np.ndarray:

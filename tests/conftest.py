@@ -1,0 +1,54 @@
+"""Values shared by several test files (``from conftest import ...``).
+
+The model values are typed in from docs/model.md, independently of the code's defaults: a test
+that compares the code with them checks the code against the document, not against itself.
+"""
+
+from __future__ import annotations
+
+ENV_ID = "CapsuleSuspension-v0"
+
+DT = 0.005  # s: the control interval (200 Hz), also the sample interval of recorded signals
+SPEED = 225.0  # m/s (810 km/h)
+I_MAX = 1.5  # A: the coil's largest current
+
+# docs/model.md section 2: car body and bogie masses, secondary (air spring) and levitation
+# stiffnesses, the passive damper's damping.
+M_C, M_B, K_S, K_P, C_S = 6000.0, 2400.0, 4.95e5, 2.25e6, 1.5e4
+
+# docs/model.md section 4.2: the reference (Spencer) damper, Spencer's published values x 5 in
+# force with u = 1.5 V/A * i; coefficients ``<name>a + <name>b * i``, coil lag 1 / eta.
+SPENCER = dict(
+    c0a=1.05e4,
+    c0b=2.625e3,
+    c1a=1.415e5,
+    c1b=2.2125e3,
+    aa=7.0e4,
+    ab=5.2125e5,
+    k0=2.345e4,
+    k1=2.5e3,
+    x0=0.0,
+    g=3.63e6,
+    b=3.63e6,
+    A=301.0,
+    eta=190.0,
+)
+
+# Env arguments that cover the action modes, settings, inverse models and observations.
+ENV_COMBOS = [
+    {"action_mode": "force", "setting": "sim"},
+    {"action_mode": "force", "setting": "hils"},
+    {"action_mode": "current", "setting": "sim"},
+    {"action_mode": "current", "setting": "hils"},
+    {"action_mode": "force", "setting": "sim", "inverse_model": "csdc"},
+    {"action_mode": "force", "setting": "hils", "inverse_model": "tanh"},
+    {"observation": "full_state", "setting": "hils"},
+    {"observation": "measured", "setting": "hils"},
+    {"observation": "measured", "setting": "sim", "action_mode": "current"},
+    {"observation": "measured", "setting": "hils", "preview_points": 4},
+]
+
+# Skip reasons of the tests that need the optional ``rl`` extra (pytest.importorskip).
+RL_EXTRA = "optional, in the rl extra: pip install 'capsule-env[rl]'"
+NO_SB3 = f"stable-baselines3 is not installed ({RL_EXTRA})"
+NO_YAML = f"PyYAML is not installed ({RL_EXTRA})"
