@@ -17,7 +17,14 @@ from agents import (
     classical_controllers,
 )
 from agents.base import FULL
-from capsule_env.evaluation import METRIC_UNITS, Rollout, episode_metrics, run_episodes
+from capsule_env import metrics
+from capsule_env.evaluation import (
+    METRIC_UNITS,
+    RECORDED,
+    Rollout,
+    episode_metrics,
+    run_episodes,
+)
 from capsule_env.vehicle import VehicleParams, state_space
 
 
@@ -101,12 +108,37 @@ def test_vre_of_scaled_displacements_is_the_scale():
     assert m["rms_body_disp_m"] == pytest.approx(0.5 * plain["rms_body_disp_m"], rel=1e-12)
     assert plain["rms_body_disp_m"] > 0.0 and "vre_pct" not in plain
     # every metric's key ends with its unit, the spreads' too
-    assert set(m) - {"std"} == set(METRIC_UNITS) - {"force_tracking_error_rel"}  # current mode
-    suffixes = ("_m_s2", "_m", "_a", "_w", "_pct", "_rel")
-    assert all(k.endswith(suffixes) for k in m["std"]), sorted(m["std"])
-    assert set(m["std"]) == {k for k in METRIC_UNITS if k.endswith(suffixes[:-2])} | {
-        f"vre_{part}_{mode}_pct" for part in ("body", "bogie") for mode in ("mode1", "mode2")
+    # current mode (no force request), 2 s episodes (no 5 s EN 12299 window)
+    assert set(m) - {"std"} == set(METRIC_UNITS) - {
+        "force_tracking_error_rel",
+        "en12299_comfort_index",
     }
+    suffixes = ("_m_s2", "_m", "_a", "_w", "_index", "_pct", "_rel")
+    assert all(k.endswith(suffixes) for k in m["std"]), sorted(m["std"])
+    assert set(m["std"]) == {
+        k for k in METRIC_UNITS if k.endswith(suffixes[:-2]) and k != "en12299_comfort_index"
+    } | {f"vre_{part}_{mode}_pct" for part in ("body", "bogie") for mode in ("mode1", "mode2")}
+
+
+def test_ride_comfort_indices_of_a_known_sine():
+    # A 2 Hz sine of 0.3 m/s^2 on the car body over 10 s: Sperling's index is (b B(f))^0.3 with
+    # b the amplitude in cm/s^2 (one spectral line), EN 12299's vertical term is 6 x the RMS of
+    # the Wb-weighted sine, the same in both 5 s windows; a 4 s record has no EN 12299 window.
+    dt, f, amp = 0.005, 2.0, 0.3
+    t = np.arange(2000) * dt
+    acc = amp * np.sin(2 * np.pi * f * t)[None, :]
+    zeros = np.zeros_like(acc)
+    signals = {name: zeros for name in RECORDED}
+    signals["car_body_acceleration_m_s2"] = acc
+    roll = Rollout(signals, dt, np.zeros(1, dtype=bool), "current")
+    m = episode_metrics(roll, None)
+    b_weight = 0.588 * np.sqrt((1.911 * f**2 + (0.25 * f**2) ** 2)
+                               / ((1 - 0.277 * f**2) ** 2 + (1.563 * f - 0.0368 * f**3) ** 2))  # fmt: skip
+    assert m["sperling_ride_index"] == pytest.approx((100 * amp * b_weight) ** 0.3, rel=1e-9)
+    wb = abs(metrics.wb_weighting(np.array([f]))[0])
+    assert m["en12299_comfort_index"] == pytest.approx(6 * wb * amp / np.sqrt(2), rel=1e-9)
+    short = Rollout({k: v[:, :800] for k, v in signals.items()}, dt, roll.terminated, "current")
+    assert "en12299_comfort_index" not in episode_metrics(short, None)
 
 
 def test_skyhook_reduces_body_first_mode_in_sim():
