@@ -164,6 +164,7 @@ class CapsuleBatch:
             preview_points=int(config.preview_points),
             preview_step_s=float(config.preview_horizon_s / max(config.preview_points, 1)),
             survey_error=self._build_survey_error(),
+            reward_filter=config.reward_filter_sos(),
         )
         # What each vehicle's plant is made of (vehicles may differ, after their resets).
         self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))

@@ -36,6 +36,8 @@ from capsule_env.dampers import (
 )
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
 from capsule_env.inverse import INVERSE_NAMES
+from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS
+from capsule_env.metrics import wk_filter_sos
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
 from capsule_env.vehicle import VehicleParams
 
@@ -110,6 +112,8 @@ OBSERVATION_NAMES = {
 SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 1e-4, 0.01])
 #: Damper code of the model each ``inverse_model`` inverts.
 INVERSE_CODES = {"bi_exponential": BI_EXPONENTIAL, "tanh": TANH, "csdc": BOUC_WEN}
+#: Filters of the car-body acceleration in the reward (``reward_acceleration_filter``).
+REWARD_ACCELERATION_FILTERS = ("none", "wk")
 #: Most guideway preview points an observation may carry.
 MAX_PREVIEW_POINTS = 64
 #: Wavelength bands (m) of the survey map's errors [reconstructed]: a long-wavelength offset
@@ -150,6 +154,7 @@ class EnvConfig:
     reward_stroke_weight: float = 0.1
     reward_energy_weight: float = 0.01
     reward_velocity_weight: float = 0.0
+    reward_acceleration_filter: str = "none"
     acceleration_scale_m_s2: float = 0.5
     stroke_scale_m: float = 0.02
     velocity_scale_m_s: float = 0.05
@@ -203,6 +208,8 @@ class EnvConfig:
             "bump_stop_penalty",
         ):
             check_nonnegative(name, getattr(self, name))
+        check_choice("reward_acceleration_filter", self.reward_acceleration_filter,
+                     REWARD_ACCELERATION_FILTERS)  # fmt: skip
         check_positive("acceleration_scale_m_s2", self.acceleration_scale_m_s2)
         check_positive("stroke_scale_m", self.stroke_scale_m)
         check_positive("velocity_scale_m_s", self.velocity_scale_m_s)
@@ -425,6 +432,18 @@ class EnvConfig:
         ``k * preview_horizon_s / preview_points`` seconds ahead of the bogie, relative to the
         surveyed elevation under it now (m)."""
         return tuple(f"preview_ahead_{k}" for k in range(1, self.preview_points + 1))
+
+    def reward_filter_sos(self) -> np.ndarray:
+        """Second-order sections ``(b0, b1, b2, 1, a1, a2)`` the reward's car-body acceleration
+        passes through, (0, 6) for none: ``reward_acceleration_filter="wk"`` is the ISO 2631-1
+        Wk weighting as a causal filter at the control rate (:func:`capsule_env.metrics.
+        wk_filter_sos`), so that the reward's acceleration term is the per-step square of the
+        quantity the tables report (``wk_rms_body_acc_m_s2``)."""
+        if self.reward_acceleration_filter == "wk":
+            sos = wk_filter_sos(self.dt_s)
+            assert sos.shape[0] <= MAX_REWARD_FILTER_SECTIONS
+            return sos
+        return np.zeros((0, 6))
 
     def velocity_estimator_coefficients(self) -> np.ndarray:
         """``(b0, b1, b2, a1, a2)`` of the on-board velocity estimator at the control rate.

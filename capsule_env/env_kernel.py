@@ -67,6 +67,7 @@ from capsule_env.layout import (
     SIG_DESIRED_FORCE,
     SIG_FORCE,
     SIG_GUIDEWAY,
+    SIG_REWARD_ACC,
     SIG_STROKE,
     SIG_STROKE_RATE,
     TIME,
@@ -78,6 +79,7 @@ from capsule_env.layout import (
     VF_EST_BOGIE_1,
     VF_EST_BOGIE_2,
     VF_POSITION_ERROR,
+    VF_REWARD_FILTER,
 )
 from capsule_env.plant.block import guideway_elevation, row_params
 from capsule_env.plant.params import Route
@@ -152,6 +154,7 @@ class EnvParams(NamedTuple):
     preview_points: int  # guideway preview columns after the observation set's (0: none)
     preview_step_s: float  # time between preview points
     survey_error: np.ndarray  # (K, L) the survey map's error, on the profiles' grid (m)
+    reward_filter: np.ndarray  # (S, 6) second-order sections of the reward's acceleration filter
 
 
 class EnvState(NamedTuple):
@@ -295,6 +298,21 @@ def env_sense(lo, hi, params, plant, state, out):
     applied = vf[VF_APPLIED]
     est = params.estimator
     e_b0, e_b1, e_b2, e_a1, e_a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
+    # the car-body acceleration the reward reads, through the reward filter's sections
+    # (transposed direct form II; none: the acceleration itself)
+    acc_reward = sig[SIG_REWARD_ACC]
+    for n in range(lo, hi):
+        acc_reward[n] = plant_out[n, OUT_BODY_ACC]
+    sos = params.reward_filter
+    for k in range(sos.shape[0]):
+        f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
+        s1, s2 = vf[VF_REWARD_FILTER + 2 * k], vf[VF_REWARD_FILTER + 2 * k + 1]
+        for n in range(lo, hi):
+            u = acc_reward[n]
+            y = f_b0 * u + s1[n]
+            s1[n] = f_b1 * u - f_a1 * y + s2[n]
+            s2[n] = f_b2 * u - f_a2 * y
+            acc_reward[n] = y
     for n in range(lo, hi):
         m = n - lo
         zc, vc = x[n, BODY_DISP], x[n, BODY_VEL]
@@ -320,7 +338,7 @@ def env_sense(lo, hi, params, plant, state, out):
         sig[SIG_BODY_VEL_EST, n] = v_body
         sig[SIG_BOGIE_VEL_EST, n] = v_bogie
         # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
-        acc_rel = acc_c / acc_ref
+        acc_rel = acc_reward[n] / acc_ref
         stroke_rel = stroke / stroke_ref
         current_rel = applied[n] / i_max if has_current else 0.0
         c_acc = w_acc * acc_rel * acc_rel

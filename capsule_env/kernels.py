@@ -115,21 +115,21 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
         @njit(cache=True, parallel=True)
         def parallel(n, actions, params, plant, state, out):
             # EnvParams (taken apart and put back in order): 12 floats, 4 flags and codes, 5
-            # arrays, the preview's count, step and survey error
+            # arrays, the preview's count, step and survey error, the reward filter
             (f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3, a0, a1, a2, a3,
-             a4, p0, p1, p2) = params
+             a4, p0, p1, p2, r0) = params
             dp, vp, table, constants, profiles, spacing = plant
             x, route, floats, step_count, noise_key, measured, delay, slots = state
-            r0, r1, r2, r3 = route
+            q0, q1, q2, q3 = route
             obs, reward, terminated, signals, plant_out = out
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
                 args = (
                     actions,
                     EnvParams(f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3,
-                              a0, a1, a2, a3, a4, p0, p1, p2),
+                              a0, a1, a2, a3, a4, p0, p1, p2, r0),
                     PlantParams(dp, vp, table, constants, profiles, spacing),
-                    EnvState(x, Route(r0, r1, r2, r3), floats, step_count, noise_key, measured,
+                    EnvState(x, Route(q0, q1, q2, q3), floats, step_count, noise_key, measured,
                              delay, slots),
                     EnvOutputs(obs, reward, terminated, signals, plant_out),
                 )

@@ -140,11 +140,12 @@ SIGNAL_NAMES = (
     "cost_velocity",
     "car_body_velocity_estimate_m_s",  # the on-board estimator's, from the accelerometers
     "bogie_velocity_estimate_m_s",
+    "reward_acceleration_m_s2",  # the car-body acceleration the reward reads (Wk-weighted or not)
 )
 (SIG_BODY_DISP, SIG_BOGIE_DISP, SIG_BODY_VEL, SIG_BOGIE_VEL, SIG_BODY_ACC, SIG_BOGIE_ACC,
  SIG_STROKE, SIG_STROKE_RATE, SIG_FORCE, SIG_DESIRED_FORCE, SIG_CURRENT_COMMAND, SIG_COIL_CURRENT,
  SIG_GUIDEWAY, SIG_COST_ACC, SIG_COST_STROKE, SIG_COST_ENERGY, SIG_COST_VEL, SIG_BODY_VEL_EST,
- SIG_BOGIE_VEL_EST) = (SIGNAL_NAMES.index(n) for n in SIGNAL_NAMES)  # fmt: skip
+ SIG_BOGIE_VEL_EST, SIG_REWARD_ACC) = (SIGNAL_NAMES.index(n) for n in SIGNAL_NAMES)  # fmt: skip
 N_SIGNALS = len(SIGNAL_NAMES)
 
 # --------------------------------------------------------------------------- measurements
@@ -166,7 +167,9 @@ N_MEASUREMENTS = len(MEASUREMENT_NAMES)
 #: Per-vehicle floats of the env (one row each): the CSDC inverse's hysteresis estimate and the
 #: stroke it was last advanced to, the current applied to the plant this step (the command
 #: after the control delay), the two states of each velocity estimator's filter, and the error
-#: of the vehicle's own estimate of its position along the guideway (for the preview).
+#: of the vehicle's own estimate of its position along the guideway (for the preview), and the
+#: states of the reward's acceleration filter (two per second-order section, at most
+#: :data:`MAX_REWARD_FILTER_SECTIONS`).
 VEHICLE_FLOAT_NAMES = (
     "csdc_z_estimate",
     "csdc_last_stroke_m",
@@ -176,9 +179,12 @@ VEHICLE_FLOAT_NAMES = (
     "bogie_estimator_state_1",
     "bogie_estimator_state_2",
     "position_error_m",
+    *(f"reward_filter_state_{k}" for k in range(1, 2 * 4 + 1)),
 )
 (VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED, VF_EST_BODY_1, VF_EST_BODY_2, VF_EST_BOGIE_1,
- VF_EST_BOGIE_2, VF_POSITION_ERROR) = range(len(VEHICLE_FLOAT_NAMES))  # fmt: skip
+ VF_EST_BOGIE_2, VF_POSITION_ERROR, VF_REWARD_FILTER) = range(9)  # fmt: skip
+#: Second-order sections the reward's acceleration filter may have.
+MAX_REWARD_FILTER_SECTIONS = 4
 N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)
 
 # --------------------------------------------------------------------------- sensor noise

@@ -46,6 +46,7 @@ ENV_COMBOS = [
     {"observation": "measured", "setting": "hils"},
     {"observation": "measured", "setting": "sim", "action_mode": "current"},
     {"observation": "measured", "setting": "hils", "preview_points": 4},
+    {"observation": "measured", "setting": "hils", "reward_acceleration_filter": "wk"},
 ]
 
 # Skip reasons of the tests that need the optional ``rl`` extra (pytest.importorskip).

@@ -141,7 +141,10 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         r = -( w_acc (a_c / a_ref)^2 + w_stroke (x / x_ref)^2 + w_energy (i / i_max)^2
                + w_vel (z_c' / v_ref)^2 ) - bump_stop_penalty * [|x| > stroke_limit_m]
 
-    with ``a_c`` the car-body acceleration, ``x`` the stroke, ``i`` the applied current
+    with ``a_c`` the car-body acceleration (``reward_acceleration_filter="wk"``: passed through
+    the ISO 2631-1 Wk weighting as a causal filter, so that the acceleration term is the
+    per-step square of the reported ``wk_rms_body_acc_m_s2``; ``info["reward_acceleration_m_s2"]``
+    holds what the reward read), ``x`` the stroke, ``i`` the applied current
     (coil power is proportional to ``i^2``) and ``z_c'`` the car-body velocity (a Skyhook-like
     term that weighs the body mode). Defaults: ``w_acc = 1``, ``a_ref = 0.5 m/s^2``,
     ``w_stroke = 0.1``, ``x_ref = 0.02 m``, ``w_energy = 0.01``, ``w_vel = 0``,
@@ -173,7 +176,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     velocities, accelerations, ``stroke_m``, ``stroke_rate_m_s``, ``damper_force_n``,
     ``desired_force_n`` (0 in current mode), ``current_command_a``, ``coil_current_a``,
     ``guideway_elevation_m``, the reward terms, and the on-board velocity estimates
-    (``car_body_velocity_estimate_m_s``, ``bogie_velocity_estimate_m_s``).
+    (``car_body_velocity_estimate_m_s``, ``bogie_velocity_estimate_m_s``), and the car-body
+    acceleration the reward read (``reward_acceleration_m_s2``).
 
     ## Arguments
 
@@ -198,7 +202,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       ``velocity_estimator_damping`` (1/sqrt(2)).
     - Reward: ``reward_acceleration_weight``, ``reward_stroke_weight``,
       ``reward_energy_weight``, ``reward_velocity_weight``, ``acceleration_scale_m_s2``,
-      ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``;
+      ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``,
+      ``reward_acceleration_filter`` (``"none"`` | ``"wk"``);
       ``max_force_n`` (8 kN, force-mode scale).
     - Overrides: ``vehicle_params``, ``damper_params`` (plant), ``inverse_params`` (the model
       the controller inverts), each a dict of dataclass fields.
@@ -210,7 +215,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
 
     - v0: initial release; later additions keep v0 (new options default to the old behaviour):
       the ``measured`` observation set and its velocity estimator; per-vehicle substeps; the
-      branch blend of the sign-of-stroke damper models; independent seed streams per vehicle.
+      branch blend of the sign-of-stroke damper models; independent seed streams per vehicle;
+      the guideway preview; the Wk-weighted reward acceleration.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
