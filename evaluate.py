@@ -25,11 +25,13 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 
 from agents import classical_controllers
+from agents.base import OBSERVATION_GROUPS
+from agents.classical import PAPER_FIXED
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
@@ -49,6 +51,8 @@ PAPER_TEXT = {
     "mode; neither effective at the second mode (Bouc-Wen no reduction of the bogie's).",
 }
 PAPER_CONTROLLERS = ["passive", "skyhook-csdc", "skyhook-biexp"]
+#: The default run: the paper's rows, the open-loop references, the classical laws on ideal
+#: sensors (``full_state``) and the same laws on measured signals (``-meas``).
 DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "mr-0A",
     "mr-imax",
@@ -56,7 +60,17 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "skyhook-cont-biexp",
     "hybrid-biexp",
     "lqr-clipped-biexp",
+    "skyhook-meas",
+    "skyhook-cont-biexp-meas",
+    "hybrid-biexp-meas",
+    "add-meas",
+    "sh-add-meas",
+    "lqr-clipped-biexp-meas",
 ]
+#: The tables' groups, in order: the observation set a controller reads (its header says
+#: what the group may read: ``agents.base.OBSERVATION_GROUPS``).
+GROUP_ORDER = ("none", "measured", "sensors", "full_state")
+NAME_WIDTH = 24
 
 #: The tables' columns after the controller's name: (header with the unit, width), and the
 #: number format of each. The json (``--json``) holds the same figures in SI units.
@@ -151,6 +165,10 @@ def build_controllers(
         from agents.sb3_policy import shipped_policy_paths
 
         paths = shipped_policy_paths() + paths
+    if paths:
+        from agents.sb3_policy import use_one_torch_thread
+
+        use_one_torch_thread()
     for path in paths:
         from agents.sb3_policy import SB3Policy
 
@@ -236,7 +254,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
                 passive = roll
             rollouts[(setting, name)] = roll
             entry = episode_metrics(roll, passive if name != "passive" else None)
-            entry["uses_unmeasured_signals"] = bool(ctrl.uses_unmeasured_signals)
+            entry.update(describe(ctrl))
             results["settings"][setting]["controllers"][name] = entry
             done += 1
             _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
@@ -248,6 +266,19 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
     return results
 
 
+def describe(ctrl: Any) -> dict[str, Any]:
+    """What the JSON says about a controller besides its metrics: the observation set it
+    reads, whether that includes unmeasured signals, whether it previews the guideway, its
+    gains and whether they are the tuned ones (``agents/tuned_gains.json``)."""
+    return {
+        "observation": ctrl.observation,
+        "uses_unmeasured_signals": bool(ctrl.uses_unmeasured_signals),
+        "preview": bool(ctrl.preview),
+        "gains": ctrl.gains(),
+        "gains_tuned": bool(getattr(ctrl, "gains_tuned", False)),
+    }
+
+
 def _progress(done: int, total: int, label: str, elapsed: float) -> None:
     width = 30
     filled = int(width * done / total)
@@ -256,7 +287,24 @@ def _progress(done: int, total: int, label: str, elapsed: float) -> None:
     sys.stderr.flush()
 
 
+def _row(setting: str, name: str, m: dict) -> str:
+    vre = m.get("vre_pct", {})  # absent for passive, the reference
+    paper = PAPER_VRE.get((setting, name, "body_mode1"))
+    values = [
+        vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
+        vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
+        1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
+    ]  # fmt: skip
+    cells = [f"{name:<{NAME_WIDTH}}"]
+    for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
+        blank = "" if title == "paper %" else "-"
+        cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
+    return "".join(cells)
+
+
 def format_tables(results: dict) -> str:
+    """The tables, one per setting, rows grouped by the observation set each controller reads
+    (a header line per group says what the group may read)."""
     lines = []
     f1, f2 = results["natural_frequencies_hz"]
     lines.append(f"Undamped modes of the plant: {f1:.2f} Hz (body), {f2:.2f} Hz (bogie)")
@@ -271,21 +319,15 @@ def format_tables(results: dict) -> str:
             f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) =="
         )
         header = "".join(f"{title:>{width}}" for title, width in COLUMNS)
-        lines.append(f"{'controller':<22}{header}")
-        lines.append("-" * (22 + len(header)))
-        for name, m in block["controllers"].items():
-            vre = m.get("vre_pct", {})  # absent for passive, the reference
-            paper = PAPER_VRE.get((setting, name, "body_mode1"))
-            values = [
-                vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
-                vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
-                1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
-            ]  # fmt: skip
-            cells = [f"{name:<22}"]
-            for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
-                blank = "" if title == "paper %" else "-"
-                cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
-            lines.append("".join(cells))
+        lines.append(f"{'controller':<{NAME_WIDTH}}{header}")
+        lines.append("-" * (NAME_WIDTH + len(header)))
+        controllers = block["controllers"]
+        seen = [m.get("observation", "unknown") for m in controllers.values()]
+        for group in [*GROUP_ORDER, *sorted(set(seen) - set(GROUP_ORDER))]:
+            names = [n for n, g in zip(controllers, seen) if g == group]
+            if names:
+                lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
+                lines.extend(_row(setting, n, controllers[n]) for n in names)
         lines.append(PAPER_TEXT[setting])
     if results.get("policies"):
         lines.append("")
@@ -295,7 +337,10 @@ def format_tables(results: dict) -> str:
         "VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
         "band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS car-body "
         "acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
-        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio)."
+        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio). Gains: tuned on the training "
+        "guideway bank (agents/tuned_gains.json, python -m agents.tuning), except "
+        + ", ".join(PAPER_FIXED)
+        + " (the paper's reconstructed c_max = 7e4 N s/m). No controller previews the guideway."
     )
     return "\n".join(lines)
 

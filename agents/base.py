@@ -6,10 +6,21 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.config import FULL_STATE_NAMES
+from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
 
 #: Column of each full-state signal in the ``full_state`` observation.
 FULL = {name: k for k, name in enumerate(FULL_STATE_NAMES)}
+#: Column of each signal in the ``measured`` observation.
+MEAS = {name: k for k, name in enumerate(MEASURED_NAMES)}
+#: What each value of :attr:`Controller.observation` may read (the tables' group headers).
+OBSERVATION_GROUPS = {
+    "none": "open loop: reads no signal",
+    "measured": "measured: only the capsule's own sensors (accelerometers, LVDT, gap, coil "
+    "current) and on-board velocity estimates",
+    "sensors": "sensors: accelerometers, stroke, stroke rate and the last current command",
+    "full_state": "full_state, ideal sensors: true displacements, absolute velocities, "
+    "guideway elevation (references)",
+}
 
 
 class Controller:
@@ -19,13 +30,36 @@ class Controller:
     ----------
     name : short identifier used in tables and JSON (e.g. ``"skyhook-biexp"``).
     env_kwargs : environment options this controller needs (merged into the env's).
-    uses_unmeasured_signals : True if it reads states a vehicle measures only indirectly
-        (absolute velocities, the guideway), i.e. needs ``observation="full_state"``.
+    feedback : False for an open-loop law that reads no signal (then :attr:`observation` is
+        ``"none"``).
+    preview : True if it reads the guideway ahead of the vehicle (none does yet).
     """
 
     name: str = "controller"
     env_kwargs: dict[str, Any] = {}
-    uses_unmeasured_signals: bool = False
+    feedback: bool = True
+    preview: bool = False
+
+    @property
+    def observation(self) -> str:
+        """The observation set the law reads: ``"measured"``, ``"full_state"``, ``"sensors"``
+        (the env's options), or ``"none"`` for an open-loop law."""
+        if not self.feedback:
+            return "none"
+        return str(self.env_kwargs.get("observation", "sensors"))
+
+    @property
+    def uses_unmeasured_signals(self) -> bool:
+        """True if it reads states a vehicle measures only indirectly (absolute velocities
+        and displacements, the guideway): the ``full_state`` observation."""
+        return self.observation == "full_state"
+
+    def gains(self) -> dict[str, Any]:
+        """The law's gains, each key ending with its unit (``_n_s_m`` N s/m, ``_a`` A, ``_s``
+        s, ``_rel`` dimensionless, ...); a float per gain, or a list for per-vehicle gains.
+        Empty for a law without gains (and for learned policies: their parameters are
+        network weights)."""
+        return {}
 
     def reset(self) -> None:
         """Forget any internal state (called at episode start)."""

@@ -8,6 +8,7 @@ effect (against the passive run on the same guideway realisations) and ride metr
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -63,6 +64,12 @@ class Rollout:
     terminated: np.ndarray  # (episodes,) bool: hit the bump stop
     action_mode: str
 
+    def select(self, rows: slice | np.ndarray) -> Rollout:
+        """The rollout of the episodes ``rows`` only (e.g. one gain candidate's episodes of a
+        batch that ran many)."""
+        signals = {name: values[rows] for name, values in self.signals.items()}
+        return Rollout(signals, self.dt_s, self.terminated[rows], self.action_mode)
+
 
 def run_episodes(
     policy: Policy,
@@ -70,21 +77,28 @@ def run_episodes(
     episodes: int = 10,
     seed: int = 0,
     episode_length_s: float = 10.0,
+    seeds: Sequence[int] | None = None,
+    recorded: Sequence[str] = RECORDED,
 ) -> Rollout:
-    """Run ``episodes`` episodes (episode ``k``: the single env seeded ``seed + k``) with one
-    vector env.
+    """Run ``episodes`` episodes (episode ``k``: the single env seeded ``seed + k``, or
+    ``seeds[k]`` when ``seeds`` is given; then ``episodes`` is ``len(seeds)``) with one vector
+    env, recording the ``info`` signals ``recorded``.
 
-    ``env_kwargs`` are the env's arguments (setting, the controller's needs, overrides).
+    ``env_kwargs`` are the env's arguments (setting, the controller's needs, overrides; the
+    guideway bank is :data:`EVALUATION_GUIDEWAY_SEED` unless they name another).
     After a termination the vehicle's remaining samples repeat its last values.
     """
+    if seeds is None:
+        seeds = [seed + k for k in range(episodes)]
+    episodes = len(seeds)
     kwargs = {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}
     env = CapsuleSuspensionVectorEnv(num_envs=episodes, episode_length_s=episode_length_s, **kwargs)
     steps = env.batch.max_steps
-    # episode k is the single env seeded seed + k: each reproducible alone
-    obs, _ = env.reset(seed=[seed + k for k in range(episodes)])
+    # episode k is the single env seeded seeds[k]: each reproducible alone
+    obs, _ = env.reset(seed=[int(s) for s in seeds])
     if hasattr(policy, "reset"):
         policy.reset()
-    record = {name: np.zeros((episodes, steps)) for name in RECORDED}
+    record = {name: np.zeros((episodes, steps)) for name in recorded}
     alive = np.ones(episodes, dtype=bool)
     terminated_any = np.zeros(episodes, dtype=bool)
     start = np.ones(episodes, dtype=bool)
@@ -93,8 +107,7 @@ def run_episodes(
         actions, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start[:] = False
         obs, _, terminated, truncated, info = env.step(actions)
-        for name in RECORDED:
-            column = record[name]
+        for name, column in record.items():
             column[alive, t] = info[name][alive]
             if t > 0:
                 column[~alive, t] = column[~alive, t - 1]

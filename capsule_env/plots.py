@@ -3,6 +3,7 @@ control) and the damper-model identification (the paper's Figures 4 to 7 analogu
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -248,3 +249,75 @@ def plot_fits(
 def _law_label(p: str, row: dict[str, float]) -> str:
     """Legend text of a linear law ``p = p0 + p1 i`` (used by :func:`plot_fits`)."""
     return f"{p} = {row[p + '0']:.4g} + {row[p + '1']:.4g} i"
+
+
+# ----------------------------------------------------------------------------- Pareto fronts
+#: Colour of each law family (the ideal-sensor and measured versions share it).
+_FAMILY_COLOURS = {
+    "skyhook": "tab:blue", "skyhook-cont": "tab:orange", "hybrid": "tab:green",
+    "add": "tab:red", "sh-add": "tab:purple", "lqr-clipped": "tab:brown",
+}  # fmt: skip
+
+
+def _family(name: str) -> str:
+    base = name.removesuffix("-meas")
+    for tag in ("-biexp", "-csdc", "-tanh"):
+        base = base.removesuffix(tag)
+    return base
+
+
+def pareto_figure(data: dict[str, Any], path: Path) -> Path:
+    """The comfort trade-offs of ``experiments/pareto.py``'s ``data``: Wk-weighted RMS body
+    acceleration against the body's first-mode VRE (left) and against the worst max |stroke|
+    (right). Each law's gain sweep is a curve (measured: solid, ideal sensors: dashed) with its
+    tuned gains starred; open-loop references and learned policies are points."""
+    plt = _pyplot()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.6), constrained_layout=True)
+    panels = (("vre_body_mode1_pct", 1.0, "VRE body first mode (%)  (higher: better)"),
+              ("max_stroke_m", 1e3, "worst max |stroke| over the episodes (mm)"))  # fmt: skip
+    for ax, (key, scale, label) in zip(axes, panels):
+        for name, law in data["laws"].items():
+            measured = law["observation"] == "measured"
+            colour = _FAMILY_COLOURS.get(_family(name), "tab:gray")
+            x = scale * np.asarray(law[key], dtype=float)
+            y = np.asarray(law["wk_rms_body_acc_m_s2"])
+            ax.plot(x, y, "-" if measured else "--", color=colour, lw=1.4, marker=".", ms=4,
+                    label=f"{name} (sweep {law['swept_gain']})")  # fmt: skip
+            k = law["tuned_index"]
+            ax.plot(x[k], y[k], "*", color=colour, ms=14, mec="black", mew=0.8)
+        top = 1.03 * max(max(law["wk_rms_body_acc_m_s2"]) for law in data["laws"].values())
+        off_scale = []
+        for (name, point), marker in zip(data["points"].items(), itertools.cycle("osv^<>")):
+            x = scale * (point.get(key) or 0.0)  # passive: no VRE against itself
+            y = point["wk_rms_body_acc_m_s2"]
+            if y > top:
+                off_scale.append(f"{name}: Wk {y:.3f}")
+                continue
+            policy = point["kind"] == "policy"
+            ax.plot(x, y, "D" if policy else marker, color="black" if policy else "0.5", ms=8,
+                    label=f"{name} ({point['kind']}, {point['observation']})")  # fmt: skip
+            ax.annotate(name, (x, y), textcoords="offset points", xytext=(6, -10), fontsize=7)
+        ax.set_ylim(top=top)
+        if off_scale:
+            ax.text(0.02, 0.98, "off scale: " + "; ".join(off_scale), transform=ax.transAxes,
+                    va="top", fontsize=7, color="0.3")  # fmt: skip
+        if key == "max_stroke_m" and data.get("stroke_limit_m"):
+            ax.axvline(1e3 * data["stroke_limit_m"], color="0.3", ls=":", lw=1)
+            ax.text(1e3 * data["stroke_limit_m"], 0.5 * sum(ax.get_ylim()), "tuning's stroke "
+                    "limit (training bank) ", rotation=90, va="center", ha="right", fontsize=7,
+                    color="0.3")  # fmt: skip
+        ax.set_xlabel(label)
+        ax.set_ylabel("ISO 2631-1 Wk-weighted RMS body acceleration (m/s^2)")
+        ax.grid(alpha=0.3)
+    axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    seeds = data["seeds"]
+    fig.suptitle(
+        f"{data['setting']}: gain sweeps on the EVALUATION bank (guideway_seed "
+        f"{data['guideway_seed']}, seeds {seeds[0]}..{seeds[-1]}; for this figure only).\n"
+        "Stars: the gains tuned on the TRAINING bank (guideway_seed 0). Solid: measured "
+        "signals; dashed: ideal sensors.",
+        fontsize=9,
+    )
+    return _save(fig, path, plt)

@@ -155,14 +155,28 @@ def test_evaluate_end_to_end(tmp_path, capsys):
     plots = tmp_path / "plots"
     code = evaluate.main(
         ["--episodes", "2", "--episode-length", "2", "--json", str(out), "--plots", str(plots),
-         "--controllers", "passive,skyhook-csdc,skyhook-biexp", "--no-shipped-policy"]
+         "--controllers", "passive,skyhook-csdc,skyhook-biexp,sh-add-meas",
+         "--no-shipped-policy"]
     )  # fmt: skip
     assert code == 0
     data = json.loads(out.read_text())
     assert len(data["natural_frequencies_hz"]) == 2
     for setting in ("sim", "hils"):
         ctrls = data["settings"][setting]["controllers"]
-        assert set(ctrls) == {"passive", "skyhook-csdc", "skyhook-biexp"}
+        assert set(ctrls) == {"passive", "skyhook-csdc", "skyhook-biexp", "sh-add-meas"}
+        # what each reads, whether that is measurable, preview, and its gains
+        described = {n: (c["observation"], c["uses_unmeasured_signals"], c["preview"])
+                     for n, c in ctrls.items()}  # fmt: skip
+        assert described == {
+            "passive": ("none", False, False),
+            "skyhook-csdc": ("full_state", True, False),
+            "skyhook-biexp": ("full_state", True, False),
+            "sh-add-meas": ("measured", False, False),
+        }
+        assert ctrls["skyhook-biexp"]["gains"] == {"c_max_n_s_m": 7e4, "c_min_n_s_m": 0.0}
+        assert not ctrls["skyhook-biexp"]["gains_tuned"]
+        assert set(ctrls["sh-add-meas"]["gains"]) == {"i_on_a", "alpha_s"}
+        assert ctrls["sh-add-meas"]["gains_tuned"] and ctrls["passive"]["gains"] == {}
         entry = ctrls["skyhook-biexp"]
         assert set(entry["vre_pct"]) == {"body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"}
         for key in ("rms_body_acc_m_s2", "wk_rms_body_acc_m_s2", "rms_body_disp_m",
@@ -170,9 +184,21 @@ def test_evaluate_end_to_end(tmp_path, capsys):
             assert 0.0 < entry[key] < np.inf, key  # finite, and the vehicle moved
         assert 0.0 < entry["force_tracking_error_rel"] < 10.0
     assert len(list(plots.glob("*.png"))) == 6
-    header = next(
-        line for line in capsys.readouterr().out.splitlines() if line.startswith("controller")
-    )
+    printed = capsys.readouterr().out.splitlines()
+    header = next(line for line in printed if line.startswith("controller"))
+    # rows grouped by what they read, each group under a header saying what it may read
+    first = printed.index(header) + 2
+    table = printed[
+        first : next(k for k in range(first, len(printed)) if printed[k].startswith("paper:"))
+    ]
+    groups = [k for k, line in enumerate(table) if line.startswith("[")]
+    assert [table[k].split(":")[0] for k in groups] == [
+        "[open loop",
+        "[measured",
+        "[full_state, ideal sensors",
+    ]
+    assert table[groups[1] + 1].startswith("sh-add-meas ")
+    assert table[groups[2] + 1].startswith("skyhook-csdc ")
     for column in ("body m1 %", "Wk m/s^2", "rms m/s^2", "stroke mm", "I A", "trk rel"):
         assert column in header
 

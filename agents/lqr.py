@@ -1,0 +1,105 @@
+"""Clipped-optimal control (Dyke et al. 1996): an LQR force law for the linear plant, produced
+as far as the damper can (the env's inverse model clips the request to the achievable,
+dissipative band).
+
+State ``x = [z_c - z_b, z_c', z_b - z_g, z_b']``. On ``full_state`` (ideal sensors) each
+component is read from the true states; on ``measured`` (``-meas``) all four are measured:
+the LVDT stroke, the on-board body velocity estimate, the levitation gap sensor and the bogie
+velocity estimate (:mod:`agents.law`). Force mode: the law asks for a continuum of forces.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import solve_continuous_are
+
+from agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
+from capsule_env.vehicle import VehicleParams
+
+#: Names (with units) of the components of the feedback gain ``K``, in state order.
+GAIN_NAMES = ("k_stroke_n_m", "k_body_velocity_n_s_m", "k_gap_n_m", "k_bogie_velocity_n_s_m")
+STATE_SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity")
+
+
+def lqr_gain(
+    vehicle: VehicleParams, q_stroke: float, q_levitation: float, r_force: float
+) -> np.ndarray:
+    """The LQR gain ``K`` (4,) with ``F = -K x`` minimising
+    ``J = integral(a_c^2 + q_stroke (z_c - z_b)^2 + q_lev (z_b - z_g)^2 + r F^2)``, with
+    ``a_c = (-k_s (z_c - z_b) - F) / m_c`` the car-body acceleration (the cross term kept)."""
+    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
+    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
+    a = np.array(
+        [
+            [0.0, 1.0, 0.0, -1.0],
+            [-ks / mc, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [ks / mb, 0.0, -kp / mb, 0.0],
+        ]
+    )
+    b = np.array([[0.0], [-1.0 / mc], [0.0], [1.0 / mb]])
+    c_acc = np.array([[-ks / mc, 0.0, 0.0, 0.0]])
+    d_acc = np.array([[-1.0 / mc]])
+    q = c_acc.T @ c_acc + np.diag([q_stroke, 0.0, q_levitation, 0.0])
+    r = d_acc.T @ d_acc + r_force
+    n = c_acc.T @ d_acc
+    p = solve_continuous_are(a, b, q, r, s=n)
+    return np.linalg.solve(r, b.T @ p + n.T)[0]
+
+
+class ClippedOptimalController(ForceLaw):
+    """Clipped-optimal LQR through an inverse model (see the module docstring).
+
+    Parameters
+    ----------
+    inverse_model : ``"bi_exponential"``, ``"csdc"`` or ``"tanh"``.
+    q_stroke, q_levitation (1/s^4), r_force (1/kg^2) : the cost weights, scalars or one per
+        vehicle; None: the tuned values, else 1e3, 1e3, 1e-9 [reconstructed].
+    vehicle : the plant's parameters (default :class:`VehicleParams`).
+    max_force_n : the env's force scale.
+    observation : ``"full_state"`` (ideal sensors, default) or ``"measured"``.
+
+    :attr:`gain` is ``K``: ``(4,)``, or ``(N, 4)`` for per-vehicle weights.
+    """
+
+    SIGNALS = STATE_SIGNALS
+
+    def __init__(
+        self,
+        inverse_model: str = "bi_exponential",
+        q_stroke: float | np.ndarray | None = None,
+        q_levitation: float | np.ndarray | None = None,
+        r_force: float | np.ndarray | None = None,
+        vehicle: VehicleParams | None = None,
+        max_force_n: float = DEFAULT_MAX_FORCE_N,
+        observation: str = "full_state",
+    ) -> None:
+        super().__init__("lqr-clipped", inverse_model, max_force_n, observation)
+        self._set_gains(
+            {"q_stroke": "1_s4", "q_levitation": "1_s4", "r_force": "1_kg2"},
+            {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force},
+            {"q_stroke": 1.0e3, "q_levitation": 1.0e3, "r_force": 1.0e-9},
+        )
+        weights = np.broadcast_arrays(self.q_stroke, self.q_levitation, self.r_force)
+        if np.any(weights[0] < 0) or np.any(weights[1] < 0) or np.any(weights[2] <= 0):
+            raise ValueError("q_stroke and q_levitation must be >= 0 and r_force > 0")
+        vehicle = vehicle or VehicleParams()
+        cache: dict[tuple[float, float, float], np.ndarray] = {}
+        flat = [w.ravel() for w in weights]
+        rows = []
+        for triple in zip(*(w.tolist() for w in flat)):
+            if triple not in cache:
+                cache[triple] = lqr_gain(vehicle, *triple)
+            rows.append(cache[triple])
+        self.gain = np.array(rows).reshape(*weights[0].shape, 4)
+
+    def gains(self) -> dict:
+        out = super().gains()
+        for k, name in enumerate(GAIN_NAMES):
+            value = self.gain[..., k]
+            out[name] = float(value) if value.ndim == 0 else value.tolist()
+        return out
+
+    def desired_force(self, obs: np.ndarray) -> np.ndarray:
+        x = np.stack([self.signal(obs, s) for s in STATE_SIGNALS], axis=1)
+        return -np.sum(x * self.gain, axis=1)
