@@ -135,11 +135,12 @@ def episode_metrics(
       ``max_stroke_m`` (largest damper stroke, m), ``mean_current_a`` (mean coil current, A),
       ``coil_power_w`` (W), ``force_tracking_error_rel`` (``rms(F - F_d) / rms(F_d)``, a
       ratio; force mode only);
-    - rail ride comfort of the car-body acceleration: ``sperling_ride_index``, the Sperling ride index
-      (:func:`capsule_env.metrics.sperling_index`, 0.5-30 Hz, RMS form: independent of the
-      record length), and ``en12299_comfort_index``, the vertical term ``6 a_ZP95`` of the
-      EN 12299 mean comfort index (:func:`capsule_env.metrics.mean_comfort_vertical`, Wb
-      weighting, 5 s windows; present only when an episode holds at least one 5 s window);
+    - rail ride comfort of the car-body acceleration: ``sperling_ride_index``, the Sperling
+      ride index (:func:`capsule_env.metrics.sperling_index`, 0.5-30 Hz, RMS form: independent
+      of the record length; present when an episode lasts at least 2 s), and
+      ``en12299_comfort_index``, the vertical term ``6 a_ZP95`` of the EN 12299 mean comfort
+      index (:func:`capsule_env.metrics.mean_comfort_vertical`, Wb weighting, 5 s windows;
+      present when an episode holds at least one 5 s window);
     - ``std``: the spread over episodes of each of those, the VRE ones as
       ``vre_body_mode1_pct`` ...;
     - ``terminated_episodes``: how many episodes hit the bump stop (a count).
@@ -154,14 +155,12 @@ def episode_metrics(
         "max_stroke_m": np.max(np.abs(s["stroke_m"]), axis=-1),
         "mean_current_a": np.mean(s["coil_current_a"], axis=-1),
         "coil_power_w": metrics.coil_power_w(s["coil_current_a"], coil_resistance_ohm),
-        "sperling_ride_index": metrics.sperling_index(
-            s["car_body_acceleration_m_s2"], dt, combine="rms"
-        ),
     }
-    if s["car_body_acceleration_m_s2"].shape[-1] >= round(metrics.EN12299_WINDOW_S / dt):
-        per_episode["en12299_comfort_index"] = metrics.mean_comfort_vertical(
-            s["car_body_acceleration_m_s2"], dt
-        )
+    acc, samples = s["car_body_acceleration_m_s2"], s["car_body_acceleration_m_s2"].shape[-1]
+    if samples * dt >= 1.0 / metrics.SPERLING_BAND_HZ[0] - 1e-9:  # lines down to 0.5 Hz
+        per_episode["sperling_ride_index"] = metrics.sperling_index(acc, dt, combine="rms")
+    if samples >= round(metrics.EN12299_WINDOW_S / dt):  # one 5 s window
+        per_episode["en12299_comfort_index"] = metrics.mean_comfort_vertical(acc, dt)
     if rollout.action_mode == "force":
         per_episode["force_tracking_error_rel"] = metrics.force_tracking_error(
             s["desired_force_n"], s["damper_force_n"]
