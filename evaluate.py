@@ -66,10 +66,13 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "add-meas",
     "sh-add-meas",
     "lqr-clipped-biexp-meas",
+    "preview-lq-biexp-meas",
+    "preview-lq-biexp",
 ]
 #: The tables' groups, in order: the observation set a controller reads (its header says
 #: what the group may read: ``agents.base.OBSERVATION_GROUPS``).
-GROUP_ORDER = ("none", "measured", "sensors", "full_state")
+GROUP_ORDER = ("none", "measured", "measured+preview", "sensors", "full_state",
+               "full_state+preview")  # fmt: skip
 NAME_WIDTH = 24
 
 #: The tables' columns after the controller's name: (header with the unit, width), and the
@@ -77,8 +80,9 @@ NAME_WIDTH = 24
 COLUMNS = [
     ("body m1 %", 11), ("paper %", 9), ("body m2 %", 11), ("bogie m1 %", 12), ("bogie m2 %", 12),
     ("Wk m/s^2", 10), ("rms m/s^2", 11), ("stroke mm", 11), ("I A", 8), ("trk rel", 9),
+    ("Wz", 6), ("N_v", 6),
 ]  # fmt: skip
-FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f"]
+FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f", ".2f", ".2f"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -294,12 +298,19 @@ def _row(setting: str, name: str, m: dict) -> str:
         vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
         vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
         1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
+        m.get("sperling_ride_index"), m.get("en12299_comfort_index"),
     ]  # fmt: skip
     cells = [f"{name:<{NAME_WIDTH}}"]
     for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
         blank = "" if title == "paper %" else "-"
         cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
     return "".join(cells)
+
+
+def group_of(entry: dict) -> str:
+    """A controller's table group: its observation set, ``+preview`` if it reads the guideway
+    ahead."""
+    return entry.get("observation", "unknown") + ("+preview" if entry.get("preview") else "")
 
 
 def format_tables(results: dict) -> str:
@@ -322,7 +333,7 @@ def format_tables(results: dict) -> str:
         lines.append(f"{'controller':<{NAME_WIDTH}}{header}")
         lines.append("-" * (NAME_WIDTH + len(header)))
         controllers = block["controllers"]
-        seen = [m.get("observation", "unknown") for m in controllers.values()]
+        seen = [group_of(m) for m in controllers.values()]
         for group in [*GROUP_ORDER, *sorted(set(seen) - set(GROUP_ORDER))]:
             names = [n for n, g in zip(controllers, seen) if g == group]
             if names:
@@ -337,10 +348,12 @@ def format_tables(results: dict) -> str:
         "VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
         "band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS car-body "
         "acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
-        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio). Gains: tuned on the training "
-        "guideway bank (agents/tuned_gains.json, python -m agents.tuning), except "
+        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio); Wz: Sperling ride index (RMS "
+        "form); N_v: EN 12299 mean comfort, vertical term 6 a_ZP95 (Wb). Gains: tuned on the "
+        "training guideway bank (agents/tuned_gains.json, python -m agents.tuning), except "
         + ", ".join(PAPER_FIXED)
-        + " (the paper's reconstructed c_max = 7e4 N s/m). No controller previews the guideway."
+        + " (the paper's reconstructed c_max = 7e4 N s/m). '+preview' groups read the surveyed "
+        "guideway ahead (env option preview_points)."
     )
     return "\n".join(lines)
 

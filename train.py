@@ -9,7 +9,8 @@
 Hyperparameters: ``hyperparams/<algo>.yml`` (RL-Zoo format). Env: ``hils``, force mode, unless
 the file's ``env_kwargs`` (the shipped ones: ``observation: full_state``), ``--env-kwargs`` or
 ``--env`` say otherwise; training on guideway bank 0, evaluation every ``--eval-freq`` steps on
-the held-out bank 2026. Output (``--output-dir``, default ``runs/<algo>-seed<seed>``):
+the validation bank 7 (the evaluation bank 2026 that evaluate.py reports on is never
+used to choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<seed>``):
 ``best_model.*`` (the best evaluation by the Wk-weighted RMS car-body acceleration;
 ``evaluate.py --policy`` loads it), ``final_model.*``, ``checkpoints/`` (every
 ``--checkpoint-freq`` steps and ``--checkpoint-minutes``, on Ctrl-C or SIGTERM and at the end;
@@ -56,7 +57,7 @@ class Args:
     name: str | None = None
     """the policy's name in evaluate.py's tables (default: <algo>-seed<seed>)"""
     eval_freq: int = 200_000
-    """evaluate on the held-out guideway bank every this many env steps (0: only at the end)"""
+    """evaluate on the validation guideway bank every this many env steps (0: only at the end)"""
     eval_episodes: int = 10
     """episodes per evaluation"""
     eval_seed: int = 5000

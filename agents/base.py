@@ -20,6 +20,10 @@ OBSERVATION_GROUPS = {
     "sensors": "sensors: accelerometers, stroke, stroke rate and the last current command",
     "full_state": "full_state, ideal sensors: true displacements, absolute velocities, "
     "guideway elevation (references)",
+    "measured+preview": "measured + guideway preview: the measured signals and the surveyed "
+    "elevations ahead (survey map and position known on board)",
+    "full_state+preview": "full_state + guideway preview: ideal sensors and the surveyed "
+    "elevations ahead (references)",
 }
 
 
@@ -32,13 +36,18 @@ class Controller:
     env_kwargs : environment options this controller needs (merged into the env's).
     feedback : False for an open-loop law that reads no signal (then :attr:`observation` is
         ``"none"``).
-    preview : True if it reads the guideway ahead of the vehicle (none does yet).
+    preview : True if it reads the guideway ahead of the vehicle (the surveyed elevations of
+        the env's ``preview_points`` option).
     """
 
     name: str = "controller"
     env_kwargs: dict[str, Any] = {}
     feedback: bool = True
-    preview: bool = False
+
+    @property
+    def preview(self) -> bool:
+        """True if the law reads the guideway preview (its env asks for ``preview_points``)."""
+        return int(self.env_kwargs.get("preview_points", 0) or 0) > 0
 
     @property
     def observation(self) -> str:

@@ -10,7 +10,9 @@ Open loop (read no signal): ``passive`` (the linear damper c_s), ``mr-0A`` and `
 - measured (``measured``), suffix ``-meas``: ``skyhook-meas`` (on-off, two-state),
   ``skyhook-cont-biexp-meas``, ``hybrid-biexp-meas``, ``add-meas``, ``sh-add-meas``,
   ``lqr-clipped-biexp-meas``. A force law keeps its inverse model's tag; a two-state law
-  (current mode) has none.
+  (current mode) has none;
+- with guideway preview (the surveyed elevations ahead, :mod:`agents.preview_lq`):
+  ``preview-lq-biexp-meas`` (measured signals) and ``preview-lq-biexp`` (ideal sensors).
 
 Gains: every feedback law takes its defaults from ``agents/tuned_gains.json`` (the search of
 :mod:`agents.tuning`), except the paper-reproduction on-off Skyhooks (:data:`PAPER_FIXED`).
@@ -25,6 +27,7 @@ import numpy as np
 
 from agents.base import Controller
 from agents.lqr import ClippedOptimalController
+from agents.preview_lq import PreviewLQController
 from agents.skyhook import INVERSE_TAG, HybridController, SkyhookController
 from agents.two_state import ADDController, MixedSkyhookADDController, SkyhookTwoStateController
 
@@ -88,6 +91,11 @@ FACTORIES.update(
         "lqr-clipped-biexp-meas": partial(
             ClippedOptimalController, "bi_exponential", observation="measured"
         ),
+        # guideway preview (the surveyed elevations ahead)
+        "preview-lq-biexp": partial(
+            PreviewLQController, "bi_exponential", observation="full_state"
+        ),
+        "preview-lq-biexp-meas": partial(PreviewLQController, "bi_exponential"),
     }
 )
 

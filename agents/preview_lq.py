@@ -18,7 +18,8 @@ earlier: the requests still in flight are states too. The cost per interval is
 
 ``a_c = (-k_s (z_c - z_b) - F) / m_c`` (the cross term kept), the continuous-time weights of the
 clipped LQR (:mod:`agents.lqr`). The optimal law on the augmented state ``[x; in flight; p]`` is
-linear, from one discrete algebraic Riccati equation (:func:`scipy.linalg.solve_discrete_are`):
+linear, from the discrete algebraic Riccati equation of the plant and the requests in flight
+(:func:`scipy.linalg.solve_discrete_are`) and, for the preview, a product per point ahead:
 
     F_k = -K_x x_k - K_u [F_{k-1}, ..., F_{k-delay}] - K_p p_k.
 
@@ -36,9 +37,16 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
+from agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.vehicle import VehicleParams
 
-__all__ = ["PreviewGains", "plant_matrices", "preview_lq_gains", "preview_rises"]
+__all__ = [
+    "PreviewGains",
+    "PreviewLQController",
+    "plant_matrices",
+    "preview_lq_gains",
+    "preview_rises",
+]
 
 
 class PreviewGains(NamedTuple):
@@ -94,34 +102,42 @@ def preview_lq_gains(
         raise ValueError("q_stroke and q_gap must be >= 0 and r_force > 0")
     a, b, e, c, d = plant_matrices(vehicle, dt_s)
     nd, npv = int(delay_steps), int(n_preview)
-    size = 4 + nd + npv
+    # the plant and the requests in flight: x = [plant (4); in flight, newest first (nd)]
+    size = 4 + nd
     big_a = np.zeros((size, size))
-    big_b = np.zeros(size)
-    big_a[:4, :4] = a
+    big_b, big_e = np.zeros(size), np.zeros(size)
+    big_a[:4, :4], big_e[:4] = a, e
     if nd:  # the oldest request in flight acts now; the new one enters the line
-        big_a[:4, 4 + nd - 1] = b
-        big_a[5 : 4 + nd, 4 : 4 + nd - 1] = np.eye(nd - 1)
+        big_a[:4, size - 1] = b
+        big_a[5:size, 4 : size - 1] = np.eye(nd - 1)
         big_b[4] = 1.0
     else:
         big_b[:4] = b
-    if npv:  # this interval's rise acts now; the window shifts by one
-        big_a[:4, 4 + nd] = e
-        big_a[4 + nd : size - 1, 4 + nd + 1 :] = np.eye(npv - 1)
     # cost: (C x + D F_applied)^2 + q_s s^2 + q_g g^2 + r F_k^2 (F_applied is F_k without delay)
     c_big = np.zeros(size)
     c_big[:4] = c
     d_big = d
     if nd:  # the force acting now is a state (the oldest in flight)
-        c_big[4 + nd - 1] = d
+        c_big[size - 1] = d
         d_big = 0.0
     q = np.outer(c_big, c_big)
     q[0, 0] += q_stroke
     q[2, 2] += q_gap
-    r = np.array([[d_big * d_big + r_force]])
-    s = (c_big * d_big)[:, None]
-    p = solve_discrete_are(big_a, big_b[:, None], q, r, s=s)
-    k = (big_b @ p @ big_a + s[:, 0]) / (r[0, 0] + big_b @ p @ big_b)  # one input: a scalar
-    return PreviewGains(k[:4].copy(), k[4 : 4 + nd].copy(), k[4 + nd :].copy())
+    r = d_big * d_big + r_force
+    s = c_big * d_big
+    p = solve_discrete_are(big_a, big_b[:, None], q, np.array([[r]]), s=s[:, None])
+    g = 1.0 / (r + big_b @ p @ big_b)  # one input: a scalar
+    k = g * (big_b @ p @ big_a + s)
+    # The preview window p_k = [d_k .. d_{k+N-1}] shifts by one each interval and d_k enters
+    # as E d_k. The augmented Riccati equation's cross block then gives (Tomizuka's form)
+    # K_p[j] = g B' (A_c')^j P E with A_c = A - B K, the closed loop: one product per point.
+    a_closed_t = (big_a - np.outer(big_b, k)).T
+    column = p @ big_e
+    preview = np.empty(npv)
+    for j in range(npv):
+        preview[j] = g * (big_b @ column)
+        column = a_closed_t @ column
+    return PreviewGains(k[:4].copy(), k[4:].copy(), preview)
 
 
 def preview_rises(
@@ -141,3 +157,112 @@ def preview_rises(
     f = np.clip((times - ahead_s[j]) / preview_step_s, 0.0, 1.0)
     at = elevation[:, j] * (1.0 - f) + elevation[:, j + 1] * f
     return np.diff(at, axis=1)
+
+
+#: The preview the preview laws read [reconstructed: the window where the optimal preview gain
+#: has most of its weight; with the default weights 63 % lies within 0.5 s, 87 % within 1 s].
+DEFAULT_PREVIEW_POINTS = 32
+DEFAULT_PREVIEW_HORIZON_S = 1.0
+
+
+class PreviewLQController(ForceLaw):
+    """LQ optimal preview control, clipped to the semi-active band through an inverse model.
+
+    Reads the four states of :func:`preview_lq_gains` (measured: the LVDT stroke, the on-board
+    velocity estimates, the gap sensor; ``full_state``: the true ones) and the guideway preview
+    (the env's ``preview_points`` surveyed elevations over ``preview_horizon_s``, turned into
+    the rises of the next ``preview_horizon_s / dt_s`` intervals), and remembers its own last
+    ``delay_steps`` requests (the HILS one-step delay). Force mode.
+
+    Parameters
+    ----------
+    inverse_model : ``"bi_exponential"``, ``"csdc"`` or ``"tanh"``.
+    q_stroke, q_levitation (1/s^4), r_force (1/kg^2) : cost weights (scalars or one per
+        vehicle); None: the tuned values, else those of the clipped LQR's fallback.
+    preview_points, preview_horizon_s : the preview the env is asked for.
+    delay_steps : control delay the law plans for (the ``hils`` setting's 1).
+    dt_s : the control interval (the env's default 200 Hz).
+    """
+
+    SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity")
+
+    def __init__(
+        self,
+        inverse_model: str = "bi_exponential",
+        q_stroke: float | np.ndarray | None = None,
+        q_levitation: float | np.ndarray | None = None,
+        r_force: float | np.ndarray | None = None,
+        vehicle: VehicleParams | None = None,
+        max_force_n: float = DEFAULT_MAX_FORCE_N,
+        observation: str = "measured",
+        preview_points: int = DEFAULT_PREVIEW_POINTS,
+        preview_horizon_s: float = DEFAULT_PREVIEW_HORIZON_S,
+        delay_steps: int = 1,
+        dt_s: float = 0.005,
+    ) -> None:
+        super().__init__("preview-lq", inverse_model, max_force_n, observation)
+        if int(preview_points) < 1:
+            raise ValueError(f"preview_points must be >= 1, got {preview_points!r}")
+        self.env_kwargs = {**self.env_kwargs, "preview_points": int(preview_points),
+                           "preview_horizon_s": float(preview_horizon_s)}  # fmt: skip
+        self.preview_points, self.preview_horizon_s = int(preview_points), float(preview_horizon_s)
+        self.delay_steps, self.dt_s = int(delay_steps), float(dt_s)
+        self.n_preview = max(1, int(round(self.preview_horizon_s / self.dt_s)))
+        self._set_gains(
+            {"q_stroke": "1_s4", "q_levitation": "1_s4", "r_force": "1_kg2"},
+            {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force},
+            {"q_stroke": 1.0e3, "q_levitation": 1.0e3, "r_force": 1.0e-9},
+        )
+        weights = np.broadcast_arrays(self.q_stroke, self.q_levitation, self.r_force)
+        vehicle = vehicle or VehicleParams()
+        cache: dict[tuple[float, float, float], PreviewGains] = {}
+        rows = []
+        for triple in zip(*(w.ravel().tolist() for w in weights)):
+            if triple not in cache:
+                cache[triple] = preview_lq_gains(vehicle, self.dt_s, self.n_preview, *triple,
+                                                 delay_steps=self.delay_steps)  # fmt: skip
+            rows.append(cache[triple])
+        shape = weights[0].shape
+        self.state_gain = np.array([g.state_gain for g in rows]).reshape(*shape, 4)
+        self.delay_gain = np.array([g.delay_gain for g in rows]).reshape(*shape, self.delay_steps)
+        self.preview_gain = np.array([g.preview_gain for g in rows]).reshape(*shape, -1)
+        self._in_flight: np.ndarray | None = None  # (N, delay_steps) N, newest first
+
+    @property
+    def signals_read(self) -> tuple[str, ...]:
+        ahead = tuple(f"preview_ahead_{k}" for k in range(1, self.preview_points + 1))
+        return (*super().signals_read, *ahead)
+
+    def reset(self) -> None:
+        self._in_flight = None
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set forgets its
+        requests in flight."""
+        if episode_start is not None and self._in_flight is not None:
+            self._in_flight[np.asarray(episode_start, dtype=bool)] = 0.0
+        return super().predict(observation, state, episode_start, deterministic)
+
+    def desired_force(self, obs: np.ndarray) -> np.ndarray:
+        n = obs.shape[0]
+        if self._in_flight is None or self._in_flight.shape[0] != n:
+            self._in_flight = np.zeros((n, self.delay_steps))
+        x = np.stack([self.signal(obs, s) for s in self.SIGNALS], axis=1)
+        step = self.preview_horizon_s / self.preview_points
+        rises = preview_rises(obs[:, -self.preview_points :], step, self.dt_s, self.n_preview)
+        force = -(
+            np.sum(x * self.state_gain, axis=-1)
+            + np.sum(self._in_flight * self.delay_gain, axis=-1)
+            + np.sum(rises * self.preview_gain, axis=-1)
+        )
+        requested = np.clip(force, -self.max_force_n, self.max_force_n)  # what the env takes
+        if self.delay_steps:
+            self._in_flight = np.concatenate([requested[:, None], self._in_flight[:, :-1]], axis=1)
+        return force
+
+    def gains(self) -> dict:
+        out = super().gains()
+        out.update({"preview_horizon_s": self.preview_horizon_s,
+                    "preview_spacing_s": self.preview_horizon_s / self.preview_points,
+                    "planned_delay_s": self.delay_steps * self.dt_s})  # fmt: skip
+        return out

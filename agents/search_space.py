@@ -111,4 +111,7 @@ SEARCH_SPACES: dict[str, SearchSpace] = {
     # alpha: the crossing frequency 1 / (2 pi alpha) from 0.32 Hz to 32 Hz
     "sh-add-meas": SearchSpace((_I_ON, Param("alpha", 0.005, 0.5)), sweep="i_on"),
     "lqr-clipped-biexp-meas": _LQR,
+    # guideway preview
+    "preview-lq-biexp": _LQR,
+    "preview-lq-biexp-meas": _LQR,
 }

@@ -11,7 +11,8 @@ env, and the state shared by the callbacks and the main loop (evaluation, checkp
   ``VecNormalize`` (new, or with a checkpoint's statistics).
 - :class:`Run` and :class:`TrainingMonitor`: held-out evaluation through
   ``agents.sb3_policy.SB3Policy`` (the class ``evaluate.py`` loads saved policies with) on the
-  guideway bank ``EVALUATION_GUIDEWAY_SEED`` (2026; training uses bank 0), keeping
+  validation guideway bank ``VALIDATION_GUIDEWAY_SEED`` (7; training uses bank 0, the
+  reported evaluation bank 2026 is never used to choose a model), keeping
   ``best_model.*`` by the ISO 2631 Wk-weighted RMS car-body acceleration (an evaluation with a
   bump-stop hit ranks below every one without); checkpoints every ``checkpoint_freq`` env
   steps and every ``checkpoint_minutes`` of wall time (:mod:`agents.checkpoints`);
@@ -66,6 +67,7 @@ from agents.sb3_policy import SB3Policy
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
+    VALIDATION_GUIDEWAY_SEED,
     check_episode_length,
     episode_metrics,
     run_episodes,
@@ -179,9 +181,13 @@ def check_args(args: Any) -> None:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
     if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
         raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
-    if args.env_kwargs.get("guideway_seed", None) == EVALUATION_GUIDEWAY_SEED:
+    if args.env_kwargs.get("guideway_seed", None) in (
+        EVALUATION_GUIDEWAY_SEED,
+        VALIDATION_GUIDEWAY_SEED,
+    ):
         raise ValueError(
-            f"guideway_seed={EVALUATION_GUIDEWAY_SEED} is the held-out evaluation bank"
+            f"guideway_seed={args.env_kwargs['guideway_seed']} is a held-out bank (evaluation "
+            f"{EVALUATION_GUIDEWAY_SEED}, validation {VALIDATION_GUIDEWAY_SEED})"
         )
 
 
@@ -317,7 +323,8 @@ class Run:
         if plan.ckpt is not None:  # best_model may be newer than the checkpoint
             self.best = best_so_far(self.output_dir, BEST_METRIC)
         self.last_eval_timesteps = -1
-        self.eval_kwargs = policy_env_kwargs(plan.env_kwargs)
+        self.eval_kwargs = {**policy_env_kwargs(plan.env_kwargs),
+                            "guideway_seed": VALIDATION_GUIDEWAY_SEED}  # fmt: skip
         self.passive = None
         self.references: dict = {}
         self.last_checkpoint_clock = time.monotonic()  # for --checkpoint-minutes
@@ -426,14 +433,14 @@ class Run:
             for name, r in refs.items()
         ]
         print(f"evaluation: seeds {a.eval_seed}..{a.eval_seed + a.eval_episodes - 1} of the "
-              f"held-out guideway bank {EVALUATION_GUIDEWAY_SEED}; references: "
+              f"validation guideway bank {VALIDATION_GUIDEWAY_SEED}; references: "
               + "; ".join(described), flush=True)  # fmt: skip
         return refs
 
     def _eval_block(self, m: dict) -> dict:
         a = self.args
         return {
-            "guideway_seed": EVALUATION_GUIDEWAY_SEED,
+            "guideway_seed": VALIDATION_GUIDEWAY_SEED,
             "seeds": [a.eval_seed, a.eval_seed + a.eval_episodes - 1],
             "episode_length_s": a.eval_episode_length,
             "metrics": m,

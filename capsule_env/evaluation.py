@@ -19,6 +19,10 @@ from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 
 #: Guideway bank for evaluation: held out from training (which uses ``guideway_seed=0``).
 EVALUATION_GUIDEWAY_SEED = 2026
+#: Guideway bank for choosing among candidates while training (train.py's best model, PPO
+#: configurations): held out from training and from the evaluation bank, so that the figures
+#: reported on :data:`EVALUATION_GUIDEWAY_SEED` are not selected on.
+VALIDATION_GUIDEWAY_SEED = 7
 #: The unit of each metric of :func:`episode_metrics` (also the suffix of its key).
 METRIC_UNITS = {
     "vre_pct": "%",

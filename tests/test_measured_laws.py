@@ -97,6 +97,7 @@ def test_per_vehicle_gains_act_as_scalar_gains_vehicle_by_vehicle(name):
     gains = space.gains(units)
     ctrl = make_controller(name, **gains)
     d = len(MEASURED_NAMES) if ctrl.observation == "measured" else len(FULL_STATE_NAMES)
+    d += ctrl.env_kwargs.get("preview_points", 0)  # the preview columns come last
     obs = rng.normal(0.0, 0.05, (n, d))
     batched = ctrl.predict(obs)[0][:, 0]
     for k in range(n):
@@ -110,17 +111,23 @@ def test_per_vehicle_gains_act_as_scalar_gains_vehicle_by_vehicle(name):
 def test_measured_laws_read_only_measured_columns(name):
     ctrl = make_controller(name)
     assert ctrl.env_kwargs["observation"] == "measured"
-    assert ctrl.uses_unmeasured_signals is False and ctrl.preview is False
-    assert set(ctrl.signals_read) <= set(MEASURED_NAMES)
+    assert ctrl.uses_unmeasured_signals is False
+    points = ctrl.env_kwargs.get("preview_points", 0)
+    assert ctrl.preview is (points > 0)  # the surveyed guideway ahead: measured, flagged apart
+    names = (*MEASURED_NAMES, *(f"preview_ahead_{k}" for k in range(1, points + 1)))
+    assert set(ctrl.signals_read) <= set(names)
     assert all(k.endswith(("_a", "_s", "_n_s_m", "_rel", "_1_s4", "_1_kg2", "_n_m"))
                for k in ctrl.gains())  # fmt: skip
     # every column it does not read may be garbage: the actions do not change
     rng = np.random.default_rng(0)
-    obs = rng.normal(0.0, 0.05, (8, len(MEASURED_NAMES)))
+    obs = rng.normal(0.0, 0.05, (8, len(names)))
     poisoned = obs.copy()
-    unread = [MEAS[c] for c in MEASURED_NAMES if c not in ctrl.signals_read]
+    unread = [k for k, c in enumerate(names) if c not in ctrl.signals_read]
     poisoned[:, unread] = np.nan
-    np.testing.assert_array_equal(ctrl.predict(poisoned)[0], ctrl.predict(obs)[0])
+    ctrl.reset()
+    first = ctrl.predict(obs)[0]
+    ctrl.reset()
+    np.testing.assert_array_equal(ctrl.predict(poisoned)[0], first)
 
 
 def test_measured_law_runs_on_the_measured_env():

@@ -74,6 +74,47 @@ def test_preview_law_is_the_finite_horizon_optimum(delay):
     assert abs(law + gains.state_gain @ x0 + gains.delay_gain @ in_flight) > 0.05 * abs(law)
 
 
+@pytest.mark.parametrize("delay", [0, 2])
+def test_preview_gains_solve_the_augmented_riccati_equation(delay):
+    # The law's per-point recursion against the Riccati equation of the whole augmented
+    # system [plant; requests in flight; preview window] solved at once (built here).
+    from scipy.linalg import solve_discrete_are
+
+    vehicle, n_preview = VehicleParams(), 30
+    q_s, q_g, r_f = WEIGHTS["q_stroke"], WEIGHTS["q_gap"], WEIGHTS["r_force"]
+    gains = preview_lq_gains(vehicle, DT, n_preview, q_s, q_g, r_f, delay_steps=delay)
+    a, b, e, c, d = plant_matrices(vehicle, DT)
+    size = 4 + delay + n_preview
+    big_a, big_b = np.zeros((size, size)), np.zeros(size)
+    big_a[:4, :4] = a
+    if delay:
+        big_a[:4, 4 + delay - 1] = b
+        for i in range(1, delay):
+            big_a[4 + i, 4 + i - 1] = 1.0
+        big_b[4] = 1.0
+    else:
+        big_b[:4] = b
+    big_a[:4, 4 + delay] = e
+    for i in range(n_preview - 1):
+        big_a[4 + delay + i, 4 + delay + i + 1] = 1.0
+    out = np.zeros(size)  # body acceleration = out @ X + d_direct F
+    out[:4] = c
+    d_direct = d
+    if delay:
+        out[4 + delay - 1], d_direct = d, 0.0
+    q = np.outer(out, out)
+    q[0, 0] += q_s
+    q[2, 2] += q_g
+    r = np.array([[d_direct**2 + r_f]])
+    cross = (out * d_direct)[:, None]
+    p = solve_discrete_are(big_a, big_b[:, None], q, r, s=cross)
+    k = (big_b @ p @ big_a + cross[:, 0]) / (r[0, 0] + big_b @ p @ big_b)
+    np.testing.assert_allclose(gains.state_gain, k[:4], rtol=1e-7)
+    np.testing.assert_allclose(gains.delay_gain, k[4 : 4 + delay], rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(gains.preview_gain, k[4 + delay :], rtol=1e-6,
+                               atol=1e-9 * np.abs(k).max())  # fmt: skip
+
+
 def test_preview_gain_fades_ahead_and_zero_window_is_plain_lqr():
     vehicle = VehicleParams()
     long = preview_lq_gains(vehicle, DT, 200, **WEIGHTS)
@@ -104,3 +145,49 @@ def test_preview_rises_interpolate_the_survey_points():
 def test_bad_weights_are_named():
     with pytest.raises(ValueError, match="r_force"):
         preview_lq_gains(VehicleParams(), DT, 10, 1.0, 1.0, 0.0)
+
+
+def test_controller_applies_the_gains_and_remembers_its_requests():
+    from agents.preview_lq import PreviewLQController
+
+    ctrl = PreviewLQController(q_stroke=10.0, q_levitation=100.0, r_force=1e-8,
+                               preview_points=8, preview_horizon_s=0.2)  # fmt: skip
+    gains = preview_lq_gains(VehicleParams(), DT, 40, 10.0, 100.0, 1e-8, delay_steps=1)
+    rng = np.random.default_rng(1)
+    obs = rng.normal(0.0, 0.01, (3, 9 + 8))
+    names = ("stroke_m", "car_body_velocity_estimate_m_s", "levitation_gap_m",
+             "bogie_velocity_estimate_m_s")  # fmt: skip
+    from agents.base import MEAS
+
+    x = obs[:, [MEAS[n] for n in names]]
+    rises = preview_rises(obs[:, 9:], 0.2 / 8, DT, 40)
+    first = -(x @ gains.state_gain + rises @ gains.preview_gain)  # nothing in flight yet
+    np.testing.assert_allclose(ctrl.desired_force(obs), first, rtol=1e-12)
+    second = first - np.clip(first, -8000, 8000) * gains.delay_gain[0]
+    np.testing.assert_allclose(ctrl.desired_force(obs), second, rtol=1e-12)
+    # a vehicle whose episode starts again forgets what it had in flight
+    ctrl.predict(obs, episode_start=np.array([True, False, False]))
+    assert ctrl._in_flight[0, 0] == pytest.approx(np.clip(first[0], -8000, 8000) / 1.0)
+    assert ctrl.preview and ctrl.env_kwargs["preview_points"] == 8
+
+
+def test_preview_helps_on_a_bump_with_the_same_weights():
+    # Ideal sensors, sim: on a long bump (150 m, 0.67 s at 810 km/h, near the body mode) the
+    # preview law (same weights as the clipped LQR) lowers the RMS body acceleration by ~11 %:
+    # it starts acting before the bogie reaches the bump. (On a short, sharp bump it cannot: a
+    # semi-active damper makes no force before the stroke moves, so the two laws tie there.)
+    from agents.lqr import ClippedOptimalController
+    from agents.preview_lq import PreviewLQController
+    from capsule_env.evaluation import run_episodes
+
+    weights = {"q_stroke": 2.0, "q_levitation": 100.0, "r_force": 3e-8}
+    env = {"setting": "sim", "guideway": "bump",
+           "guideway_params": {"bump_length_m": 150.0, "position_m": 50.0}}  # fmt: skip
+    rms = {}
+    for name, ctrl in (
+        ("lqr", ClippedOptimalController(observation="full_state", **weights)),
+        ("preview", PreviewLQController(observation="full_state", delay_steps=0, **weights)),
+    ):
+        roll = run_episodes(ctrl, {**ctrl.env_kwargs, **env}, episodes=1, episode_length_s=3.0)
+        rms[name] = float(np.sqrt(np.mean(roll.signals["car_body_acceleration_m_s2"] ** 2)))
+    assert rms["preview"] < 0.93 * rms["lqr"], rms

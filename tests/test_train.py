@@ -80,7 +80,7 @@ def test_short_ppo_run_writes_models_and_evaluates(ppo_run, tmp_path):
     assert meta["env_kwargs"]["setting"] == "hils"
     assert meta["env_kwargs"]["action_mode"] == "force"
     assert "guideway_seed" not in meta["env_kwargs"]  # chosen by the evaluation
-    assert meta["eval"]["guideway_seed"] == 2026
+    assert meta["eval"]["guideway_seed"] == 7  # the validation bank: never the evaluation one
     assert np.isfinite(meta["eval"]["metrics"]["wk_rms_body_acc_m_s2"])
     assert "vre_pct" in meta["eval"]["metrics"]
     assert meta["num_timesteps"] > 0 and meta["wall_time_s"] > 0
@@ -201,6 +201,15 @@ def test_interrupt_then_resume_auto(tiny_ppo_yml, tmp_path):
 def test_resume_without_checkpoint_is_a_clear_error(tiny_ppo_yml, tmp_path):
     with pytest.raises(SystemExit, match="no checkpoint"):
         train.train(train.parse_args(fast_args(tiny_ppo_yml, tmp_path, "--resume", "auto")))
+
+
+@pytest.mark.parametrize("bank", [2026, 7])
+def test_training_on_a_held_out_bank_is_refused(tiny_ppo_yml, tmp_path, bank, capsys):
+    # the evaluation bank (reported) and the validation bank (model selection) stay unseen
+    argv = fast_args(tiny_ppo_yml, tmp_path, "--env", f"guideway_seed={bank}")
+    with pytest.raises(SystemExit):
+        train.train(train.parse_args(argv))
+    assert f"guideway_seed={bank} is a held-out bank" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("algo", ["sac", "td3"])
