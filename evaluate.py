@@ -72,7 +72,7 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
 #: The tables' groups, in order: the observation set a controller reads (its header says
 #: what the group may read: ``agents.base.OBSERVATION_GROUPS``).
 GROUP_ORDER = ("none", "measured", "measured+preview", "sensors", "full_state",
-               "full_state+preview")  # fmt: skip
+               "full_state+preview", "oracle+preview")  # fmt: skip
 NAME_WIDTH = 24
 
 #: The tables' columns after the controller's name: (header with the unit, width), and the
@@ -80,9 +80,9 @@ NAME_WIDTH = 24
 COLUMNS = [
     ("body m1 %", 11), ("paper %", 9), ("body m2 %", 11), ("bogie m1 %", 12), ("bogie m2 %", 12),
     ("Wk m/s^2", 10), ("rms m/s^2", 11), ("stroke mm", 11), ("I A", 8), ("trk rel", 9),
-    ("Wz", 6), ("N_v", 6),
+    ("Wz", 6), ("N_v", 6), ("headroom", 10),
 ]  # fmt: skip
-FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f", ".2f", ".2f"]
+FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f", ".2f", ".2f", ".0%"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -119,6 +119,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--episode-length", type=float, default=10.0,
                    help="seconds per episode (at least 0.335 s at the default 200 Hz control "
                    "rate: the spectra need a line in each mode band)")  # fmt: skip
+    p.add_argument("--oracle", action="store_true",
+                   help="also search the clairvoyant bound (capsule_env.oracle) on the same "
+                   "episodes: an 'oracle' row per setting and each controller's share of the "
+                   "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder")
     return p.parse_args(argv)
@@ -262,12 +266,50 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             results["settings"][setting]["controllers"][name] = entry
             done += 1
             _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
+        if getattr(args, "oracle", False):
+            _progress(done, total, f"{setting}/oracle (search)", time.perf_counter() - t0)
+            add_oracle(results["settings"][setting], setting, args, passive, ctrls)
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
 
         evaluation_figures(rollouts, args.plots)
     return results
+
+
+def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any,
+               ctrls: dict) -> None:  # fmt: skip
+    """Add the clairvoyant bound's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
+    on the same episodes) to a setting's results, and to every controller on the same plant
+    its share of the headroom, ``oracle_headroom_captured_rel = (Wk_passive - Wk) /
+    (Wk_passive - Wk_oracle)`` (0: passive, 1: the clairvoyant optimum). In ``sim`` the plant
+    is the damper model a controller inverts: the oracle's is the Bi-exponential model, and
+    controllers on another plant get no share (passive, the reference, has 0 by definition)."""
+    from capsule_env.oracle import clairvoyant_bound
+
+    seeds = range(args.seed, args.seed + args.episodes)
+    oracle_kwargs = {"setting": setting}
+    result = clairvoyant_bound(oracle_kwargs, seeds, args.episode_length)
+    entry = episode_metrics(result.rollout, passive)
+    summary = result.summary()
+    entry.update({
+        "observation": "oracle", "uses_unmeasured_signals": True, "preview": True,
+        "gains": {}, "gains_tuned": False,
+        "search": {k: v for k, v in summary.items() if k != "env_kwargs"},
+    })  # fmt: skip
+    controllers = block["controllers"]
+    controllers["oracle"] = entry
+    plant = EnvConfig.from_kwargs(**oracle_kwargs).plant_damper_name
+    wk_passive = controllers["passive"]["wk_rms_body_acc_m_s2"]
+    headroom = wk_passive - entry["wk_rms_body_acc_m_s2"]
+    for name, m in controllers.items():
+        ctrl = ctrls.get(name)
+        env = {**(ctrl.env_kwargs if ctrl is not None else {}), "setting": setting}
+        same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant
+        if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
+            m["oracle_headroom_captured_rel"] = (
+                (wk_passive - m["wk_rms_body_acc_m_s2"]) / headroom if headroom > 0 else None
+            )
 
 
 def describe(ctrl: Any) -> dict[str, Any]:
@@ -299,6 +341,7 @@ def _row(setting: str, name: str, m: dict) -> str:
         vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
         1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
         m.get("sperling_ride_index"), m.get("en12299_comfort_index"),
+        m.get("oracle_headroom_captured_rel"),
     ]  # fmt: skip
     cells = [f"{name:<{NAME_WIDTH}}"]
     for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
@@ -353,7 +396,9 @@ def format_tables(results: dict) -> str:
         "training guideway bank (agents/tuned_gains.json, python -m agents.tuning), except "
         + ", ".join(PAPER_FIXED)
         + " (the paper's reconstructed c_max = 7e4 N s/m). '+preview' groups read the surveyed "
-        "guideway ahead (env option preview_points)."
+        "guideway ahead (env option preview_points). headroom (with --oracle): the share of the "
+        "Wk gap passive -> oracle a controller closes (the oracle: capsule_env.oracle, the "
+        "applied current searched knowing the whole guideway, no noise or delay)."
     )
     return "\n".join(lines)
 

@@ -24,6 +24,9 @@ OBSERVATION_GROUPS = {
     "elevations ahead (survey map and position known on board)",
     "full_state+preview": "full_state + guideway preview: ideal sensors and the surveyed "
     "elevations ahead (references)",
+    "oracle+preview": "oracle: knows the whole guideway and sets the applied current directly, "
+    "no noise, delay or inverse model (capsule_env.oracle; a local search: an upper bound on "
+    "the clairvoyant optimum)",
 }
 
 

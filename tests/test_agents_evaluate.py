@@ -206,3 +206,21 @@ def test_evaluate_end_to_end(tmp_path, capsys):
 def test_evaluate_rejects_unknown_controller():
     with pytest.raises(SystemExit, match="unknown controller"):
         evaluate.main(["--controllers", "nope", "--no-shipped-policy"])
+
+
+def test_evaluate_oracle_row_and_headroom_shares(tmp_path, capsys):
+    out = tmp_path / "r.json"
+    argv = ["--setting", "hils", "--episodes", "2", "--episode-length", "1.0", "--controllers",
+            "passive,lqr-clipped-biexp-meas", "--no-shipped-policy", "--oracle", "--json",
+            str(out)]  # fmt: skip
+    assert evaluate.main(argv) == 0
+    ctrls = json.loads(out.read_text())["settings"]["hils"]["controllers"]
+    oracle, lqr = ctrls["oracle"], ctrls["lqr-clipped-biexp-meas"]
+    assert oracle["observation"] == "oracle" and oracle["preview"] is True
+    # the clairvoyant search beats the causal law on the same episodes
+    assert oracle["wk_rms_body_acc_m_s2"] < lqr["wk_rms_body_acc_m_s2"]
+    assert ctrls["passive"]["oracle_headroom_captured_rel"] == 0.0
+    assert oracle["oracle_headroom_captured_rel"] == 1.0
+    assert 0.0 < lqr["oracle_headroom_captured_rel"] < 1.0
+    assert len(oracle["search"]["episodes_detail"]) == 2
+    assert "[oracle: knows the whole guideway" in capsys.readouterr().out

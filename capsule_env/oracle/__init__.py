@@ -1,0 +1,62 @@
+"""The clairvoyant bound: the lowest Wk-weighted RMS body acceleration a controller that knows
+the whole guideway in advance reaches, per episode, found by local search.
+
+    from capsule_env.oracle import clairvoyant_bound
+    result = clairvoyant_bound({"setting": "hils"}, seeds=range(1000, 1010))
+    result.wk_rms_body_acc_m_s2          # (episodes,) m/s^2
+    episode_metrics(result.rollout, passive_rollout)   # any metric, as for a controller
+
+What is searched: the applied coil-current sequence ``u_t`` in ``[0, i_max]`` of each episode
+(``T`` control steps), set directly on the plant: no sensor noise, no control delay, no
+inverse model (the coil's lag, where the setting has one, stays: it is physics). It is the
+physical headroom of the semi-active damper on that guideway, not a controller: every causal
+controller reads less (noisy sensors, 5 ms late, no knowledge of the guideway ahead or of the
+vehicle's own state beyond its estimates).
+
+The method (:mod:`capsule_env.oracle.plant`, :mod:`capsule_env.oracle.search`):
+
+- the episodes are the env's own (vehicle, damper, route, start state drawn as ``CapsuleBatch``
+  draws them at the reset) and are stepped with the env's compiled plant kernel;
+- exact-to-rounding gradients by an adjoint: every control step of a trajectory is
+  linearised at once (forward differences of single steps, all ``T (n_x + 1)`` of them in one
+  batched kernel call), then one backward recursion gives ``dF/du_t`` for every ``t``: the cost
+  of about ``n_x + 2`` open-loop runs per gradient, independent of ``T`` (the finite
+  differences over the whole sequence that this replaced cost ``T + 1`` runs: ~1.5 min per 4 s
+  episode; now ~20 s for a 4 s episode with three starts);
+- L-BFGS-B with bounds, from several starts (zero current, 10 % of ``i_max``, on-off Skyhook
+  on the true state, or any given sequence such as a controller's own), the searches of all
+  episodes and starts in lockstep (one kernel call per step for all of them), then restart
+  rounds from the best sequence smoothed;
+- the search integrates with each episode's finest substep count (no switching under the
+  finite differences); every reported figure is re-measured with the env's adaptive substeps.
+
+How far from the global optimum: the problem is not convex (the damper force is a nonlinear,
+hysteretic function of the current and the motion), so a local search gives an *upper* bound
+on the clairvoyant optimum, and a lower bound on no controller. :class:`OracleResult` reports
+how much the answer depends on the start (``spread_m_s2``, the range over the starts of what
+each reached) and what the restarts added (``restart_gain_m_s2``); the README quotes both for
+the evaluation seeds. A spread of a few per cent means the true optimum may lie a few per cent
+lower still; read fractions of the "headroom" with that margin.
+"""
+
+from capsule_env.oracle.plant import OracleEpisodes, RideObjective, adjoint_gradient
+from capsule_env.oracle.search import (
+    DEFAULT_STARTS,
+    EVALUATION_SEEDS,
+    START_NAMES,
+    OracleResult,
+    applied_currents,
+    clairvoyant_bound,
+)
+
+__all__ = [
+    "DEFAULT_STARTS",
+    "EVALUATION_SEEDS",
+    "START_NAMES",
+    "OracleEpisodes",
+    "OracleResult",
+    "RideObjective",
+    "adjoint_gradient",
+    "applied_currents",
+    "clairvoyant_bound",
+]

@@ -1,0 +1,528 @@
+"""The clairvoyant bound: multi-start L-BFGS-B over the applied coil currents of each episode.
+
+See :mod:`capsule_env.oracle` for the method and what the numbers mean.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import Bounds, minimize
+
+from capsule_env._validation import check_integer, check_nonnegative, check_positive
+from capsule_env.config import check_seed
+from capsule_env.evaluation import (
+    EVALUATION_GUIDEWAY_SEED,
+    RECORDED,
+    Rollout,
+    check_episode_length,
+)
+from capsule_env.layout import (
+    BODY_DISP,
+    BODY_VEL,
+    BOGIE_DISP,
+    BOGIE_VEL,
+    COIL_CURRENT,
+    OUT_BODY_ACC,
+    OUT_FORCE,
+    OUT_GUIDEWAY,
+)
+from capsule_env.oracle.plant import OracleEpisodes, RideObjective, adjoint_gradient
+
+__all__ = [
+    "DEFAULT_STARTS",
+    "EVALUATION_SEEDS",
+    "START_NAMES",
+    "OracleResult",
+    "applied_currents",
+    "clairvoyant_bound",
+]
+
+#: The seeds ``evaluate.py`` runs by default (``--seed 1000 --episodes 10``).
+EVALUATION_SEEDS = tuple(range(1000, 1010))
+#: Named starts of the search: zero current, 10 %, half and full ``i_max``, on-off Skyhook on
+#: the true state (:meth:`OracleEpisodes.skyhook_currents`), uniform random currents.
+START_NAMES = ("zero", "low", "mid", "max", "skyhook", "random")
+_START_LEVELS = {"zero": 0.0, "low": 0.1, "mid": 0.5, "max": 1.0}
+#: The starts used unless told otherwise: the two best measured (low currents) and a
+#: Skyhook-like one, whose local optimum shows how much the search depends on its start.
+DEFAULT_STARTS: tuple[str, ...] = ("zero", "low", "skyhook")
+#: Env arguments the oracle sets itself.
+_OWN_ARGUMENTS = ("episode_length_s", "num_envs")
+
+
+@dataclass
+class OracleResult:
+    """The clairvoyant search's outcome, one row per episode (``E`` episodes of ``T`` steps,
+    ``S`` starts, ``R`` restart rounds).
+
+    Every Wk figure is measured on the env's own plant (its adaptive substeps, its kernel):
+    the currents replayed open loop.
+
+    seeds : the episodes (episode ``k``: the single env seeded ``seeds[k]``).
+    env_kwargs : the env arguments of the episodes (``guideway_seed`` included).
+    dt_s : control interval (s).
+    currents_a : (E, T) the best applied-current sequence found (A).
+    signals : ``capsule_env.evaluation.RECORDED`` signals of the best runs, (E, T) each
+        (``current_command_a`` is the applied current; ``desired_force_n`` is 0: no force is
+        requested), as the env records them.
+    wk_rms_body_acc_m_s2 : (E,) the objective: Wk-weighted RMS body acceleration of the best
+        sequence (m/s^2).
+    start_names : the starts, in order (a name of :data:`START_NAMES`, ``"constant:<A>"`` or
+        ``"given:<j>"`` for an array given as ``starts[j]``).
+    start_wk_m_s2 : (E, S) Wk of each start's own sequence, before the search (m/s^2).
+    final_wk_m_s2 : (E, S) Wk reached from each start (m/s^2).
+    restart_wk_m_s2 : (E, R) Wk reached by each restart round (m/s^2).
+    iterations : (E, S) L-BFGS-B iterations from each start.
+    messages : (E, S) L-BFGS-B's stop messages.
+    max_stroke_m : (E,) largest |stroke| of the best runs (m).
+    terminated : (E,) whether the best run crosses the env's bump stop (``stroke_limit_m``),
+        where the env would have ended the episode.
+    time_s : (E,) wall time attributed to each episode: the call's total shared in proportion
+        to each episode's objective evaluations (the episodes' searches run in lockstep).
+    total_time_s : wall time of the whole call (s).
+    evaluations : (E,) objective evaluations (open-loop run + gradient) per episode.
+    options : the search's options (JSON-ready).
+    """
+
+    seeds: tuple[int, ...]
+    env_kwargs: dict[str, Any]
+    dt_s: float
+    currents_a: np.ndarray
+    signals: dict[str, np.ndarray]
+    wk_rms_body_acc_m_s2: np.ndarray
+    start_names: tuple[str, ...]
+    start_wk_m_s2: np.ndarray
+    final_wk_m_s2: np.ndarray
+    restart_wk_m_s2: np.ndarray
+    iterations: np.ndarray
+    messages: list[list[str]]
+    max_stroke_m: np.ndarray
+    terminated: np.ndarray
+    time_s: np.ndarray
+    total_time_s: float
+    evaluations: np.ndarray
+    options: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rollout(self) -> Rollout:
+        """The best runs as a :class:`~capsule_env.evaluation.Rollout` (current mode), for
+        :func:`capsule_env.evaluation.episode_metrics` like any controller's."""
+        return Rollout(self.signals, self.dt_s, self.terminated.copy(), "current")
+
+    @property
+    def spread_m_s2(self) -> np.ndarray:
+        """(E,) max - min over the starts of the Wk each reached (m/s^2): how much the local
+        search's answer depends on where it starts."""
+        return self.final_wk_m_s2.max(axis=1) - self.final_wk_m_s2.min(axis=1)
+
+    @property
+    def restart_gain_m_s2(self) -> np.ndarray:
+        """(E,) how much the restart rounds lowered the best of the starts (m/s^2, >= 0)."""
+        return self.final_wk_m_s2.min(axis=1) - self.wk_rms_body_acc_m_s2
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-ready summary: per-episode rows and means (units in the keys)."""
+        rows = []
+        for k, seed in enumerate(self.seeds):
+            named = lambda values: dict(zip(self.start_names, map(float, values)))  # noqa: E731
+            rows.append({
+                "seed": seed,
+                "wk_oracle_m_s2": float(self.wk_rms_body_acc_m_s2[k]),
+                "start_wk_m_s2": named(self.start_wk_m_s2[k]),
+                "final_wk_m_s2": named(self.final_wk_m_s2[k]),
+                "restart_wk_m_s2": [float(v) for v in self.restart_wk_m_s2[k]],
+                "spread_over_starts_m_s2": float(self.spread_m_s2[k]),
+                "restart_gain_m_s2": float(self.restart_gain_m_s2[k]),
+                "best_start": self.start_names[int(np.argmin(self.final_wk_m_s2[k]))],
+                "iterations": dict(zip(self.start_names, map(int, self.iterations[k]))),
+                "max_stroke_m": float(self.max_stroke_m[k]),
+                "mean_current_a": float(np.mean(self.currents_a[k])),
+                "terminated": bool(self.terminated[k]),
+                "evaluations": int(self.evaluations[k]),
+                "time_s": float(self.time_s[k]),
+            })  # fmt: skip
+        return {
+            "seeds": list(self.seeds),
+            "env_kwargs": dict(self.env_kwargs),
+            "options": dict(self.options),
+            "wk_oracle_mean_m_s2": float(np.mean(self.wk_rms_body_acc_m_s2)),
+            "spread_over_starts_mean_m_s2": float(np.mean(self.spread_m_s2)),
+            "restart_gain_mean_m_s2": float(np.mean(self.restart_gain_m_s2)),
+            "total_time_s": float(self.total_time_s),
+            "episodes_detail": rows,
+        }
+
+
+def applied_currents(rollout: Rollout, delay_steps: int) -> np.ndarray:
+    """The currents a controller applied to the plant (E, T), from its recorded commands: the
+    env applies the command of step ``t - delay_steps`` at step ``t`` (0 before). A start for
+    :func:`clairvoyant_bound` (``starts=[applied_currents(...)]``)."""
+    delay = check_integer("delay_steps", delay_steps, 0, 100)
+    commands = np.asarray(rollout.signals["current_command_a"], dtype=float)
+    applied = np.zeros_like(commands)
+    applied[:, delay:] = commands[:, : commands.shape[1] - delay]
+    return applied
+
+
+# ------------------------------------------------------------------------------ lockstep
+class _Aborted(Exception):
+    """Raised in a search thread when the evaluating thread failed."""
+
+
+class _Lockstep:
+    """Runs one L-BFGS-B search per lane, each in its own thread, and gathers their objective
+    requests: the calling thread evaluates all pending requests at once (one open-loop run of
+    every lane per kernel call) when every live search waits for one."""
+
+    def __init__(self, evaluate: Callable[[dict[int, np.ndarray]], dict[int, Any]]) -> None:
+        self._evaluate = evaluate
+        self._cond = threading.Condition()
+        self._pending: dict[int, np.ndarray] = {}
+        self._results: dict[int, Any] = {}
+        self._live: set[int] = set()
+        self._failed = False
+
+    def request(self, lane: int, x: np.ndarray) -> Any:
+        with self._cond:
+            self._pending[lane] = np.array(x, dtype=np.float64)
+            self._cond.notify_all()
+            while lane not in self._results:
+                if self._failed:
+                    raise _Aborted
+                self._cond.wait()
+            return self._results.pop(lane)
+
+    def _finish(self, lane: int) -> None:
+        with self._cond:
+            self._live.discard(lane)
+            self._cond.notify_all()
+
+    def run(self, searches: dict[int, Callable[[Callable[[np.ndarray], Any]], Any]]) -> dict:
+        """Run ``searches[lane](objective)`` for every lane; returns their results."""
+        results: dict[int, Any] = {}
+        errors: list[BaseException] = []
+
+        def work(lane: int, search: Callable) -> None:
+            try:
+                results[lane] = search(lambda x: self.request(lane, x))
+            except _Aborted:
+                pass
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the calling thread
+                errors.append(exc)
+                with self._cond:
+                    self._failed = True
+            finally:
+                self._finish(lane)
+
+        self._live = set(searches)
+        threads = [
+            threading.Thread(target=work, args=(lane, s), daemon=True)
+            for lane, s in searches.items()
+        ]
+        for thread in threads:
+            thread.start()
+        try:
+            while True:
+                with self._cond:
+                    while self._live and not self._failed and (
+                        set(self._pending) != self._live
+                    ):  # fmt: skip
+                        self._cond.wait()
+                    if not self._live or self._failed:
+                        break
+                    batch, self._pending = self._pending, {}
+                out = self._evaluate(batch)
+                with self._cond:
+                    self._results.update(out)
+                    self._cond.notify_all()
+        except BaseException:
+            with self._cond:
+                self._failed = True
+                self._cond.notify_all()
+            raise
+        finally:
+            for thread in threads:
+                thread.join()
+        if errors:
+            raise errors[0]
+        return results
+
+
+# ------------------------------------------------------------------------------ starts
+def _starts(
+    episodes: OracleEpisodes, starts: Sequence[Any], random_seed: int
+) -> tuple[list[str], np.ndarray]:
+    """The named or given starts as an (S, E, T) array of currents, and their names."""
+    if isinstance(starts, (str, np.ndarray)) or not isinstance(starts, Sequence) or not starts:
+        raise ValueError(
+            f"starts must be a non-empty sequence of start names {START_NAMES}, numbers "
+            f"(constant currents, A) or current arrays, got {starts!r}"
+        )
+    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
+    names, arrays = [], []
+    for j, start in enumerate(starts):
+        if isinstance(start, str):
+            if start not in START_NAMES:
+                raise ValueError(f"starts[{j}]: unknown start {start!r}; accepted: {START_NAMES}")
+            names.append(start)
+            if start == "skyhook":
+                arrays.append(episodes.skyhook_currents())
+            elif start == "random":
+                rows = [
+                    np.random.default_rng([random_seed, s]).uniform(0.0, i_max, t)
+                    for s in episodes.seeds
+                ]
+                arrays.append(np.stack(rows))
+            else:
+                arrays.append(np.full((e, t), _START_LEVELS[start] * i_max))
+            continue
+        if isinstance(start, (int, float, np.integer, np.floating)) and not isinstance(start, bool):
+            level = float(start)
+            if not 0.0 <= level <= i_max:
+                raise ValueError(f"starts[{j}]: a constant current must be in [0, {i_max}] A")
+            names.append(f"constant:{level:g}")
+            arrays.append(np.full((e, t), level))
+            continue
+        a = np.asarray(start, dtype=np.float64)
+        if a.shape not in ((t,), (e, t)):
+            raise ValueError(
+                f"starts[{j}]: a current array must have shape ({t},) or ({e}, {t}) "
+                f"(episodes, steps), got {a.shape}"
+            )
+        if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > i_max:
+            raise ValueError(f"starts[{j}]: currents must be finite and in [0, {i_max}] A")
+        names.append(f"given:{j}")
+        arrays.append(np.broadcast_to(a, (e, t)).copy())
+    return names, np.stack(arrays)
+
+
+# ------------------------------------------------------------------------------ the bound
+def _check_arguments(
+    env_kwargs: Any, seeds: Any, options: dict[str, Any]
+) -> tuple[dict[str, Any], tuple[int, ...]]:
+    """The env arguments (with the evaluation's guideway seed by default) and the seeds;
+    ``ValueError`` naming any bad argument."""
+    if env_kwargs is None:
+        env_kwargs = {}
+    if not isinstance(env_kwargs, Mapping):
+        raise ValueError(f"env_kwargs must be a mapping of env arguments, got {env_kwargs!r}")
+    for name in _OWN_ARGUMENTS:
+        if name in env_kwargs:
+            raise ValueError(f"env_kwargs must not set {name!r}: clairvoyant_bound sets it")
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, (Sequence, np.ndarray)):
+        raise ValueError(f"seeds must be a non-empty sequence of integers, got {seeds!r}")
+    if len(seeds) == 0:
+        raise ValueError("seeds must be a non-empty sequence of integers, got an empty one")
+    try:
+        checked = tuple(check_seed(f"seeds[{k}]", s) for k, s in enumerate(seeds))
+        check_integer("max_iter", options["max_iter"], 1, 1_000_000)
+        check_integer("restarts", options["restarts"], 0, 100)
+        check_integer("smooth_steps", options["smooth_steps"], 1, 1_000_000)
+        check_integer("random_seed", options["random_seed"], 0, 2**63 - 1)
+        check_positive("tol", options["tol"])
+        if options["max_stroke_m"] is not None:
+            check_positive("max_stroke_m", options["max_stroke_m"])
+        check_nonnegative("stroke_penalty", options["stroke_penalty"])
+    except TypeError as exc:  # a wrong type is a bad value here: one exception to catch
+        raise ValueError(str(exc)) from None
+    return {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}, checked
+
+
+class _Search:
+    """L-BFGS-B searches on the episodes' search plants, in lockstep (:class:`_Lockstep`); the
+    objective of episode ``k`` is scaled by its Wk at zero current and the currents by
+    ``i_max`` (both searched quantities near 1)."""
+
+    def __init__(
+        self, episodes: OracleEpisodes, objective: RideObjective, max_iter: int, tol: float
+    ) -> None:
+        self.episodes, self.objective = episodes, objective
+        n_ep, n_steps = episodes.n_episodes, episodes.n_steps
+        _, out = episodes.run(np.arange(n_ep), np.zeros((n_ep, n_steps)))
+        self.scale = np.maximum(objective.wk(out[:, :, OUT_BODY_ACC]), 1e-12)
+        self.evaluations = np.zeros(n_ep, dtype=np.int64)
+        self.options = {"maxiter": max_iter, "ftol": tol, "gtol": tol}
+
+    def _evaluate(self, lane_episode: np.ndarray, batch: dict[int, np.ndarray]) -> dict:
+        ep, i_max = self.episodes, self.episodes.i_max
+        lanes = sorted(batch)
+        eps = lane_episode[lanes]
+        u = np.stack([np.clip(batch[lane], 0.0, 1.0) * i_max for lane in lanes])
+        states, outputs = ep.run(eps, u)
+        out = {}
+        for j, lane in enumerate(lanes):
+            k = eps[j]
+            self.evaluations[k] += 1
+            acc = outputs[j, :, OUT_BODY_ACC]
+            value, _, d_acc, d_state = self.objective.value_and_derivatives(
+                acc, states[j], ep.columns
+            )
+            grad = adjoint_gradient(*ep.linearise(k, states[j], acc, u[j]), d_acc, d_state)
+            out[lane] = (value / self.scale[k], grad * (i_max / self.scale[k]))
+        return out
+
+    def optimise(self, lane_episode: np.ndarray, currents: np.ndarray) -> list[Any]:
+        """One search per lane (episode ``lane_episode[j]`` from currents ``currents[j]``);
+        returns scipy's results, their ``x`` in units of ``i_max``."""
+        lane_episode = np.asarray(lane_episode)
+
+        def search(x0: np.ndarray) -> Callable:
+            return lambda fun: minimize(
+                fun, x0, jac=True, method="L-BFGS-B", bounds=Bounds(0.0, 1.0),
+                options=self.options,
+            )  # fmt: skip
+
+        searches = {j: search(currents[j] / self.episodes.i_max) for j in range(len(currents))}
+        found = _Lockstep(lambda batch: self._evaluate(lane_episode, batch)).run(searches)
+        return [found[j] for j in range(len(currents))]
+
+
+def _smooth(currents: np.ndarray, steps: int, i_max: float) -> np.ndarray:
+    """Moving average over ``steps`` control steps (edges: the nearest values repeated)."""
+    if steps <= 1:
+        return currents.copy()
+    pad = np.pad(currents, ((0, 0), (steps // 2, steps - 1 - steps // 2)), mode="edge")
+    kernel = np.full(steps, 1.0 / steps)
+    smoothed = np.stack([np.convolve(row, kernel, mode="valid") for row in pad])
+    return np.clip(smoothed, 0.0, i_max)
+
+
+def clairvoyant_bound(
+    env_kwargs: Mapping[str, Any] | None = None,
+    seeds: Sequence[int] = EVALUATION_SEEDS,
+    episode_length_s: float = 10.0,
+    *,
+    starts: Sequence[Any] = DEFAULT_STARTS,
+    max_iter: int = 150,
+    tol: float = 1e-9,
+    restarts: int = 1,
+    smooth_steps: int = 5,
+    max_stroke_m: float | None = None,
+    stroke_penalty: float = 1000.0,
+    random_seed: int = 0,
+) -> OracleResult:
+    """The lowest Wk-weighted RMS body acceleration a clairvoyant controller reaches by local
+    search, per episode: the applied coil-current sequence ``u_t`` in ``[0, i_max]`` that
+    minimises it, knowing the whole guideway, setting the current applied to the plant
+    directly (no noise, no delay, no inverse model; the coil lag, where the setting has one,
+    stays: it is physics).
+
+    Parameters
+    ----------
+    env_kwargs : the env's arguments (``setting``, ``damper``, ``vehicle_randomization``,
+        ``control_rate_hz``...; ``guideway_seed`` defaults to
+        :data:`~capsule_env.evaluation.EVALUATION_GUIDEWAY_SEED`). Arguments that only shape the
+        controller's side (action mode, observation, noise, delay) change nothing here; the
+        ``sim`` plant is the model ``inverse_model`` names (default Bi-exponential).
+    seeds : episode ``k`` is the single env seeded ``seeds[k]`` (as
+        :func:`capsule_env.evaluation.run_episodes` runs ``seed + k``); default 1000..1009.
+    episode_length_s : episode length (s).
+    starts : the search's starts: names of :data:`START_NAMES`, constant currents (A), or
+        current arrays, (T,) or (E, T) (e.g. :func:`applied_currents` of a controller's
+        rollout). Each episode is searched from each start.
+    max_iter : L-BFGS-B iterations per search.
+    tol : L-BFGS-B's ``ftol`` on the objective relative to its value at zero current, and
+        its ``gtol`` on the projected gradient of that relative objective per ``i_max``.
+    restarts : rounds after the starts, each restarting one search per episode from the best
+        sequence so far smoothed by a moving average over ``smooth_steps`` control steps
+        (which frees the steps L-BFGS-B holds at a bound); a round's result is kept only
+        where it is better.
+    max_stroke_m : stroke beyond which the quadratic penalty acts (m); default the env's
+        ``stroke_limit_m``, the bump stop where the env ends an episode.
+    stroke_penalty : the penalty's weight (m/s^2; 0 switches the constraint off): the search
+        minimises ``Wk + stroke_penalty * mean_t(max(0, |s_t| - max_stroke_m) /
+        max_stroke_m)^2``. An exterior penalty: a run may still overshoot slightly (see
+        ``max_stroke_m`` and ``terminated`` in the result).
+    random_seed : seed of the ``"random"`` start.
+
+    Returns an :class:`OracleResult` (every figure measured on the env's own plant). Raises
+    ``ValueError`` naming a bad argument. How far from the global optimum: see
+    :mod:`capsule_env.oracle`.
+    """
+    options = {
+        "episode_length_s": episode_length_s, "max_iter": max_iter, "tol": tol,
+        "restarts": restarts, "smooth_steps": smooth_steps, "max_stroke_m": max_stroke_m,
+        "stroke_penalty": stroke_penalty, "random_seed": random_seed,
+    }  # fmt: skip
+    env_args, seeds = _check_arguments(env_kwargs, seeds, options)
+    t_start = time.perf_counter()
+    episodes = OracleEpisodes(env_args, seeds, episode_length_s)
+    check_episode_length(episode_length_s, episodes.dt_s)
+    limit = episodes.config.stroke_limit_m if max_stroke_m is None else float(max_stroke_m)
+    options["max_stroke_m"] = limit
+    objective = RideObjective(episodes.n_steps, episodes.dt_s, limit, stroke_penalty)
+    names, start_u = _starts(episodes, starts, random_seed)
+    n_starts, n_ep, n_steps = len(names), episodes.n_episodes, episodes.n_steps
+    i_max = episodes.i_max
+    search = _Search(episodes, objective, int(max_iter), float(tol))
+
+    def env_wk(lanes: np.ndarray, currents: np.ndarray) -> np.ndarray:
+        return objective.wk(episodes.run(lanes, currents, substeps="env")[1][:, :, OUT_BODY_ACC])
+
+    lanes = np.tile(np.arange(n_ep), n_starts)  # lane s * E + k: start s on episode k
+    found = search.optimise(lanes, start_u.reshape(-1, n_steps))
+    ends = np.stack([np.clip(r.x, 0.0, 1.0) * i_max for r in found])
+    final_wk = env_wk(lanes, ends).reshape(n_starts, n_ep).T
+    start_wk = env_wk(lanes, start_u.reshape(-1, n_steps)).reshape(n_starts, n_ep).T
+    iterations = np.array([r.nit for r in found]).reshape(n_starts, n_ep).T
+    messages = [[str(found[s * n_ep + k].message) for s in range(n_starts)] for k in range(n_ep)]
+    best_start = np.argmin(final_wk, axis=1)
+    best = np.stack([ends[best_start[k] * n_ep + k] for k in range(n_ep)])
+    best_wk = final_wk[np.arange(n_ep), best_start]
+    restart_wk = np.zeros((n_ep, restarts))
+    for r in range(restarts):
+        found = search.optimise(np.arange(n_ep), _smooth(best, smooth_steps, i_max))
+        ends = np.stack([np.clip(res.x, 0.0, 1.0) * i_max for res in found])
+        restart_wk[:, r] = env_wk(np.arange(n_ep), ends)
+        better = restart_wk[:, r] < best_wk
+        best[better], best_wk[better] = ends[better], restart_wk[better, r]
+
+    states, outputs = episodes.run(np.arange(n_ep), best, substeps="env")
+    signals = _signals(states, outputs, best)
+    total = time.perf_counter() - t_start
+    stroke = np.max(np.abs(signals["stroke_m"]), axis=1)
+    return OracleResult(
+        seeds=seeds,
+        env_kwargs=env_args,
+        dt_s=episodes.dt_s,
+        currents_a=best,
+        signals=signals,
+        wk_rms_body_acc_m_s2=objective.wk(signals["car_body_acceleration_m_s2"]),
+        start_names=tuple(names),
+        start_wk_m_s2=start_wk,
+        final_wk_m_s2=final_wk,
+        restart_wk_m_s2=restart_wk,
+        iterations=iterations,
+        messages=messages,
+        max_stroke_m=stroke,
+        terminated=stroke > episodes.config.stroke_limit_m,
+        time_s=total * search.evaluations / max(int(search.evaluations.sum()), 1),
+        total_time_s=total,
+        evaluations=search.evaluations.copy(),
+        options=options,
+    )
+
+
+def _signals(states: np.ndarray, outputs: np.ndarray, currents: np.ndarray) -> dict:
+    """The evaluation's recorded signals (``RECORDED``) of runs, as the env writes them."""
+    after = states[:, 1:]
+    signals = {
+        "car_body_displacement_m": after[..., BODY_DISP],
+        "bogie_displacement_m": after[..., BOGIE_DISP],
+        "car_body_acceleration_m_s2": outputs[..., OUT_BODY_ACC],
+        "stroke_m": after[..., BODY_DISP] - after[..., BOGIE_DISP],
+        "stroke_rate_m_s": after[..., BODY_VEL] - after[..., BOGIE_VEL],
+        "damper_force_n": outputs[..., OUT_FORCE],
+        "desired_force_n": np.zeros_like(currents),
+        "current_command_a": currents.copy(),
+        "coil_current_a": after[..., COIL_CURRENT],
+        "guideway_elevation_m": outputs[..., OUT_GUIDEWAY],
+    }
+    assert set(signals) == set(RECORDED)
+    return {name: np.ascontiguousarray(signals[name]) for name in RECORDED}

@@ -1,0 +1,114 @@
+"""capsule_env.oracle: the open-loop replay is the env's plant, the adjoint gradient is the
+derivative of the whole nonlinear simulation (central differences), and the search improves on
+every start and on a causal controller."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capsule_env.config import EnvConfig
+from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, episode_metrics, run_episodes
+from capsule_env.layout import OUT_BODY_ACC
+from capsule_env.oracle import (
+    OracleEpisodes,
+    RideObjective,
+    adjoint_gradient,
+    applied_currents,
+    clairvoyant_bound,
+)
+
+HILS = {"setting": "hils", "guideway_seed": EVALUATION_GUIDEWAY_SEED}
+
+
+def _objective_and_gradient(episodes, u, objective):
+    states, outputs = episodes.run(np.array([0]), u[None, :])
+    acc = outputs[0, :, OUT_BODY_ACC]
+    value, wk, d_acc, d_state = objective.value_and_derivatives(acc, states[0], episodes.columns)
+    lin = episodes.linearise(0, states[0], acc, u)
+    return value, wk, adjoint_gradient(*lin, d_acc, d_state)
+
+
+@pytest.mark.parametrize(
+    ("setting", "max_stroke_m"),
+    [("hils", np.inf), ("hils", 0.002), ("sim", np.inf)],  # 2 mm: the stroke penalty acts
+)
+def test_adjoint_gradient_matches_central_differences_of_the_simulation(setting, max_stroke_m):
+    episodes = OracleEpisodes({**HILS, "setting": setting}, [1000], 0.5)
+    objective = RideObjective(episodes.n_steps, episodes.dt_s, max_stroke_m, 1000.0)
+    u = np.random.default_rng(0).uniform(0.2, 1.3, episodes.n_steps)
+    value, wk, grad = _objective_and_gradient(episodes, u, objective)
+    assert (value > wk) == bool(np.isfinite(max_stroke_m))  # the penalty acts where asked
+    h = 1e-4  # A
+    for j in (3, 40, 77, episodes.n_steps - 2):
+        plus, minus = u.copy(), u.copy()
+        plus[j] += h
+        minus[j] -= h
+        states, outputs = episodes.run(np.array([0, 0]), np.stack([plus, minus]))
+        values = [
+            objective.value_and_derivatives(outputs[k, :, OUT_BODY_ACC], states[k], [0, 2])[0]
+            for k in range(2)
+        ]
+        central = (values[0] - values[1]) / (2 * h)
+        assert abs(central) > 0.0
+        assert grad[j] == pytest.approx(central, rel=0.02, abs=1e-7)
+
+
+def test_open_loop_replay_of_a_controllers_currents_is_the_env():
+    # Skyhook's commands, delayed by the env's control delay, replayed open loop with the
+    # env's substeps: the env's recorded body acceleration, to rounding.
+    from agents.classical import classical_controllers
+
+    ctrl = classical_controllers()["skyhook-cont-biexp"]
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **HILS}, seeds=[1000, 1001],
+                        episode_length_s=0.5)  # fmt: skip
+    delay = EnvConfig.from_kwargs(**HILS).effective_control_delay_steps
+    assert delay == 1
+    u = applied_currents(roll, delay)
+    episodes = OracleEpisodes(HILS, [1000, 1001], 0.5)
+    _, outputs = episodes.run(np.arange(2), u, substeps="env")
+    env_acc = roll.signals["car_body_acceleration_m_s2"]
+    np.testing.assert_allclose(outputs[:, :, OUT_BODY_ACC], env_acc, rtol=0, atol=1e-12)
+
+
+def test_search_improves_on_every_start_and_on_skyhook():
+    from agents.classical import classical_controllers
+
+    ctrl = classical_controllers()["skyhook-cont-biexp"]
+    seeds = [1000, 1001]
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **HILS}, seeds=seeds, episode_length_s=1.0)
+    sky = applied_currents(roll, 1)
+    result = clairvoyant_bound({"setting": "hils"}, seeds, 1.0, starts=["zero", sky],
+                               max_iter=25, restarts=1)  # fmt: skip
+    assert result.start_names == ("zero", "given:1")
+    wk = result.wk_rms_body_acc_m_s2
+    # the best of the searches is at least as low as each start's own sequence
+    assert np.all(wk <= result.start_wk_m_s2.min(axis=1) + 1e-12)
+    # ... and lower than what Skyhook reached closed loop (its own currents were a start)
+    m_sky = [episode_metrics(roll.select([k]), None)["wk_rms_body_acc_m_s2"] for k in (0, 1)]
+    assert np.all(wk < np.array(m_sky))
+    # the rollout is the env's plant replayed: its metric is the result's
+    metrics = episode_metrics(result.rollout, None)
+    assert metrics["wk_rms_body_acc_m_s2"] == pytest.approx(float(np.mean(wk)), rel=1e-9)
+    assert np.all(result.currents_a >= 0.0) and np.all(result.currents_a <= 1.5)
+    summary = result.summary()
+    assert [row["seed"] for row in summary["episodes_detail"]] == seeds
+    assert np.all(result.spread_m_s2 >= 0.0) and np.all(result.restart_gain_m_s2 >= 0.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"seeds": []}, "seeds must be a non-empty"),
+        ({"seeds": [1000], "max_iter": 0}, "max_iter"),
+        ({"seeds": [1000], "starts": ["nope"]}, "unknown start"),
+        ({"seeds": [1000], "starts": [2.0]}, "constant current"),
+        ({"seeds": [1000], "env_kwargs": {"episode_length_s": 3.0}}, "episode_length_s"),
+        ({"seeds": [1000], "env_kwargs": {"settting": "hils"}}, "settting"),
+        ({"seeds": [1000], "stroke_penalty": -1.0}, "stroke_penalty"),
+    ],
+)
+def test_bad_arguments_are_named(kwargs, match):
+    args = {"env_kwargs": {"setting": "hils"}, "episode_length_s": 0.5, "max_iter": 2, **kwargs}
+    with pytest.raises(ValueError, match=match):
+        clairvoyant_bound(**args)
