@@ -46,8 +46,7 @@ def test_shipped_policy_files_exist_and_are_small():
 def test_shipped_json_records_the_files_sizes_and_sha256(path):
     zip_path, pkl_path, json_path = files_of(path)
     recorded = json.loads(json_path.read_text()).get("files")
-    if recorded is None:
-        pytest.skip(f"{json_path.name} records no file sizes or SHA-256 (saved without them)")
+    assert recorded is not None, f"{json_path.name} records no file sizes or SHA-256"
     assert set(recorded) == {zip_path.name, pkl_path.name}
     for name, digest in recorded.items():
         data = (zip_path.parent / name).read_bytes()
@@ -117,3 +116,18 @@ def test_evaluate_lists_the_shipped_policy(tmp_path):
 def test_bad_policy_path_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="policy path"):
         SB3Policy.load(tmp_path / "missing.zip")
+
+
+@pytest.mark.rl
+def test_ship_policy_copies_the_set_under_a_new_name(tmp_path):
+    from agents.ship import ship_policy
+
+    shipped = ship_policy(SHIPPED[0], "copy-of-it", "a test", folder=tmp_path)
+    assert shipped == tmp_path / "copy-of-it.zip"
+    meta = json.loads((tmp_path / "copy-of-it.json").read_text())
+    assert meta["name"] == "copy-of-it" and meta["selection"] == "a test"
+    assert set(meta["files"]) == {"copy-of-it.zip", "copy-of-it.vecnormalize.pkl"}
+    assert shipped.read_bytes() == Path(SHIPPED[0]).read_bytes()
+    assert SB3Policy.load(shipped).name == "copy-of-it"
+    with pytest.raises(ValueError, match="name must be a plain file stem"):
+        ship_policy(SHIPPED[0], "../escape", folder=tmp_path)

@@ -134,6 +134,17 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     | 7 | car body absolute velocity estimate | m/s |
     | 8 | bogie absolute velocity estimate | m/s |
 
+    **Guideway preview** (any observation set, ``preview_points`` > 0): ``preview_points``
+    more columns, ``preview_ahead_<k>`` (m, ``k = 1 .. preview_points``), the surveyed guideway
+    elevation ``k * preview_horizon_s / preview_points`` seconds ahead of the bogie, relative to
+    the surveyed elevation under it now. A Hyperloop tube is surveyed infrastructure and the
+    propulsion system tracks the capsule's position, so this is a map lookup, not a sensor.
+    It is looked up in a survey map (the true profile plus a long-wavelength map offset of
+    standard deviation ``survey_offset_m``, 50-500 m wavelengths, and a short-wavelength error
+    ``survey_noise_m``, 2-50 m; the map belongs to the guideway bank) at the vehicle's
+    estimated position (the true one plus an episode-constant error drawn with standard
+    deviation ``position_error_m``). Defaults (all [reconstructed]): 0.5 mm, 0.1 mm, 0.05 m.
+
     ## Rewards
 
     A ride-comfort cost with stroke and energy terms, per step::
@@ -200,6 +211,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     - ``observation``: ``"sensors"`` | ``"full_state"`` | ``"measured"``; the velocity
       estimator of ``"measured"``: ``velocity_estimator_corner_hz`` (0.1),
       ``velocity_estimator_damping`` (1/sqrt(2)).
+    - Guideway preview: ``preview_points`` (0: none; at most 64), ``preview_horizon_s`` (0.5),
+      and the survey's errors ``survey_offset_m`` (5e-4), ``survey_noise_m`` (1e-4),
+      ``position_error_m`` (0.05).
     - Reward: ``reward_acceleration_weight``, ``reward_stroke_weight``,
       ``reward_energy_weight``, ``reward_velocity_weight``, ``acceleration_scale_m_s2``,
       ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``,

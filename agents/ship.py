@@ -1,0 +1,68 @@
+"""Ship a trained policy with the package: ``capsule_env/pretrained/NAME.{zip,vecnormalize.pkl,json}``.
+
+    python -m agents.ship runs/ppo-measured-seed1/best_model.zip ppo-measured \\
+        --note "best of seeds 0, 1, 2 by the validation bank's Wk"
+
+Copies the model and its normalisation statistics under the new name, and writes the json
+(``train.py``'s metadata) with ``name`` set, the files' sizes and SHA-256 (``files``, checked
+when the policy loads), where it came from (``shipped_from``) and why it was chosen
+(``selection``). All three are staged and renamed into place together
+(:class:`capsule_env.safe_io.StagedFiles`): a failed copy leaves the shipped files as they were.
+``evaluate.py`` lists every shipped policy by default.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from agents.sb3_policy import PRETRAINED_DIR, SB3Policy
+from capsule_env.safe_io import StagedFiles, file_digest
+
+__all__ = ["ship_policy"]
+
+
+def ship_policy(source_zip: str | Path, name: str, note: str = "",
+                folder: str | Path = PRETRAINED_DIR) -> Path:  # fmt: skip
+    """Copy the policy ``source_zip`` (with its ``.vecnormalize.pkl`` and ``.json``) to
+    ``folder/name.*``; returns the new ``.zip``. Raises ``ValueError`` for a bad name or a
+    policy that does not load (:meth:`SB3Policy.load`, which checks its files)."""
+    if not name or any(c in name for c in "/\\. ") or name.startswith("-"):
+        raise ValueError(f"name must be a plain file stem such as 'ppo-measured', got {name!r}")
+    source_zip = Path(source_zip)
+    SB3Policy.load(source_zip)  # refuses a missing, mixed or corrupt set
+    stem = source_zip.with_suffix("")
+    meta = json.loads(stem.with_suffix(".json").read_text())
+    data = {
+        ".zip": source_zip.read_bytes(),
+        ".vecnormalize.pkl": Path(f"{stem}.vecnormalize.pkl").read_bytes(),
+    }
+    folder = Path(folder)
+    targets = {suffix: folder / f"{name}{suffix}" for suffix in data}
+    with StagedFiles() as staged:
+        temps = {suffix: staged.write_bytes(targets[suffix], blob) for suffix, blob in data.items()}
+        digests = {targets[s].name: file_digest(temps[s]) for s in data}
+        meta.update({"name": name, "files": digests,
+                     "shipped_from": str(source_zip), "selection": note})  # fmt: skip
+        staged.write_text(folder / f"{name}.json", json.dumps(meta, indent=2, default=str))
+    return targets[".zip"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("source", help="the policy's .zip (train.py's best_model.zip)")
+    p.add_argument("name", help="the shipped name, e.g. ppo-measured")
+    p.add_argument("--note", default="", help="why this policy (kept in the json)")
+    args = p.parse_args(argv)
+    try:
+        path = ship_policy(args.source, args.name, args.note)
+    except (ValueError, OSError) as exc:
+        sys.exit(f"agents.ship: error: {exc}")
+    print(f"shipped {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
