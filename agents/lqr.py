@@ -50,6 +50,8 @@ def lqr_gain(
 class ClippedOptimalController(ForceLaw):
     """Clipped-optimal LQR through an inverse model (see the module docstring).
 
+    Its :attr:`gain` is ``K``: ``(4,)``, or ``(N, 4)`` for per-vehicle weights.
+
     Parameters
     ----------
     inverse_model : ``"bi_exponential"``, ``"csdc"`` or ``"tanh"``.
@@ -58,8 +60,6 @@ class ClippedOptimalController(ForceLaw):
     vehicle : the plant's parameters (default :class:`VehicleParams`).
     max_force_n : the env's force scale.
     observation : ``"full_state"`` (ideal sensors, default) or ``"measured"``.
-
-    :attr:`gain` is ``K``: ``(4,)``, or ``(N, 4)`` for per-vehicle weights.
     """
 
     SIGNALS = STATE_SIGNALS

@@ -65,7 +65,7 @@ class TuningSettings:
 
 @dataclass
 class Evaluation:
-    """Per candidate: mean Wk over the episodes (m/s^2), max |stroke| over them (m), and
+    """Per candidate: mean Wk over the episodes (m/s^2), ``max |stroke|`` over them (m), and
     whether any episode hit the bump stop."""
 
     wk_m_s2: np.ndarray
@@ -74,7 +74,7 @@ class Evaluation:
 
 
 class Record(NamedTuple):
-    """One candidate's result: mean Wk (m/s^2), max |stroke| (m), any bump-stop hit."""
+    """One candidate's result: mean Wk (m/s^2), ``max |stroke|`` (m), any bump-stop hit."""
 
     wk_m_s2: float
     max_stroke_m: float

@@ -112,6 +112,8 @@ class CapsuleBatch:
     fresh_signals : give ``signals`` a new buffer every step, so that rows handed out as
         ``info`` arrays keep their values (the vector envs); the single env copies them.
 
+    Notes
+    -----
     Public attributes (arrays, one row or entry per vehicle; read them, do not resize them):
     ``state`` (N, STATE_SIZE) plant state; ``signals`` (N_SIGNALS, N) this step's signals;
     ``obs``, ``reward``, ``terminated``, ``step_count``; ``applied_current``; the route

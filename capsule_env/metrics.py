@@ -204,12 +204,12 @@ def wb_weighting(frequencies_hz: np.ndarray, standard: str = "en12299") -> np.nd
     - ``"iso2631-4"`` (ISO 2631-4:2001 Table A.1, ISO 8041, BS 6841): Q4 = 0.55, Q5 = 0.9,
       Q6 = 0.95.
 
-    Both have |Wb| near 0.4 from 0.5 to 2 Hz, near 1 from 5 to 10 Hz and fall as 1/f from 16 to
+    Both have ``|Wb|`` near 0.4 from 0.5 to 2 Hz, near 1 from 5 to 10 Hz and fall as 1/f from 16 to
     100 Hz (velocity); they differ by up to about 13 % near 16 Hz and 8 % near 4 Hz.
 
     Sources [secondary, the standards' texts were not at hand]: ISO values from the ISO 8041
     table reproduced in the Larson Davis HVM200 manual (Table 3.1), checked against the
-    published ISO 2631-4 value |Wb(100 rad/s)| = 0.8126; EN 12299 values as implemented by the
+    published ISO 2631-4 value ``|Wb(100 rad/s)| = 0.8126``; EN 12299 values as implemented by the
     open-source comfpy and pyridy packages, both citing EN 12299:2009.
     """
     if standard not in _WB_Q:

@@ -268,7 +268,7 @@ def _family(name: str) -> str:
 
 def pareto_figure(data: dict[str, Any], path: Path) -> Path:
     """The comfort trade-offs of ``experiments/pareto.py``'s ``data``: Wk-weighted RMS body
-    acceleration against the body's first-mode VRE (left) and against the worst max |stroke|
+    acceleration against the body's first-mode VRE (left) and against the worst ``max |stroke|``
     (right). Each law's gain sweep is a curve (measured: solid, ideal sensors: dashed) with its
     tuned gains starred; open-loop references and learned policies are points."""
     plt = _pyplot()

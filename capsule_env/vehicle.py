@@ -57,6 +57,8 @@ class VehicleParams:
     passive_damping_n_s_per_m : c_s, the passive secondary damper of the passive baseline
         (N s/m), default 1.5e4. It is *not* part of the MR-damped plant.
 
+    Notes
+    -----
     Accepted ranges: masses 1 kg to 1e6 kg, stiffnesses 1 to 1e10 N/m, damping 0 to 1e9 N s/m
     (``ValueError`` naming the field otherwise).
     """

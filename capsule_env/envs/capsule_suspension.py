@@ -263,6 +263,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: ``(observation, info)``. ``seed`` (an integer in ``[0, 2**63)``)
+        re-seeds the vehicle's stream; ``options`` accepts no key yet (any raises
+        ``ValueError``)."""
         if seed is not None:
             check_seed("seed", seed)
         _check_options(options)
@@ -274,6 +277,13 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         return self._batch.obs[0].copy(), self._info()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One control step: ``(observation, reward, terminated, truncated, info)``.
+
+        ``action`` has shape ``(1,)`` (or is a number) and is clipped to [-1, 1]; a wrong
+        shape, NaN or infinity raises ``ValueError``, a non-numeric action ``TypeError``.
+        Before :meth:`reset`, or after the episode ended, raises
+        ``gymnasium.error.ResetNeeded``.
+        """
         if self._needs_reset:
             raise ResetNeeded(
                 "call reset() before step(): the episode has not started or has ended"
@@ -295,6 +305,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         return dict(zip(SIGNAL_NAMES, self._batch.signals[:, 0].tolist(), strict=True))
 
     def render(self) -> np.ndarray | None:
+        """A side view of the vehicle (RGB array) with ``render_mode="rgb_array"``, else None."""
         if self.render_mode != "rgb_array":
             return None
         return render_vehicle(self._batch, 0)

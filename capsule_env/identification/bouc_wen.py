@@ -107,7 +107,7 @@ def fit_bouc_wen(loops: Sequence[Loop], starts: int = 3) -> BoucWenDamper:
     [-0.999, 0.999]. The response is simulated exactly over all loops at once (warm-up of one
     period from ``z = 0``, see :func:`~capsule_env.identification.predict.predict_force`).
     ``x0`` is fitted when the stiffness ``k0 > 0`` carries a plausible offset
-    (|x0| <= max|x|), else fixed at 0.
+    (``|x0| <= max|x|``), else fixed at 0.
 
     On a Spencer-type damper the optimum tends to the near-Bingham limit (small ``z_y``, ``r``
     at its lower bound): a plain Bouc-Wen element cannot follow the low-velocity roll-off that

@@ -14,6 +14,8 @@ __all__ = ["PlantParams", "Route"]
 class PlantParams(NamedTuple):
     """What the plant of each vehicle is made of (changes only at a reset).
 
+    Attributes
+    ----------
     damper : (N, N_DAMPER_PARAMS) packed damper parameters (``layout.DAMPER_PARAM_NAMES``).
     vehicle : (N, N_VEHICLE_PARAMS) packed vehicle parameters (``layout.VEHICLE_PARAM_NAMES``).
     substeps : (N, bins) int64 RK4 substeps per control step by coil-current bin

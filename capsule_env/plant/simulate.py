@@ -78,6 +78,8 @@ def step_batch(
     dt_s : control interval (s).
     out : (N, N_PLANT_OUTPUTS) written with ``layout.PLANT_OUTPUT_NAMES`` at the end.
 
+    Notes
+    -----
     All arrays must be C-contiguous float64 (int64 for ``route.profile``).
     """
     from capsule_env.kernels import PLANT, BatchedKernel
