@@ -64,30 +64,49 @@ class OracleResult:
     Every Wk figure is measured on the env's own plant (its adaptive substeps, its kernel):
     the currents replayed open loop.
 
-    seeds : the episodes (episode ``k``: the single env seeded ``seeds[k]``).
-    env_kwargs : the env arguments of the episodes (``guideway_seed`` included).
-    dt_s : control interval (s).
-    currents_a : (E, T) the best applied-current sequence found (A).
-    signals : ``capsule_env.evaluation.RECORDED`` signals of the best runs, (E, T) each
+    Attributes
+    ----------
+    seeds
+        The episodes (episode ``k``: the single env seeded ``seeds[k]``).
+    env_kwargs
+        The env arguments of the episodes (``guideway_seed`` included).
+    dt_s
+        Control interval (s).
+    currents_a
+        (E, T) the best applied-current sequence found (A).
+    signals
+        ``capsule_env.evaluation.RECORDED`` signals of the best runs, (E, T) each
         (``current_command_a`` is the applied current; ``desired_force_n`` is 0: no force is
         requested), as the env records them.
-    wk_rms_body_acc_m_s2 : (E,) the objective: Wk-weighted RMS body acceleration of the best
-        sequence (m/s^2).
-    start_names : the starts, in order (a name of :data:`START_NAMES`, ``"constant:<A>"`` or
+    wk_rms_body_acc_m_s2
+        (E,) the objective: Wk-weighted RMS body acceleration of the best sequence (m/s^2).
+    start_names
+        The starts, in order (a name of :data:`START_NAMES`, ``"constant:<A>"`` or
         ``"given:<j>"`` for an array given as ``starts[j]``).
-    start_wk_m_s2 : (E, S) Wk of each start's own sequence, before the search (m/s^2).
-    final_wk_m_s2 : (E, S) Wk reached from each start (m/s^2).
-    restart_wk_m_s2 : (E, R) Wk reached by each restart round (m/s^2).
-    iterations : (E, S) L-BFGS-B iterations from each start.
-    messages : (E, S) L-BFGS-B's stop messages.
-    max_stroke_m : (E,) largest |stroke| of the best runs (m).
-    terminated : (E,) whether the best run crosses the env's bump stop (``stroke_limit_m``),
-        where the env would have ended the episode.
-    time_s : (E,) wall time attributed to each episode: the call's total shared in proportion
-        to each episode's objective evaluations (the episodes' searches run in lockstep).
-    total_time_s : wall time of the whole call (s).
-    evaluations : (E,) objective evaluations (open-loop run + gradient) per episode.
-    options : the search's options (JSON-ready).
+    start_wk_m_s2
+        (E, S) Wk of each start's own sequence, before the search (m/s^2).
+    final_wk_m_s2
+        (E, S) Wk reached from each start (m/s^2).
+    restart_wk_m_s2
+        (E, R) Wk reached by each restart round (m/s^2).
+    iterations
+        (E, S) L-BFGS-B iterations from each start.
+    messages
+        (E, S) L-BFGS-B's stop messages.
+    max_stroke_m
+        (E,) largest ``abs(stroke)`` of the best runs (m).
+    terminated
+        (E,) whether the best run crosses the env's bump stop (``stroke_limit_m``), where the
+        env would have ended the episode.
+    time_s
+        (E,) wall time attributed to each episode: the call's total shared in proportion to
+        each episode's objective evaluations (the episodes' searches run in lockstep).
+    total_time_s
+        Wall time of the whole call (s).
+    evaluations
+        (E,) objective evaluations (open-loop run + gradient) per episode.
+    options
+        The search's options (JSON-ready).
     """
 
     seeds: tuple[int, ...]
@@ -415,35 +434,48 @@ def clairvoyant_bound(
 
     Parameters
     ----------
-    env_kwargs : the env's arguments (``setting``, ``damper``, ``vehicle_randomization``,
+    env_kwargs
+        The env's arguments (``setting``, ``damper``, ``vehicle_randomization``,
         ``control_rate_hz``...; ``guideway_seed`` defaults to
         :data:`~capsule_env.evaluation.EVALUATION_GUIDEWAY_SEED`). Arguments that only shape the
         controller's side (action mode, observation, noise, delay) change nothing here; the
         ``sim`` plant is the model ``inverse_model`` names (default Bi-exponential).
-    seeds : episode ``k`` is the single env seeded ``seeds[k]`` (as
+    seeds
+        Episode ``k`` is the single env seeded ``seeds[k]`` (as
         :func:`capsule_env.evaluation.run_episodes` runs ``seed + k``); default 1000..1009.
-    episode_length_s : episode length (s).
-    starts : the search's starts: names of :data:`START_NAMES`, constant currents (A), or
+    episode_length_s
+        Episode length (s).
+    starts
+        The search's starts: names of :data:`START_NAMES`, constant currents (A), or
         current arrays, (T,) or (E, T) (e.g. :func:`applied_currents` of a controller's
         rollout). Each episode is searched from each start.
-    max_iter : L-BFGS-B iterations per search.
-    tol : L-BFGS-B's ``ftol`` on the objective relative to its value at zero current, and
+    max_iter
+        L-BFGS-B iterations per search.
+    tol
+        L-BFGS-B's ``ftol`` on the objective relative to its value at zero current, and
         its ``gtol`` on the projected gradient of that relative objective per ``i_max``.
-    restarts : rounds after the starts, each restarting one search per episode from the best
+    restarts
+        Rounds after the starts, each restarting one search per episode from the best
         sequence so far smoothed by a moving average over ``smooth_steps`` control steps
         (which frees the steps L-BFGS-B holds at a bound); a round's result is kept only
         where it is better.
-    max_stroke_m : stroke beyond which the quadratic penalty acts (m); default the env's
+    max_stroke_m
+        Stroke beyond which the quadratic penalty acts (m); default the env's
         ``stroke_limit_m``, the bump stop where the env ends an episode.
-    stroke_penalty : the penalty's weight (m/s^2; 0 switches the constraint off): the search
+    stroke_penalty
+        The penalty's weight (m/s^2; 0 switches the constraint off): the search
         minimises ``Wk + stroke_penalty * mean_t(max(0, |s_t| - max_stroke_m) /
         max_stroke_m)^2``. An exterior penalty: a run may still overshoot slightly (see
         ``max_stroke_m`` and ``terminated`` in the result).
-    random_seed : seed of the ``"random"`` start.
+    random_seed
+        Seed of the ``"random"`` start.
 
-    Returns an :class:`OracleResult` (every figure measured on the env's own plant). Raises
-    ``ValueError`` naming a bad argument. How far from the global optimum: see
-    :mod:`capsule_env.oracle`.
+    Returns
+    -------
+    OracleResult
+        Every figure measured on the env's own plant. Raises
+        ``ValueError`` naming a bad argument. How far from the global optimum: see
+        :mod:`capsule_env.oracle`.
     """
     options = {
         "episode_length_s": episode_length_s, "max_iter": max_iter, "tol": tol,
