@@ -185,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         data["points"][name] = {"kind": "open loop", "observation": "none", **metrics_}
     for policy in policies:
         metrics_ = point(policy, seeds, args.episode_length, passive)[0]
-        data["points"][policy.name] = {"kind": "policy", "observation": policy.observation,
+        reads = policy.observation + ("+preview" if policy.preview else "")
+        data["points"][policy.name] = {"kind": "policy", "observation": reads,
                                        "path": str(policy.path), **metrics_}  # fmt: skip
     for name in laws:
         data["laws"][name] = curve = sweep(name, args.points, seeds, args.episode_length, passive)
