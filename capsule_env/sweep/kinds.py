@@ -1,0 +1,441 @@
+"""The kinds of trial a study can run: a small registry, one :class:`Kind` per kind.
+
+A kind is a plain function ``run(trial) -> metrics`` (``trial``: a
+:class:`capsule_env.sweep.study.Trial` with ``name``, ``params``, ``seed`` and ``dir``, the
+trial's own folder; ``metrics``: a flat mapping of numbers and strings, one table column each)
+plus the parameter names it accepts and a cheap ``check(params)`` run on every trial before the
+study starts. The functions run the same with or without Ray.
+
+- ``train``: ``train.py``'s ``train(Args)`` with the trial's seed; parameters: the fields of
+  ``train.Args`` (``total_timesteps``, ``num_envs``, ``algo``, ``eval_freq``, ...),
+  ``hp.<key>`` (an entry of the hyperparameter file, e.g. ``hp.learning_rate``) and
+  ``env.<key>`` (an env argument). The trial writes its hyperparameter file
+  (``hyperparams.yml``) and train.py's output folder (``run/``: ``best_model.*``, ...) into its
+  folder; a trial started again continues from train.py's newest checkpoint there. Metrics:
+  the best held-out evaluation (validation bank 7) and the timesteps.
+- ``gains``: a classical controller (``agents.classical``) with the given gains
+  (``gain.<name>``) on ``episodes`` episodes (seeds ``episode_seed ..``) of the guideway bank
+  ``guideway_seed`` (default 0, the training bank, as ``python -m agents.tuning``), through
+  :func:`capsule_env.evaluation.run_episodes` and :func:`~capsule_env.evaluation.
+  episode_metrics` (the passive damper on the same episodes is the VRE reference). Every grid
+  point runs the same episodes (common random numbers: the grid compares gains, not noise).
+- ``oracle``: ``capsule_env.oracle.clairvoyant_bound(env_kwargs, seeds, episode_length_s)``
+  when that library is installed (the kind is refused, with the reason, otherwise).
+
+Adding a kind is one function and one :func:`register_kind` call, in a module the Ray
+workers import as well (the trials look their kind up by name)::
+
+    def run_mine(trial):
+        return {"wk_rms_body_acc_m_s2": ...}
+
+    register_kind(Kind("mine", run_mine, keys={"episodes": "how many"}))
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import inspect
+import json
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from capsule_env.sweep.study import Trial
+
+#: The metric every built-in kind reports and the summary figure plots.
+SUMMARY_METRIC = "wk_rms_body_acc_m_s2"
+
+
+def _nothing_to_check(params: dict[str, Any]) -> None:
+    return None
+
+
+def _available() -> str | None:
+    return None
+
+
+def _as_given(params: dict[str, Any]) -> dict[str, Any]:
+    return params
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A kind of trial.
+
+    ``run(trial)`` does the work and returns the metrics; ``keys`` are the parameter names it
+    accepts (name -> meaning), ``prefixes`` the accepted ``prefix.<key>`` families;
+    ``check(params)`` raises ``ValueError`` (one line, naming the key) for values that cannot
+    run; ``seeded``: its trials get a seed each (replicates); ``unavailable()`` returns why the
+    kind cannot run here (a missing library), or ``None``; ``resolve(params)`` returns them
+    ready to run anywhere (relative paths made absolute: a Ray trial runs in its own folder)."""
+
+    name: str
+    run: Callable[[Trial], Mapping[str, Any]]
+    keys: Mapping[str, str] | Callable[[], Mapping[str, str]] = field(default_factory=dict)
+    prefixes: Mapping[str, str] = field(default_factory=dict)
+    check: Callable[[dict[str, Any]], None] = _nothing_to_check
+    seeded: bool = False
+    unavailable: Callable[[], str | None] = _available
+    resolve: Callable[[dict[str, Any]], dict[str, Any]] = _as_given
+
+    def accepted_keys(self) -> Mapping[str, str]:
+        return self.keys() if callable(self.keys) else self.keys
+
+    def check_key(self, key: str, where: str) -> None:
+        """``ValueError`` naming ``key`` and the accepted names unless this kind takes it."""
+        from capsule_env.sweep.study import StudyError
+
+        keys = self.accepted_keys()
+        prefix, dot, rest = key.partition(".")
+        if key in keys or (dot and f"{prefix}." in self.prefixes and rest):
+            return
+        accepted = [*keys, *(f"{p}<key>" for p in self.prefixes)]
+        raise StudyError(f"{where}: unknown parameter {key!r} for kind {self.name!r}; "
+                         f"accepted: {', '.join(accepted)}")  # fmt: skip
+
+
+#: Every kind, by name.
+KINDS: dict[str, Kind] = {}
+
+
+def register_kind(kind: Kind) -> Kind:
+    """Add ``kind`` to :data:`KINDS` (replacing one of the same name); returns it."""
+    KINDS[kind.name] = kind
+    return kind
+
+
+def split_params(params: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """``params`` as (plain keys, ``{prefix: {key: value}}`` for the ``prefix.key`` ones)."""
+    plain: dict[str, Any] = {}
+    groups: dict[str, dict[str, Any]] = {}
+    for key, value in params.items():
+        prefix, dot, rest = key.partition(".")
+        if dot:
+            groups.setdefault(prefix, {})[rest] = value
+        else:
+            plain[key] = value
+    return plain, groups
+
+
+def flat_metrics(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Numbers and strings of a nested mapping, keys joined with ``.`` (lists dropped)."""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flat_metrics(value, f"{name}."))
+        elif isinstance(value, (bool, int, float, str)) or hasattr(value, "item"):
+            value = value.item() if hasattr(value, "item") else value
+            out[name] = int(value) if isinstance(value, bool) else value
+    return out
+
+
+def _number(value: Any, where: str, minimum: float | None = None, integer: bool = False) -> None:
+    ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok or (minimum is not None and value < minimum):
+        what = "an integer" if integer else "a number"
+        bound = f" >= {minimum:g}" if minimum is not None else ""
+        raise ValueError(f"{where}: expected {what}{bound}, got {value!r}")
+
+
+def _env_config(env_kwargs: dict[str, Any]) -> Any:
+    """The env's configuration of ``env_kwargs`` (its own one-line errors name the key)."""
+    from capsule_env.config import EnvConfig
+
+    return EnvConfig.from_kwargs(**env_kwargs)
+
+
+# ----------------------------------------------------------------------------- train
+#: train.Args fields a study does not set: the sweep chooses them per trial.
+_TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env_kwargs")
+
+
+def train_module() -> ModuleType:
+    """``train.py`` of the checkout this package is installed from (an editable install: the
+    folder above ``capsule_env``), imported once. ``RuntimeError`` when there is none."""
+    import capsule_env
+
+    path = Path(capsule_env.__file__).resolve().parent.parent / "train.py"
+    for name in ("train", "_capsule_env_train"):
+        module = sys.modules.get(name)
+        if module is not None and Path(getattr(module, "__file__", "") or "").resolve() == path:
+            return module
+    if not path.is_file():
+        raise RuntimeError(
+            f"the train kind needs train.py of a capsule-env checkout, not found at {path} "
+            "(install the package from a checkout: pip install -e '<checkout>[rl,scale]')"
+        )
+    spec = importlib.util.spec_from_file_location("_capsule_env_train", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["_capsule_env_train"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _train_unavailable() -> str | None:
+    for module in ("stable_baselines3", "yaml"):
+        if importlib.util.find_spec(module) is None:
+            return f"{module} is not installed (pip install 'capsule-env[rl,scale]')"
+    try:
+        train_module()
+    except RuntimeError as exc:
+        return str(exc)
+    return None
+
+
+def _train_keys() -> dict[str, str]:
+    from agents.training import field_docs
+
+    docs = field_docs(train_module().Args)
+    return {k: " ".join(v.split()) for k, v in docs.items() if k not in _TRAIN_CHOSEN}
+
+
+def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
+    """The base hyperparameter file of a train trial and its entry."""
+    from agents.hyperparams import load_hyperparams
+    from agents.training import HYPERPARAMS_DIR
+
+    algo = plain.get("algo", "ppo")
+    path = Path(plain.get("hyperparams") or HYPERPARAMS_DIR / f"{algo}.yml").resolve()
+    return path, load_hyperparams(path)
+
+
+def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
+    import stable_baselines3 as sb3
+
+    from agents.hyperparams import NOT_ALGORITHM_ARGUMENTS
+
+    signature = inspect.signature(getattr(sb3, algo.upper()).__init__)
+    taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
+    return {*base, *NOT_ALGORITHM_ARGUMENTS, *(p for p in signature.parameters if p not in taken)}
+
+
+def check_train(params: dict[str, Any]) -> None:
+    """A train trial's arguments: train.Args' values and ranges, the env arguments, the
+    evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
+    from agents.hyperparams import resolve_env_kwargs
+    from agents.sb3_policy import ALGORITHMS
+    from agents.training import check_args, policy_env_kwargs
+    from capsule_env.evaluation import check_episode_length
+
+    plain, groups = split_params(params)
+    algo = plain.get("algo", "ppo")
+    if algo not in ALGORITHMS:
+        raise ValueError(f"algo: unknown algorithm {algo!r}; accepted: {', '.join(ALGORITHMS)}")
+    defaults = train_module().Args()
+    for key, value in plain.items():
+        default = getattr(defaults, key)
+        if key in ("total_timesteps", "num_envs", "eval_freq", "eval_episodes", "eval_seed",
+                   "checkpoint_freq", "keep_replay_buffers", "threads", "verbose"):  # fmt: skip
+            _number(value, key, 0, integer=True)
+        elif isinstance(default, (int, float)) and not isinstance(default, bool):
+            _number(value, key, 0)
+        elif key in ("hyperparams", "tensorboard", "device") and not isinstance(value, str):
+            raise ValueError(f"{key}: expected a string, got {value!r}")
+    args = train_module().Args(**plain, env_kwargs=groups.get("env", {}))
+    check_args(args)
+    path, base = _hyperparams(plain)
+    unknown = sorted(set(groups.get("hp", {})) - _hp_keys(algo, base))
+    if unknown:
+        raise ValueError(f"hp.{unknown[0]}: not a hyperparameter of {algo} (the keys of {path} "
+                         f"and {algo.upper()}'s arguments)")  # fmt: skip
+    env_kwargs = resolve_env_kwargs(base.get("env_kwargs", {}), groups.get("env", {}))
+    dt_s = _env_config(policy_env_kwargs(env_kwargs)).dt_s
+    check_episode_length(args.eval_episode_length, dt_s, "eval_episode_length")
+
+
+def resolve_train(params: dict[str, Any]) -> dict[str, Any]:
+    """``hyperparams`` and ``tensorboard`` as absolute paths."""
+    out = dict(params)
+    for key in ("hyperparams", "tensorboard"):
+        if out.get(key):
+            out[key] = str(Path(out[key]).resolve())
+    return out
+
+
+def run_train(trial: Trial) -> dict[str, Any]:
+    """Train with ``train.py``'s ``train(Args)`` in the trial's folder (see the module
+    docstring); returns the best evaluation, the timesteps and the output folder."""
+    import yaml
+
+    from agents.hyperparams import ENV_ID
+    from capsule_env.safe_io import atomic_write_text
+
+    train = train_module()
+    plain, groups = split_params(trial.params)
+    _, hp = _hyperparams(plain)
+    hp.update(groups.get("hp", {}))
+    folder = Path(trial.dir)
+    yml = folder / "hyperparams.yml"
+    atomic_write_text(yml, yaml.safe_dump({ENV_ID: hp}, sort_keys=False))
+    out = folder / "run"
+    resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
+    plain["hyperparams"] = str(yml)
+    args = train.Args(**plain, seed=int(trial.seed or 0), env_kwargs=groups.get("env", {}),
+                      output_dir=str(out), name=trial.name, resume=resume,
+                      progress=False)  # fmt: skip
+    try:
+        summary = train.train(args)
+    except SystemExit as exc:  # train's one-line errors
+        raise RuntimeError(str(exc.code)) from None
+    if summary["interrupted"]:  # Ctrl-C: stop the sweep (train.py saved a checkpoint)
+        raise KeyboardInterrupt
+    best = summary.get("best") or {}
+    metrics = {k: best[k] for k in ("wk_rms_body_acc_m_s2", "rms_body_acc_m_s2",
+               "vre_body_mode1_pct", "max_stroke_m", "terminated_episodes") if k in best}  # fmt: skip
+    metrics["best_timesteps"] = best.get("num_timesteps")
+    metrics["num_timesteps"] = summary["num_timesteps"]
+    metrics["train_wall_time_s"] = summary["wall_time_s"]
+    metrics["output_dir"] = summary["output_dir"]
+    return metrics
+
+
+# ----------------------------------------------------------------------------- gains
+#: Constructor arguments of the classical laws that are not gains.
+_NOT_GAINS = ("observation", "vehicle", "extra_units", "extra_given", "extra_fallback")
+_GAINS_KEYS = {
+    "controller": "a classical controller of agents.classical (required)",
+    "setting": "sim or hils (default hils)",
+    "guideway_seed": "the guideway bank (default 0, the training bank)",
+    "episodes": "episodes per trial (default 10)",
+    "episode_seed": "the first episode's seed (default 0)",
+    "episode_length_s": "seconds per episode (default 10)",
+}
+
+
+def _gains_settings(params: dict[str, Any]) -> tuple[dict, dict, dict]:
+    plain, groups = split_params(params)
+    settings = {"setting": "hils", "guideway_seed": 0, "episodes": 10, "episode_seed": 0,
+                "episode_length_s": 10.0, **plain}  # fmt: skip
+    return settings, groups.get("gain", {}), groups.get("env", {})
+
+
+def gain_names(controller: str) -> list[str]:
+    """The gains the classical controller ``controller`` takes (its constructor's names)."""
+    from agents.classical import FACTORIES
+
+    signature = inspect.signature(FACTORIES[controller])
+    return [p for p in signature.parameters if p not in _NOT_GAINS]
+
+
+def check_gains(params: dict[str, Any]) -> None:
+    """A gains trial: a known controller, its gain names, numbers, a valid env and an episode
+    long enough for the metrics."""
+    from agents.classical import FACTORIES, make_controller
+    from capsule_env.evaluation import check_episode_length
+
+    settings, gains, env = _gains_settings(params)
+    name = settings.get("controller")
+    if name not in FACTORIES:
+        raise ValueError(f"controller: unknown controller {name!r}; accepted: "
+                         f"{', '.join(FACTORIES)}")  # fmt: skip
+    accepted = gain_names(name)
+    for gain, value in gains.items():
+        if gain not in accepted:
+            raise ValueError(f"gain.{gain}: {name} has no such gain; accepted: "
+                             f"{', '.join(accepted) or 'none'}")  # fmt: skip
+        _number(value, f"gain.{gain}")
+    _number(settings["episodes"], "episodes", 1, integer=True)
+    _number(settings["episode_seed"], "episode_seed", 0, integer=True)
+    ctrl = make_controller(name, **gains)
+    config = _env_config({**ctrl.env_kwargs, "setting": settings["setting"],
+                          "guideway_seed": settings["guideway_seed"], **env})  # fmt: skip
+    check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
+
+
+def run_gains(trial: Trial) -> dict[str, Any]:
+    """The controller with the trial's gains and the passive damper on the same episodes;
+    returns :func:`~capsule_env.evaluation.episode_metrics` flattened (``vre_body_mode1_pct``,
+    ... and the spread of the Wk-weighted RMS acceleration over the episodes)."""
+    from agents.classical import PassiveController, make_controller
+    from capsule_env.evaluation import episode_metrics, run_episodes
+
+    settings, gains, env = _gains_settings(trial.params)
+    ctrl = make_controller(settings["controller"], **gains)
+    base = {"setting": settings["setting"], "guideway_seed": settings["guideway_seed"], **env}
+    first = settings["episode_seed"]
+    seeds = list(range(first, first + settings["episodes"]))
+    length = float(settings["episode_length_s"])
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **base}, episode_length_s=length, seeds=seeds)
+    passive = run_episodes(PassiveController(), {**base, **PassiveController.env_kwargs},
+                           episode_length_s=length, seeds=seeds)  # fmt: skip
+    m = episode_metrics(roll, passive)
+    out = {k: v for k, v in m.items() if isinstance(v, (int, float))}
+    out.update({f"vre_{k}_pct": v for k, v in m["vre_pct"].items()})
+    out[f"{SUMMARY_METRIC}_std"] = m["std"][SUMMARY_METRIC]
+    out[f"passive_{SUMMARY_METRIC}"] = episode_metrics(passive, None)[SUMMARY_METRIC]
+    return out
+
+
+# ----------------------------------------------------------------------------- oracle
+_ORACLE_KEYS = {
+    "episodes": "episodes per trial (default 5)",
+    "episode_seed": "the first episode's seed (default 1000, the evaluation seeds)",
+    "episode_length_s": "seconds per episode (default 4)",
+}
+
+
+def _oracle() -> Any:
+    return importlib.import_module("capsule_env.oracle").clairvoyant_bound
+
+
+def _oracle_unavailable() -> str | None:
+    try:
+        _oracle()
+    except (ImportError, AttributeError):
+        return "capsule_env.oracle.clairvoyant_bound is not in this installation"
+    return None
+
+
+def _oracle_settings(params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    plain, groups = split_params(params)
+    return {"episodes": 5, "episode_seed": 1000, "episode_length_s": 4.0, **plain}, groups.get(
+        "env", {}
+    )
+
+
+def check_oracle(params: dict[str, Any]) -> None:
+    """An oracle trial: episode counts and a valid env."""
+    settings, env = _oracle_settings(params)
+    _number(settings["episodes"], "episodes", 1, integer=True)
+    _number(settings["episode_seed"], "episode_seed", 0, integer=True)
+    _number(settings["episode_length_s"], "episode_length_s", 0)
+    _env_config(env)
+
+
+def run_oracle(trial: Trial) -> dict[str, Any]:
+    """``clairvoyant_bound(env_kwargs, seeds, episode_length_s)``: its mapping flattened, or a
+    single number as the Wk-weighted RMS body acceleration."""
+    settings, env = _oracle_settings(trial.params)
+    first = settings["episode_seed"]
+    seeds = list(range(first, first + settings["episodes"]))
+    result = _oracle()(env, seeds, float(settings["episode_length_s"]))
+    if isinstance(result, Mapping):
+        return flat_metrics(result)
+    return {SUMMARY_METRIC: float(result)}
+
+
+register_kind(Kind("train", run_train, _train_keys,
+                   {"hp.": "a hyperparameter file entry", "env.": "an env argument"},
+                   check_train, seeded=True, unavailable=_train_unavailable,
+                   resolve=resolve_train))  # fmt: skip
+register_kind(Kind("gains", run_gains, _GAINS_KEYS,
+                   {"gain.": "a gain of the controller", "env.": "an env argument"},
+                   check_gains))  # fmt: skip
+register_kind(Kind("oracle", run_oracle, _ORACLE_KEYS, {"env.": "an env argument"},
+                   check_oracle, unavailable=_oracle_unavailable))  # fmt: skip
+
+
+def json_ready(value: Any) -> bool:
+    """True if ``value`` survives JSON (study parameters travel as JSON and Tune configs)."""
+    try:
+        json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        return False
+    return True

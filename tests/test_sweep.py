@@ -1,0 +1,343 @@
+"""capsule_env.sweep: study files (checks, seeds), the plain trial functions, the serial runner,
+and (``scale``) a 2-trial local Ray Tune sweep: results table, resume, --no-ray equality."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from capsule_env.sweep import KINDS, Kind, Trial, load_study
+from capsule_env.sweep.__main__ import main
+from capsule_env.sweep.runner import run_trial
+from capsule_env.sweep.study import derived_seed
+
+ROOT = Path(__file__).resolve().parent.parent
+NO_RAY = (
+    "Ray Tune is not installed (optional, in the scale extra: pip install 'capsule-env[scale]')"
+)
+NO_RL = (
+    "stable-baselines3 is not installed (optional, in the rl extra: pip install 'capsule-env[rl]')"
+)
+# A gain grid small enough for the tests: 2 episodes of 1 s.
+GAINS = {"kind": "gains",
+         "params": {"controller": "skyhook-cont-biexp", "episodes": 2, "episode_length_s": 1.0},
+         "grid": {"gain.c_sky": [3000.0, 30000.0]}}  # fmt: skip
+# A tiny PPO run: 2048 steps of 4 vehicles, 128-step rollouts, a 2-episode, 1 s evaluation.
+TINY_PPO = {"total_timesteps": 2048, "num_envs": 4, "eval_freq": 0, "eval_episodes": 2,
+            "eval_episode_length": 1.0, "checkpoint_freq": 0, "hp.n_steps": 128,
+            "hp.batch_size": 256, "hp.n_epochs": 2}  # fmt: skip
+
+
+def write_study(folder: Path, content: Any, name: str = "study.json") -> Path:
+    path = folder / name
+    path.write_text(content if isinstance(content, str) else json.dumps(content))
+    return path
+
+
+def rows(out: Path) -> list[dict[str, Any]]:
+    return json.loads((out / "results.json").read_text())["trials"]
+
+
+def attempts(out: Path, trial: str) -> int:
+    return len((out / "trials" / trial / "attempts.log").read_text().splitlines())
+
+
+# ----------------------------------------------------------------------------- bad study files
+BAD = [
+    ({"nmae": "x", "trials": [GAINS]}, "unknown key 'nmae'; accepted: name, seed, cpus_per_trial, trials"),
+    ({"trials": []}, "trials: expected a non-empty list of blocks"),
+    ({"trials": [{**GAINS, "kind": "trian"}]}, "trials[0].kind: unknown kind 'trian'; accepted: train, gains, oracle"),
+    ({"trials": [{**GAINS, "replicas": 2}]}, "unknown key 'replicas'; accepted: kind, name, params, grid, replicates, seeds"),
+    ({"trials": [{**GAINS, "params": {"controler": "x"}}]}, "unknown parameter 'controler' for kind 'gains'; accepted: controller, setting"),
+    ({"trials": [{**GAINS, "params": {"controller": "skyhok"}}]}, "controller: unknown controller 'skyhok'; accepted: passive,"),
+    ({"trials": [{**GAINS, "grid": {"gain.c_skyy": [1.0]}}]}, "gain.c_skyy: skyhook-cont-biexp has no such gain; accepted: c_max, c_min, c_sky"),
+    ({"trials": [{**GAINS, "grid": {"gain.c_sky": 3000}}]}, "grid.gain.c_sky: expected a non-empty list of values"),
+    ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number, got 'big'"),
+    ({"trials": [{**GAINS, "replicates": 3}]}, "trials[0].replicates: kind 'gains' is deterministic"),
+    ({"trials": [{**GAINS, "grid": {"env.sped_kmh": [600]}}]}, "unknown environment argument 'sped_kmh'; accepted:"),
+    ({"trials": [{**GAINS, "params": {**GAINS["params"], "episode_length_s": 0.1}}]}, "episode_length_s 0.1 s (20 control steps) is too short"),
+    ({"trials": [{**GAINS, "params": {**GAINS["params"], "episodes": 0}}]}, "episodes: expected an integer >= 1, got 0"),
+    ({"seed": -1, "trials": [GAINS]}, "seed: expected an integer >= 0, got -1"),
+    ({"trials": [{**GAINS, "name": "g"}, {**GAINS, "name": "g"}]}, "trials[1].name: expected a new label"),
+    ({"name": "a b", "trials": [GAINS]}, "name: expected the study's name"),
+    ("[1, 2", "not valid JSON"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("content, expected", BAD)
+def test_bad_study_file_is_one_line_naming_the_key(tmp_path, capsys, content, expected):
+    study = write_study(tmp_path, content)
+    assert main([str(study), "--out", str(tmp_path / "out"), "--no-ray"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("sweep: error: "), err
+    assert expected in err, err
+    assert not (tmp_path / "out").exists()  # nothing ran, nothing written
+
+
+def test_bad_study_files_other_ways(tmp_path, capsys):
+    for path, expected in [
+        (tmp_path / "missing.json", "cannot read the study file"),
+        (write_study(tmp_path, "name: [x", "s.yml"), "not valid YAML"),
+        (write_study(tmp_path, "{}", "s.toml"), "a study file ends in .yml, .yaml or .json"),
+    ]:
+        if path.suffix == ".yml" and importlib.util.find_spec("yaml") is None:
+            continue
+        assert main([str(path), "--no-ray"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and expected in err, err
+
+
+def test_bad_study_file_process_exits_2_without_traceback(tmp_path):
+    study = write_study(tmp_path, {"trials": [{**GAINS, "kind": "trian"}]})
+    proc = subprocess.run([sys.executable, "-m", "capsule_env.sweep", str(study), "--no-ray"],
+                          capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+    assert "unknown kind 'trian'; accepted: train, gains, oracle" in proc.stderr
+
+
+def test_oracle_kind_is_refused_without_its_library(tmp_path, capsys):
+    if importlib.util.find_spec("capsule_env.oracle") is not None:
+        pytest.skip("capsule_env.oracle is installed")
+    study = write_study(tmp_path, {"trials": [{"kind": "oracle"}]})
+    assert main([str(study), "--no-ray"]) == 2
+    assert "kind 'oracle' is not available here: capsule_env.oracle.clairvoyant_bound" in (
+        capsys.readouterr().err
+    )
+
+
+def test_train_parameters_are_checked(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3", reason=NO_RL)
+    pytest.importorskip("yaml", reason=NO_RL)
+    cases = [
+        ({"hp.learning_rte": 0.1}, "hp.learning_rte: not a hyperparameter of ppo"),
+        ({"total_timesteps": -5}, "total_timesteps: expected an integer >= 0, got -5"),
+        ({"algo": "a2c"}, "algo: unknown algorithm 'a2c'; accepted: ppo, sac, td3"),
+        ({"env.guideway_seed": 2026}, "guideway_seed=2026 is a held-out bank"),
+        ({"seed": 3}, "unknown parameter 'seed' for kind 'train'; accepted: algo, total_timesteps"),
+        ({"eval_episode_length": 0.1}, "eval_episode_length 0.1 s (20 control steps) is too short"),
+    ]
+    for params, expected in cases:
+        study = write_study(tmp_path, {"trials": [{"kind": "train", "params": params}]})
+        assert main([str(study), "--check"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and expected in err, err
+
+
+# ----------------------------------------------------------------------------- seeds
+def test_replicates_get_distinct_independent_seeds(tmp_path):
+    pytest.importorskip("stable_baselines3", reason=NO_RL)
+    pytest.importorskip("yaml", reason=NO_RL)
+    block = {"kind": "train", "replicates": 3, "params": TINY_PPO,
+             "grid": {"hp.learning_rate": [0.001, 0.0003]}}  # fmt: skip
+    study = load_study(write_study(tmp_path, {"seed": 5, "trials": [block]}), tmp_path)
+    seeds = [t.seed for t in study.trials]
+    assert len(seeds) == 6 and len(set(seeds)) == 6
+    assert seeds[:3] == [derived_seed(5, 0, 0, r) for r in range(3)]
+    assert seeds[3:] == [derived_seed(5, 0, 1, r) for r in range(3)]
+    assert all(0 <= s < 2**31 for s in seeds)
+    other = load_study(write_study(tmp_path, {"seed": 6, "trials": [block]}), tmp_path)
+    assert not set(seeds) & {t.seed for t in other.trials}  # another root, other streams
+    # listed seeds are taken as they are, and may not be shared by two trials
+    listed_block = {"kind": "train", "seeds": [0, 1], "params": TINY_PPO}
+    listed = load_study(write_study(tmp_path, {"trials": [listed_block]}), tmp_path)
+    assert [t.seed for t in listed.trials] == [0, 1]
+    shared = write_study(tmp_path, {"trials": [{"kind": "train", "seeds": [0, 1],
+                                                "params": TINY_PPO, "grid": block["grid"]}]})  # fmt: skip
+    with pytest.raises(ValueError, match="would share seed 0"):
+        load_study(shared, tmp_path)
+
+
+# ----------------------------------------------------------------------------- serial runs
+def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
+    from agents.classical import PassiveController, make_controller
+    from capsule_env.evaluation import episode_metrics, run_episodes
+
+    out = tmp_path / "out"
+    study = write_study(tmp_path, {"name": "gains", "trials": [GAINS]})
+    assert main([str(study), "--out", str(out), "--no-ray"]) == 0
+    table = rows(out)
+    assert [r["trial"] for r in table] == ["gains0-000", "gains0-001"]
+    assert [r["param.gain.c_sky"] for r in table] == [3000.0, 30000.0]
+    assert all(r["status"] == "finished" and r["attempts"] == 1 for r in table)
+    header = (out / "results.csv").read_text().splitlines()[0].split(",")
+    assert header[:5] == ["trial", "block", "kind", "status", "seed"]
+    assert {"wk_rms_body_acc_m_s2", "vre_body_mode1_pct", "error"} <= set(header)
+    assert (out / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the row is the plain evaluation: run_episodes + episode_metrics on the training bank
+    ctrl = make_controller("skyhook-cont-biexp", c_sky=30000.0)
+    env = {"setting": "hils", "guideway_seed": 0}
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **env}, episode_length_s=1.0, seeds=[0, 1])
+    passive = run_episodes(PassiveController(), {**env, **PassiveController.env_kwargs},
+                           episode_length_s=1.0, seeds=[0, 1])  # fmt: skip
+    m = episode_metrics(roll, passive)
+    assert table[1]["wk_rms_body_acc_m_s2"] == m["wk_rms_body_acc_m_s2"]
+    assert table[1]["vre_body_mode1_pct"] == m["vre_pct"]["body_mode1"]
+    assert table[0]["wk_rms_body_acc_m_s2"] != table[1]["wk_rms_body_acc_m_s2"]
+    # a second run does nothing again, and a changed study is refused
+    capsys.readouterr()
+    assert main([str(study), "--out", str(out), "--no-ray"]) == 0
+    assert "finished before, not run again" in capsys.readouterr().out
+    assert attempts(out, "gains0-000") == 1
+    changed = write_study(tmp_path, {"name": "gains", "trials": [{**GAINS, "grid": {
+        "gain.c_sky": [1000.0]}}]})  # fmt: skip
+    assert main([str(changed), "--out", str(out), "--no-ray"]) == 2
+    assert "holds the results of another study" in capsys.readouterr().err
+
+
+def _flaky(trial: Trial) -> dict[str, float]:
+    if Path(trial.params["fail_if"]).exists():
+        raise RuntimeError(f"{trial.name} broke")
+    return {"wk_rms_body_acc_m_s2": float(trial.params["value"])}
+
+
+def test_failed_trials_are_reported_and_run_again(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(KINDS, "flaky", Kind("flaky", _flaky, {"fail_if": "", "value": ""}))
+    marker = tmp_path / "broken"
+    marker.write_text("")
+    out = tmp_path / "out"
+    study = write_study(tmp_path, {"trials": [
+        {"kind": "flaky", "params": {"fail_if": str(tmp_path / "never")}, "grid": {"value": [1]}},
+        {"kind": "flaky", "params": {"fail_if": str(marker)}, "grid": {"value": [2]}},
+    ]})  # fmt: skip
+    assert main([str(study), "--out", str(out), "--no-ray"]) == 1
+    err = capsys.readouterr().err
+    assert "failed: flaky1-000: RuntimeError: flaky1-000 broke" in err
+    result = json.loads((out / "results.json").read_text())
+    assert result["failed"] == [{"trial": "flaky1-000", "error": "RuntimeError: flaky1-000 broke"}]
+    assert result["counts"] == {"finished": 1, "failed": 1, "not run": 0}
+    assert "RuntimeError: flaky1-000 broke" in (out / "trials/flaky1-000/output.log").read_text()
+    # --no-retry-failed: nothing runs; then fixed and retried: only the failed trial runs
+    assert main([str(study), "--out", str(out), "--no-ray", "--no-retry-failed"]) == 1
+    assert (attempts(out, "flaky0-000"), attempts(out, "flaky1-000")) == (1, 1)
+    marker.unlink()
+    assert main([str(study), "--out", str(out), "--no-ray"]) == 0
+    assert (attempts(out, "flaky0-000"), attempts(out, "flaky1-000")) == (1, 2)
+    assert [r["wk_rms_body_acc_m_s2"] for r in rows(out)] == [1.0, 2.0]
+
+
+def test_oracle_kind_calls_clairvoyant_bound(tmp_path, monkeypatch):
+    import types
+
+    calls = []
+
+    def clairvoyant_bound(env_kwargs, seeds, episode_length_s):
+        calls.append((env_kwargs, seeds, episode_length_s))
+        return {"wk_rms_body_acc_m_s2": 0.125, "skyhook": {"wk_rms_body_acc_m_s2": 0.25},
+                "per_episode": [0.1, 0.15]}  # fmt: skip
+
+    monkeypatch.setitem(sys.modules, "capsule_env.oracle",
+                        types.SimpleNamespace(clairvoyant_bound=clairvoyant_bound))  # fmt: skip
+    study = load_study(write_study(tmp_path, {"trials": [{"kind": "oracle", "params": {
+        "episodes": 2, "episode_length_s": 2.0, "env.speed_kmh": 600}}]}), tmp_path)  # fmt: skip
+    result = run_trial(study.trials[0])
+    assert calls == [({"speed_kmh": 600}, [1000, 1001], 2.0)]
+    assert result["metrics"] == {"wk_rms_body_acc_m_s2": 0.125,
+                                 "skyhook.wk_rms_body_acc_m_s2": 0.25}  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- Ray Tune
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray for the module (2 CPUs), shut down after it."""
+    ray = pytest.importorskip("ray", reason=NO_RAY)
+    pytest.importorskip("ray.tune", reason=NO_RAY)
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=2, include_dashboard=False)
+    yield ray
+    if started:
+        ray.shutdown()
+
+
+@pytest.mark.scale
+@pytest.mark.rl
+def test_two_trial_ray_sweep_resume_and_no_ray(local_ray, tmp_path, capsys):
+    """Two tiny PPO trials as Ray Tune trials; one starts broken (a corrupt checkpoint in its
+    folder) and fails; a restart runs neither the finished trial nor, with
+    --no-retry-failed, the failed one; once repaired, only the failed one runs again; the same
+    study without Ray gives the same table."""
+    pytest.importorskip("stable_baselines3", reason=NO_RL)
+    pytest.importorskip("yaml", reason=NO_RL)
+    from ray.tune import ExperimentAnalysis
+
+    out = tmp_path / "ray"
+    study = write_study(tmp_path, {"name": "two", "trials": [
+        {"kind": "train", "name": "ppo", "replicates": 2, "params": TINY_PPO}]})  # fmt: skip
+    corrupt = out / "trials/ppo-001/run/checkpoints/ckpt_000000001024.zip"
+    corrupt.parent.mkdir(parents=True)
+    corrupt.write_text("not a checkpoint")
+
+    def tune_status() -> dict[str, str]:
+        trials = ExperimentAnalysis(str(out / "tune")).trials
+        return {t.config["trial"]["name"]: t.status for t in trials}
+
+    assert main([str(study), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "failed: ppo-001: RuntimeError: train.py: error: --resume auto: no intact" in err
+    table = rows(out)
+    assert [r["status"] for r in table] == ["finished", "failed"]
+    assert table[0]["num_timesteps"] == 2048 and np.isfinite(table[0]["wk_rms_body_acc_m_s2"])
+    assert table[0]["seed"] != table[1]["seed"]
+    assert (out / "trials/ppo-000/run/best_model.zip").is_file()
+    assert tune_status() == {"ppo-000": "TERMINATED", "ppo-001": "ERROR"}
+    for name in ("results.csv", "results.json", "summary.png"):
+        assert (out / name).is_file()
+
+    assert main([str(study), "--out", str(out), "--quiet", "--no-retry-failed"]) == 1
+    assert (attempts(out, "ppo-000"), attempts(out, "ppo-001")) == (1, 1)
+
+    corrupt.unlink()
+    assert main([str(study), "--out", str(out), "--quiet"]) == 0
+    assert (attempts(out, "ppo-000"), attempts(out, "ppo-001")) == (1, 2)
+    assert tune_status() == {"ppo-000": "TERMINATED", "ppo-001": "TERMINATED"}
+    on_ray = rows(out)
+    assert [r["status"] for r in on_ray] == ["finished", "finished"]
+    assert on_ray[0] == {**table[0]}  # the finished trial's row is the same as before
+
+    serial = tmp_path / "serial"
+    assert main([str(study), "--out", str(serial), "--no-ray"]) == 0
+    keys = ("trial", "seed", "status", "wk_rms_body_acc_m_s2", "vre_body_mode1_pct",
+            "max_stroke_m", "num_timesteps")  # fmt: skip
+    assert [{k: r[k] for k in keys} for r in rows(serial)] == [
+        {k: r[k] for k in keys} for r in on_ray
+    ]
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "experiments" / "studies").glob("*.yml")))
+def test_shipped_studies_are_valid(path, tmp_path, capsys):
+    pytest.importorskip("stable_baselines3", reason=NO_RL)
+    pytest.importorskip("yaml", reason=NO_RL)
+    assert main([str(path), "--check", "--out", str(tmp_path / "out")]) == 0
+    assert " trials; output " in capsys.readouterr().out
+    assert not (tmp_path / "out").exists()
+
+
+def test_command_line_errors(tmp_path, capsys, monkeypatch):
+    study = write_study(tmp_path, {"trials": [GAINS]})
+    for argv, expected in [
+        ([str(study), "--num-cpus", "0"], "--num-cpus must be >= 1, got 0"),
+        (
+            [str(study), "--no-ray", "--address", "auto"],
+            "--address, --storage and --working-dir need Ray",
+        ),
+    ]:
+        with pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and expected in err, err
+    # without Ray installed: a one-line hint at --no-ray
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "ray" else find_spec(name, *a))  # fmt: skip
+    assert main([str(study), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "Ray is not installed (pip install 'capsule-env[scale]'); --no-ray runs" in err
