@@ -103,16 +103,6 @@ def test_bad_study_file_process_exits_2_without_traceback(tmp_path):
     assert "unknown kind 'trian'; accepted: train, gains, oracle" in proc.stderr
 
 
-def test_oracle_kind_is_refused_without_its_library(tmp_path, capsys):
-    if importlib.util.find_spec("capsule_env.oracle") is not None:
-        pytest.skip("capsule_env.oracle is installed")
-    study = write_study(tmp_path, {"trials": [{"kind": "oracle"}]})
-    assert main([str(study), "--no-ray"]) == 2
-    assert "kind 'oracle' is not available here: capsule_env.oracle.clairvoyant_bound" in (
-        capsys.readouterr().err
-    )
-
-
 def test_train_parameters_are_checked(tmp_path, capsys):
     pytest.importorskip("stable_baselines3", reason=NO_RL)
     pytest.importorskip("yaml", reason=NO_RL)
@@ -223,24 +213,16 @@ def test_failed_trials_are_reported_and_run_again(tmp_path, capsys, monkeypatch)
     assert [r["wk_rms_body_acc_m_s2"] for r in rows(out)] == [1.0, 2.0]
 
 
-def test_oracle_kind_calls_clairvoyant_bound(tmp_path, monkeypatch):
-    import types
+def test_oracle_kind_runs_the_clairvoyant_bound(tmp_path):
+    from capsule_env.oracle import clairvoyant_bound
 
-    calls = []
-
-    def clairvoyant_bound(env_kwargs, seeds, episode_length_s):
-        calls.append((env_kwargs, seeds, episode_length_s))
-        return {"wk_rms_body_acc_m_s2": 0.125, "skyhook": {"wk_rms_body_acc_m_s2": 0.25},
-                "per_episode": [0.1, 0.15]}  # fmt: skip
-
-    monkeypatch.setitem(sys.modules, "capsule_env.oracle",
-                        types.SimpleNamespace(clairvoyant_bound=clairvoyant_bound))  # fmt: skip
     study = load_study(write_study(tmp_path, {"trials": [{"kind": "oracle", "params": {
-        "episodes": 2, "episode_length_s": 2.0, "env.speed_kmh": 600}}]}), tmp_path)  # fmt: skip
+        "episodes": 1, "episode_length_s": 0.5, "max_iter": 3, "env.setting": "sim"}}]}),
+        tmp_path)  # fmt: skip
     result = run_trial(study.trials[0])
-    assert calls == [({"speed_kmh": 600}, [1000, 1001], 2.0)]
-    assert result["metrics"] == {"wk_rms_body_acc_m_s2": 0.125,
-                                 "skyhook.wk_rms_body_acc_m_s2": 0.25}  # fmt: skip
+    direct = clairvoyant_bound({"setting": "sim"}, [1000], 0.5, max_iter=3)
+    assert result["metrics"]["wk_rms_body_acc_m_s2"] == float(direct.wk_rms_body_acc_m_s2[0])
+    assert result["metrics"]["spread_over_starts_mean_m_s2"] >= 0.0
 
 
 # ----------------------------------------------------------------------------- Ray Tune
