@@ -1,4 +1,4 @@
-"""``CapsuleSuspension-v0`` in RLlib, with the native (numba-batched) vector env.
+"""``CapsuleSuspension-v0`` in RLlib, with the native (numba-batched) vector env::
 
     from ray.rllib.algorithms.ppo import PPOConfig
     from capsule_env import rllib
