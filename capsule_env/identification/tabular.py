@@ -19,12 +19,14 @@ the array names; ``.npy``: the field names of a structured array), or given as `
 (CLI ``--columns``), the file's columns in order, which overrides any header: e.g.
 ``"time,displacement[mm],force,skip,current"`` (``skip`` or ``-`` ignores a column). Names are
 matched without case; aliases: ``t``; ``x``, ``stroke``, ``position``; ``v``, ``stroke_rate``;
-``f``; ``i``. Header columns with other names are ignored. A unit follows the name in
-brackets or parentheses, ``displacement [mm]``, ``force (kN)``, or as a suffix,
+``f`` (no one-letter alias for the current: ``i`` is often a row index). Header columns with
+other names are ignored. A unit follows the name in brackets or parentheses,
+``displacement [mm]``, ``force (kN)``, or as a suffix,
 ``displacement_mm``, ``velocity_mm_s``, ``time_s``: s or ms; m or mm; m/s or mm/s; N or kN; A
 or mA. Text files: lines starting with ``#`` and blank lines are skipped; the delimiter is
 ``,`` if the first line holds one, else ``;``, else a tab, else whitespace (decimal points
-only, no decimal commas).
+only, no decimal commas; with whitespace as delimiter, write units without a space:
+``displacement[mm]``).
 
 **Velocity when absent** (:func:`derive_velocity`): a Savitzky-Golay derivative
 (``scipy.signal.savgol_filter(x, window, polyorder, deriv=1, delta=dt)``), the derivative at
@@ -100,7 +102,7 @@ _ALIASES: dict[str, tuple[str, ...]] = {
     "displacement": ("displacement", "x", "stroke", "position"),
     "velocity": ("velocity", "v", "stroke_rate"),
     "force": ("force", "f"),
-    "current": ("current", "i"),
+    "current": ("current",),
 }
 _SKIP = ("skip", "-", "")
 _MIN_SAMPLES = 16
