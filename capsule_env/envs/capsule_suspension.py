@@ -23,7 +23,6 @@ from capsule_env.layout import SIGNAL_NAMES
 from capsule_env.render import render_vehicle
 
 __all__ = [
-    "AutoresetMode",
     "CapsuleSuspensionEnv",
     "CapsuleSuspensionVectorEnv",
     "env_spaces",
