@@ -110,3 +110,25 @@ def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
     if value not in choices:
         raise ValueError(f"unknown {name} {value!r}; accepted values: {', '.join(choices)}")
     return value
+
+
+class UnexpectedArgumentError(TypeError, ValueError):
+    """An unknown keyword argument: both a ``TypeError`` (what Python raises for a function
+    called with an argument it does not take, and what wrappers such as TorchRL's ``GymEnv``
+    catch to retry without an optional argument like ``frameskip``) and a ``ValueError`` (what
+    this package raises for every other bad argument), so either ``except`` clause catches it.
+
+    The message follows Python's wording, ``<callable>() got an unexpected keyword argument
+    '<name>'``, followed by the accepted names (:func:`unexpected_argument`). The constructor
+    takes the message alone, as ``TypeError`` does (``gymnasium.make`` re-raises an env
+    constructor's ``TypeError`` as ``type(err)(message)``).
+    """
+
+
+def unexpected_argument(owner: str, name: str, accepted: Iterable[str]) -> UnexpectedArgumentError:
+    """The :class:`UnexpectedArgumentError` for keyword ``name`` given to ``owner`` (e.g.
+    ``"CapsuleSuspensionEnv.__init__"``), listing the ``accepted`` names (sorted)."""
+    return UnexpectedArgumentError(
+        f"{owner}() got an unexpected keyword argument {name!r}; accepted: "
+        f"{', '.join(sorted(accepted))}"
+    )

@@ -273,6 +273,14 @@ class CapsuleBatch:
         """Re-seed every vehicle's generator (:func:`vehicle_streams`)."""
         self.rngs = vehicle_streams(seed, self.num_envs)
 
+    def detach_signals(self) -> None:
+        """Give ``signals`` a buffer of its own, a copy of the current one: arrays handed out as
+        ``info`` (rows of the buffer) keep their values when a masked :meth:`reset` outside
+        :meth:`step` then writes the reset vehicles' rows."""
+        old = self.signals
+        self._new_signals(np.empty)
+        self.signals[:] = old
+
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Start new episodes for the vehicles in ``mask`` (all if None)."""
         ids = range(self.num_envs) if mask is None else np.flatnonzero(mask)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from capsule_env._validation import (
+    UnexpectedArgumentError,
     available_memory_bytes,
     check_choice,
     check_in_range,
@@ -23,6 +24,7 @@ from capsule_env._validation import (
     check_nonnegative,
     check_positive,
     format_bytes,
+    unexpected_argument,
 )
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
@@ -53,6 +55,7 @@ __all__ = [
     "SENSOR_NOISE_STD",
     "INVERSE_CODES",
     "EnvConfig",
+    "UnexpectedArgumentError",
     "observation_bounds",
     "check_seed",
     "check_num_envs",
@@ -242,14 +245,25 @@ class EnvConfig:
         self.check_memory(1)
 
     @classmethod
-    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
-        """Build from keyword arguments, rejecting unknown names with the accepted list."""
+    def from_kwargs(
+        cls,
+        _owner: str = "EnvConfig.from_kwargs",
+        _also_accepted: tuple[str, ...] = (),
+        /,
+        **kwargs: Any,
+    ) -> EnvConfig:
+        """Build from keyword arguments (the env's options).
+
+        An unknown name raises :class:`UnexpectedArgumentError` (a ``TypeError`` and a
+        ``ValueError``) worded as Python's own, ``<_owner>() got an unexpected keyword argument
+        'name'``, with the accepted names. The positional-only ``_owner`` names the callable the
+        arguments were given to (e.g. ``"CapsuleSuspensionEnv.__init__"``) and
+        ``_also_accepted`` lists its own arguments (e.g. ``render_mode``) for the message.
+        """
         known = {f.name for f in fields(cls)}
         for key in kwargs:
             if key not in known:
-                raise ValueError(
-                    f"unknown environment argument {key!r}; accepted: {', '.join(sorted(known))}"
-                )
+                raise unexpected_argument(_owner, key, known | set(_also_accepted))
         if isinstance(kwargs.get("speed_range_kmh"), list):  # e.g. from JSON
             kwargs["speed_range_kmh"] = tuple(kwargs["speed_range_kmh"])
         return cls(**kwargs)

@@ -7,6 +7,12 @@ Run ``python -m capsule_env.identify --help``. Examples::
     python -m capsule_env.identify --emit-defaults                  # dataclass default lines
     python -m capsule_env.identify --data ../shared/data/labcontrol-mr-damper/ensaio.A.1.mat
     python -m capsule_env.identify --data ../shared/data/labcontrol-mr-damper   # every file
+    python -m capsule_env.identify --data loops.csv         # header: time,displacement,force,...
+    python -m capsule_env.identify --data rig.npy --columns "time,displacement[mm],force"
+    python -m capsule_env.identify --data loop_0A.csv loop_0.5A.csv loop_1A.csv --together
+
+CSV and NumPy files: columns, units, the velocity filter and the current rules are in
+:mod:`capsule_env.identification.tabular` and docs/howto-identify.md.
 
 Exit status: 0 on success, 2 for bad arguments, unreadable or unusable data, or an output
 path that cannot be written (checked before fitting), with one line on stderr naming the file.
@@ -16,8 +22,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -25,8 +32,10 @@ from capsule_env.identification import (
     D_RULES,
     MODEL_NAMES,
     PAPER_RMSE_N,
+    SUPPORTED_SUFFIXES,
     IdentificationResult,
     dataclass_default_lines,
+    identify_files,
     identify_measured,
     identify_reference,
     measured_files,
@@ -49,6 +58,46 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+def _number_type(low: float, strict: bool, what: str) -> Callable[[str], float]:
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+        return value
+
+    return convert
+
+
+def _int_type(low: int, high: int, odd: bool = False) -> Callable[[str], int]:
+    what = f"an {'odd ' if odd else ''}integer in [{low}, {high}]"
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+        if not low <= value <= high or (odd and value % 2 == 0):
+            raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+        return value
+
+    return convert
+
+
+#: Options that only apply to measured files (--data), with their defaults.
+_FILE_OPTIONS = {
+    "columns": None,
+    "current": None,
+    "current_resolution": 0.01,
+    "velocity_window": None,
+    "velocity_polyorder": 3,
+    "remove_force_offset": False,
+    "together": False,
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m capsule_env.identify``."""
     parser = _Parser(
@@ -56,15 +105,18 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Identify the Bi-exponential, Bouc-Wen and tanh MR-damper models from force loops "
             "(docs/model.md, section 6): from loops of the reference (Spencer) damper under a "
-            "sinusoidal stroke at 0 to 1.5 A (default), or from measured Labcontrol .mat "
-            "files. Prints the Bi-exponential linear-law table (the paper's Table 2 analogue) "
+            "sinusoidal stroke at 0 to 1.5 A (default), or from measured files: Labcontrol "
+            ".mat, CSV or NumPy (.npy, .npz). Prints the Bi-exponential linear-law table (the paper's Table 2 analogue) "
             "and the RMSE of each model next to the paper's 61.8 N (Bi-exponential) and "
             "695.3 N (Bouc-Wen) at 1.5 A."
         ),
         epilog=(
-            "Measured files record no coil current: each is fitted on its own at i = 0 (the "
-            "per-ampere coefficients are 0). Compare RMSE relative to the peak force: the "
-            "paper's damper, the reference damper and the laboratory damper differ in size."
+            "Labcontrol files record no coil current: each is fitted on its own at i = 0 (the "
+            "per-ampere coefficients are 0). A CSV or NumPy file gives its current in a "
+            "'current' column, --current or its name (loop_0.75A.csv); --together fits several "
+            "such files at once, with current laws. Compare RMSE relative to the peak force: "
+            "the paper's damper, the reference damper and the laboratory damper differ in "
+            "size. Columns, units and the velocity filter: docs/howto-identify.md."
         ),
     )
     source = parser.add_mutually_exclusive_group()
@@ -77,8 +129,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--data",
         metavar="PATH",
         type=Path,
-        help="a measured .mat file (Labcontrol format: x_F = displacement mm, velocity mm/s, "
-        "force N) or a folder: every .mat file in it, each fitted on its own",
+        nargs="+",
+        help="measured files or folders (every .mat, .csv, .tsv, .txt, .npy and .npz file in "
+        "it), each fitted on its own unless --together: Labcontrol .mat (x_F = displacement "
+        "mm, velocity mm/s, force N) or CSV/NumPy with columns time, displacement, "
+        "[velocity], force, [current] (SI units unless a unit is given, e.g. displacement[mm])",
     )
     parser.add_argument("--json", metavar="PATH", type=Path, help="write a JSON summary here")
     parser.add_argument(
@@ -97,6 +152,53 @@ def build_parser() -> argparse.ArgumentParser:
         default="mean",
         help="Bi-exponential d per branch: 'mean' over the per-current fits (the paper's "
         "procedure, default) or 'joint' (d and the linear laws fitted to all currents at once)",
+    )
+    files = parser.add_argument_group("measured CSV and NumPy files (with --data)")
+    files.add_argument(
+        "--columns",
+        metavar="NAMES",
+        help="the files' columns in order, comma-separated, overriding any header; 'skip' "
+        "ignores a column; units in brackets: e.g. 'time,displacement[mm],skip,force[kN]'",
+    )
+    files.add_argument(
+        "--current",
+        metavar="A",
+        type=_number_type(0.0, False, "a number >= 0 (A)"),
+        help="the coil current of every file without a current column (default: the current "
+        "in the file name, e.g. loop_0.75A.csv, else 0)",
+    )
+    files.add_argument(
+        "--current-resolution",
+        metavar="A",
+        type=_number_type(0.0, True, "a number > 0 (A)"),
+        default=0.01,
+        help="a current column is rounded to this before it is split into loops at constant "
+        "current (default 0.01 A)",
+    )
+    files.add_argument(
+        "--velocity-window",
+        metavar="N",
+        type=_int_type(3, 10**7, odd=True),
+        help="files without velocity: Savitzky-Golay window in samples (odd; default: the odd "
+        "number nearest to a tenth of the stroke's period)",
+    )
+    files.add_argument(
+        "--velocity-polyorder",
+        metavar="P",
+        type=_int_type(1, 9),
+        default=3,
+        help="files without velocity: Savitzky-Golay polynomial degree (default 3)",
+    )
+    files.add_argument(
+        "--remove-force-offset",
+        action="store_true",
+        help="subtract each file's mean force (a preload); .mat files always do",
+    )
+    files.add_argument(
+        "--together",
+        action="store_true",
+        help="fit the loops of all the files at once (one file per current: current laws "
+        "across files) instead of each file on its own",
     )
     parser.add_argument(
         "--frequency-hz",
@@ -209,12 +311,61 @@ def _summary_table(results: Sequence[IdentificationResult]) -> str:
     return "\n".join(lines)
 
 
+def _data_files(paths: Sequence[Path]) -> list[Path]:
+    """The files of ``--data``: each file as given, each folder's supported files."""
+    files: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            files += measured_files(path, SUPPORTED_SUFFIXES)
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise ValueError(f"--data: no such file or folder: {str(path)!r}")
+    return files
+
+
+def _identify_data(args: argparse.Namespace) -> tuple[list[IdentificationResult], dict]:
+    """Fit the ``--data`` files (each on its own, or all together); print the reports."""
+    files = _data_files(args.data)
+    options = dict(
+        columns=args.columns,
+        current_a=args.current,
+        current_resolution_a=args.current_resolution,
+        velocity_window=args.velocity_window,
+        velocity_polyorder=args.velocity_polyorder,
+        remove_force_offset=args.remove_force_offset,
+    )
+    if args.together:
+        result = identify_files(files, d_rule=args.d_rule, **options)
+        print(_report(result))
+        return [result], result.to_json_dict()
+    results = []
+    for file in files:
+        try:
+            results.append(identify_measured(file, d_rule=args.d_rule, **options))
+        except ValueError as exc:
+            if str(file) in str(exc):
+                raise
+            raise ValueError(f"cannot identify {str(file)!r}: {exc}") from None
+        print(_report(results[-1]))
+        print()
+    if len(results) == 1:
+        return results, results[0].to_json_dict()
+    print(_summary_table(results))
+    source = str(args.data[0]) if len(args.data) == 1 else ", ".join(map(str, args.data))
+    return results, {"source": source, "files": {r.source: r.to_json_dict() for r in results}}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.emit_defaults and args.data is not None:
         parser.error("--emit-defaults fits the reference damper; do not combine it with --data")
+    if args.data is None:
+        for key, default in _FILE_OPTIONS.items():
+            if getattr(args, key) != default:
+                parser.error(f"--{key.replace('_', '-')} applies to measured files: add --data")
     try:
         if args.json is not None:
             check_writable_file(args.json, "--json")
@@ -228,31 +379,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(_report(result))
             payload = result.to_json_dict()
         else:
-            path: Path = args.data
-            if path.is_dir():
-                files = measured_files(path)
-            elif path.is_file():
-                files = [path]
-            else:
-                raise ValueError(f"--data: no such file or folder: {str(path)!r}")
-            results = []
-            for file in files:
-                try:
-                    results.append(identify_measured(file))
-                except ValueError as exc:
-                    if str(file) in str(exc):
-                        raise
-                    raise ValueError(f"cannot identify {str(file)!r}: {exc}") from None
-                print(_report(results[-1]))
-                print()
-            if len(results) > 1:
-                print(_summary_table(results))
-                payload = {
-                    "source": str(path),
-                    "files": {r.source: r.to_json_dict() for r in results},
-                }
-            else:
-                payload = results[0].to_json_dict()
+            results, payload = _identify_data(args)
         if args.emit_defaults:
             print()
             print(format_defaults(results[0]), end="")

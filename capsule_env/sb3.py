@@ -21,7 +21,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from capsule_env.batch import CapsuleBatch
 from capsule_env.config import EnvConfig, check_num_envs, check_seed
-from capsule_env.envs.capsule_suspension import env_spaces
+from capsule_env.envs.capsule_suspension import env_spaces, render_fps
 from capsule_env.layout import SIGNAL_NAMES
 from capsule_env.render import render_vehicle
 
@@ -47,12 +47,17 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:
-        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.config = EnvConfig.from_kwargs(
+            "CapsuleSuspensionSB3VecEnv.__init__", ("num_envs", "info_signals", "render_mode"),
+            **kwargs,
+        )  # fmt: skip
         num_envs = check_num_envs(num_envs)
         self.batch = CapsuleBatch(self.config, num_envs)
         action_space, observation_space = env_spaces(self.config)
         self.render_mode = render_mode
         super().__init__(num_envs, observation_space, action_space)
+        # one frame per control step: VecVideoRecorder writes real-time videos at this rate
+        self.metadata = {**self.metadata, "render_fps": render_fps(self.config)}
         self.info_signals = bool(info_signals)
         self._actions = np.zeros(num_envs)
         self._seed: int | None = None

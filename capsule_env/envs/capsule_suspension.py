@@ -13,15 +13,21 @@ import numpy as np
 from gymnasium import Env, spaces
 from gymnasium.envs.registration import EnvSpec
 from gymnasium.error import ResetNeeded
-from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from capsule_env.batch import CapsuleBatch
+from capsule_env.batch import CapsuleBatch, vehicle_streams
 from capsule_env.config import EnvConfig, check_num_envs, check_seed, observation_bounds
+from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.layout import SIGNAL_NAMES
 from capsule_env.render import render_vehicle
 
-__all__ = ["CapsuleSuspensionEnv", "CapsuleSuspensionVectorEnv", "env_spaces"]
+__all__ = [
+    "CapsuleSuspensionEnv",
+    "CapsuleSuspensionVectorEnv",
+    "env_spaces",
+    "render_fps",
+]
 
 
 #: Keys ``reset(options=...)`` accepts (none yet: every option is a constructor argument).
@@ -35,16 +41,24 @@ def env_spaces(config: EnvConfig) -> tuple[spaces.Box, spaces.Box]:
     return action_space, spaces.Box(low, high, dtype=np.float32)
 
 
-def _check_options(options: dict[str, Any] | None) -> None:
+def render_fps(config: EnvConfig) -> int | float:
+    """Frames per second of a real-time video of an env with these options: one frame per
+    control step (``render()`` after each step, as Gymnasium's ``RecordVideo`` does), so the
+    control rate, ``control_rate_hz`` (an int when it is a whole number)."""
+    rate = float(config.control_rate_hz)
+    return int(rate) if rate.is_integer() else rate
+
+
+def _check_options(
+    options: dict[str, Any] | None, accepted: tuple[str, ...] = RESET_OPTIONS
+) -> None:
     if options is None:
         return
     if not isinstance(options, dict):
         raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
-    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    unknown = sorted(set(options) - set(accepted))
     if unknown:
-        raise ValueError(
-            f"unknown reset option(s) {unknown}; accepted: {list(RESET_OPTIONS) or 'none'}"
-        )
+        raise ValueError(f"unknown reset option(s) {unknown}; accepted: {list(accepted) or 'none'}")
 
 
 def _spec_with_length(spec: EnvSpec | None, config: EnvConfig) -> EnvSpec | None:
@@ -223,7 +237,14 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       the controller inverts), each a dict of dataclass fields.
     - Domain randomisation per episode: ``vehicle_randomization`` (relative half-width of a
       uniform factor on each of m_c, m_b, k_s, k_p) and ``speed_range_kmh`` (low, high).
-    - ``render_mode``: ``"rgb_array"``.
+    - ``render_mode``: ``"rgb_array"``: ``render()`` draws the vehicle now, one frame per
+      control step; ``metadata["render_fps"]`` is this env's control rate (``control_rate_hz``,
+      200 by default, set per instance), so a video written by Gymnasium's ``RecordVideo`` (or
+      SB3's ``VecVideoRecorder``) plays in real time.
+
+    An unknown argument raises :class:`capsule_env.config.UnexpectedArgumentError`, both a
+    ``TypeError`` worded as Python's (``... got an unexpected keyword argument 'frameskip'``,
+    what TorchRL's ``GymEnv`` expects) and a ``ValueError``, listing the accepted names.
 
     ## Version History
 
@@ -233,12 +254,16 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       the guideway preview; the Wk-weighted reward acceleration.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    #: Class defaults; each instance sets ``render_fps`` to its own control rate.
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 200}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.config = EnvConfig.from_kwargs(
+            "CapsuleSuspensionEnv.__init__", ("render_mode",), **kwargs
+        )
+        self.metadata = {**type(self).metadata, "render_fps": render_fps(self.config)}
         self.render_mode = render_mode
         # infos are copied into a dict every step: no fresh signal arrays needed
         self._batch = CapsuleBatch(self.config, 1, fresh_signals=False)
@@ -331,21 +356,50 @@ def _single_action(action: Any) -> float:
 class CapsuleSuspensionVectorEnv(VectorEnv):
     """Native batched ``CapsuleSuspension-v0``: ``num_envs`` vehicles in one compiled kernel.
 
-    Same dynamics, spaces, reward and arguments as :class:`CapsuleSuspensionEnv`. Autoreset is
-    ``NEXT_STEP`` (Gymnasium's default): the step after an episode ends resets that vehicle and
-    returns its first observation with reward 0 and ``terminated = truncated = False``; the
-    action given for it in that step is ignored. ``reset(seed=s)`` gives the vehicles the
-    independent streams ``numpy.random.SeedSequence(s).spawn(num_envs)`` (vehicle 0 is the single
-    env seeded ``s``; two different seeds share no stream); ``reset(seed=[s_0, ..., s_{N-1}])``
-    gives vehicle ``n`` the stream of the single env seeded ``s_n``. ``info`` is a dict of
-    arrays (one entry per vehicle, fresh arrays every step) with Gymnasium's ``_key`` masks.
-    Actions: shape ``(num_envs, 1)`` (the action space) or ``(num_envs,)``. Batches of 64 or
-    more are split across threads (:mod:`capsule_env.kernels`).
+    Same dynamics, spaces, reward and arguments as :class:`CapsuleSuspensionEnv`, plus
+    ``num_envs``, ``max_episode_steps`` (the earlier of it and the env's own length ends an
+    episode, as ``TimeLimit`` on the single env) and ``autoreset_mode``. ``reset(seed=s)``
+    gives the vehicles the independent streams ``numpy.random.SeedSequence(s).spawn(num_envs)``
+    (vehicle 0 is the single env seeded ``s``; two different seeds share no stream);
+    ``reset(seed=[s_0, ..., s_{N-1}])`` gives vehicle ``n`` the stream of the single env seeded
+    ``s_n``. ``info`` is a dict of arrays (one entry per vehicle, fresh arrays every step) with
+    Gymnasium's ``_key`` masks. Actions: shape ``(num_envs, 1)`` (the action space) or
+    ``(num_envs,)``. Batches of 64 or more are split across threads (:mod:`capsule_env.kernels`).
+
+    ``autoreset_mode`` (``gymnasium.vector.AutoresetMode`` or its string value, also through
+    ``gymnasium.make_vec(..., vectorization_mode="vector_entry_point", autoreset_mode=...)``;
+    ``self.autoreset_mode`` and ``metadata["autoreset_mode"]`` report it), with Gymnasium's
+    conventions (those of ``SyncVectorEnv``):
+
+    - ``NEXT_STEP`` (default): the step *after* an episode ends resets that vehicle and returns
+      its first observation with reward 0 and ``terminated = truncated = False``; the action
+      given for it in that step is ignored.
+    - ``SAME_STEP``: the step that ends an episode resets the vehicle at once and returns the
+      new episode's first observation, with the episode's reward, ``terminated`` and
+      ``truncated``; the last observation is in ``info["final_obs"]`` (an object array, None
+      for the vehicles that did not end) and the last step's info in ``info["final_info"]``
+      (a dict of arrays), masked by ``info["_final_obs"]`` and ``info["_final_info"]``; the
+      other entries of ``info`` hold the reset vehicle's reset info.
+    - ``DISABLED``: no automatic reset. Reset the finished vehicles with
+      ``reset(options={"reset_mask": mask})`` (a boolean array of shape ``(num_envs,)``: only
+      those vehicles start new episodes; the others keep their state and observation rows; the
+      info holds the reset vehicles' entries only). ``step`` while a vehicle's episode has
+      ended and it was not reset raises ``gymnasium.error.ResetNeeded`` naming the vehicles
+      (Gymnasium's ``SyncVectorEnv`` asserts).
+
+    The modes only move where the resets fall: for the same seed and the same actions within
+    each episode, every vehicle runs the same episodes, bit for bit, in all three (and as the
+    single env, or Gymnasium's ``SyncVectorEnv`` over it in the same mode, with
+    ``seed=[s_0, ..., s_{N-1}]``). ``options={"reset_mask": mask}`` is accepted in every mode
+    (after a first full ``reset``); with ``seed``, the masked vehicles get the streams a full
+    reset with that seed would give them.
     """
 
+    #: Class defaults; each instance sets ``render_fps`` (its control rate) and
+    #: ``autoreset_mode`` (its own).
     metadata = {
         "render_modes": ["rgb_array"],
-        "render_fps": 50,
+        "render_fps": 200,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
 
@@ -354,12 +408,23 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         num_envs: int = 1,
         render_mode: str | None = None,
         max_episode_steps: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **kwargs: Any,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.config = EnvConfig.from_kwargs(**kwargs)
+        self.config = EnvConfig.from_kwargs(
+            "CapsuleSuspensionVectorEnv.__init__",
+            ("num_envs", "render_mode", "max_episode_steps", "autoreset_mode"),
+            **kwargs,
+        )
         self.num_envs = check_num_envs(num_envs)
+        self.autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.metadata = {
+            **type(self).metadata,
+            "render_fps": render_fps(self.config),
+            "autoreset_mode": self.autoreset_mode,
+        }
         self.render_mode = render_mode
         self._batch = CapsuleBatch(self.config, self.num_envs)
         if max_episode_steps is not None:
@@ -374,6 +439,8 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         self.single_action_space, self.single_observation_space = env_spaces(self.config)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        # NEXT_STEP: vehicles to reset at the next step; DISABLED: vehicles that must be reset
+        # (reset_mask) before the next step; SAME_STEP: always False.
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._mask = np.ones(self.num_envs, dtype=bool)
         self._needs_reset = True
@@ -385,7 +452,10 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        _check_options(options)
+        _check_options(options, ("reset_mask",))
+        mask = None if options is None else options.get("reset_mask")
+        if mask is not None:
+            return self._reset_masked(_check_reset_mask(mask, self.num_envs), seed)
         if seed is not None:
             self._batch.seed(seed)  # validates an int or a list of num_envs ints
         super().reset(seed=seed if isinstance(seed, (int, np.integer)) else None)
@@ -394,11 +464,38 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         self._needs_reset = False
         return self._batch.obs.copy(), self._infos()
 
+    def _reset_masked(
+        self, mask: np.ndarray, seed: int | list[int] | None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """``reset(options={"reset_mask": mask})``: new episodes for the masked vehicles only."""
+        if self._needs_reset:
+            raise ResetNeeded(
+                "call reset() without options['reset_mask'] first: a partial reset continues "
+                "a running batch"
+            )
+        batch = self._batch
+        if seed is not None:
+            streams = vehicle_streams(seed, self.num_envs)  # validates the seed(s)
+            for n in np.flatnonzero(mask):
+                batch.rngs[n] = streams[n]
+            super().reset(seed=seed if isinstance(seed, (int, np.integer)) else None)
+        batch.detach_signals()  # the last step's info arrays keep their values
+        batch.reset(mask)
+        self._autoreset[mask] = False
+        return batch.obs.copy(), self._infos(mask)
+
     def step(
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         if self._needs_reset:
             raise ResetNeeded("call reset() before step()")
+        mode = self.autoreset_mode
+        if mode is AutoresetMode.DISABLED and self._autoreset.any():
+            raise ResetNeeded(
+                f"the episodes of vehicles {np.flatnonzero(self._autoreset).tolist()} have "
+                "ended and autoreset_mode is DISABLED: reset them with "
+                "reset(options={'reset_mask': mask}) before step()"
+            )
         batch = self._batch
         a = np.asarray(actions)
         if a.shape not in ((self.num_envs, 1), (self.num_envs,)):
@@ -407,24 +504,74 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         reward = batch.reward.copy()
         terminated = batch.terminated.copy()
         truncated = batch.step_count >= batch.max_steps
-        if self._autoreset.any():
+        if mode is AutoresetMode.NEXT_STEP and self._autoreset.any():
             mask = self._autoreset
             batch.reset(mask)
             reward[mask] = 0.0
             terminated[mask] = False
             truncated[mask] = False
-        self._autoreset = terminated | truncated
+        ended = terminated | truncated
+        if mode is AutoresetMode.SAME_STEP:
+            if ended.any():
+                return self._same_step_reset(ended, reward, terminated, truncated)
+        else:
+            self._autoreset = ended
         return batch.obs.copy(), reward, terminated, truncated, self._infos()
 
-    def _infos(self) -> dict[str, Any]:
-        columns = self._batch.signals  # a fresh buffer every step: rows need no copy
+    def _same_step_reset(
+        self, ended: np.ndarray, reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """SAME_STEP: reset the vehicles whose episodes just ended; their last observation and
+        info go to ``info["final_obs"]`` and ``info["final_info"]`` (Gymnasium's layout)."""
+        batch = self._batch
+        ids = np.flatnonzero(ended)
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        for n in ids:
+            final_obs[n] = batch.obs[n].copy()
+        final_info = self._infos(ended, batch.signals)  # copies of the rows, before the reset
+        batch.reset(ended)  # writes the reset vehicles' rows of this step's signal buffer
+        infos = self._infos()
+        infos["final_obs"], infos["_final_obs"] = final_obs, ended.copy()
+        infos["final_info"], infos["_final_info"] = final_info, ended.copy()
+        return batch.obs.copy(), reward, terminated, truncated, infos
+
+    def _infos(
+        self, mask: np.ndarray | None = None, columns: np.ndarray | None = None
+    ) -> dict[str, Any]:
+        """The info dict: every vehicle's signals (rows of this step's fresh buffer, no copy),
+        or, with ``mask``, new arrays holding the masked vehicles' values (0 elsewhere) under
+        the mask, as Gymnasium's vector envs build the info of some sub-envs only."""
+        columns = self._batch.signals if columns is None else columns
         infos: dict[str, Any] = {}
+        if mask is None:
+            for j, name in enumerate(SIGNAL_NAMES):
+                infos[name] = columns[j]
+                infos["_" + name] = self._mask
+            return infos
+        mask = mask.copy()
         for j, name in enumerate(SIGNAL_NAMES):
-            infos[name] = columns[j]
-            infos["_" + name] = self._mask
+            values = np.zeros(self.num_envs)
+            values[mask] = columns[j, mask]
+            infos[name] = values
+            infos["_" + name] = mask
         return infos
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         if self.render_mode != "rgb_array":
             return None
         return tuple(render_vehicle(self._batch, n) for n in range(self.num_envs))
+
+
+def _check_reset_mask(mask: Any, num_envs: int) -> np.ndarray:
+    """``options["reset_mask"]`` checked: a boolean numpy array of shape ``(num_envs,)`` with
+    at least one True (Gymnasium's rules), returned as a copy."""
+    expected = f"a numpy bool array of shape ({num_envs},) with at least one True"
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_:
+        what = type(mask).__name__ if not isinstance(mask, np.ndarray) else f"dtype {mask.dtype}"
+        raise TypeError(f"options['reset_mask'] must be {expected}, got {what}")
+    if mask.shape != (num_envs,) or not mask.any():
+        raise ValueError(
+            f"options['reset_mask'] must be {expected}, got shape {mask.shape} with "
+            f"{int(mask.sum())} True"
+        )
+    return mask.copy()

@@ -17,15 +17,18 @@ least-squares solve). Modules, each one idea:
 
 - :mod:`~capsule_env.identification.loops`: :class:`Loop`, :func:`reference_loops` and the
   loop helpers;
-- :mod:`~capsule_env.identification.measured`: reading measured files
+- :mod:`~capsule_env.identification.measured`: reading Labcontrol ``.mat`` files
   (:func:`measured_files`, :func:`load_measured_loop`);
+- :mod:`~capsule_env.identification.tabular`: reading CSV and NumPy files, and any supported
+  file (:func:`load_loops`; velocity derived when absent, :func:`derive_velocity`);
 - :mod:`~capsule_env.identification.least_squares`: the shared least-squares pieces and
   :func:`rmse`;
 - :mod:`~capsule_env.identification.bi_exponential`, :mod:`~capsule_env.identification.bouc_wen`,
   :mod:`~capsule_env.identification.tanh`: one fitter each;
 - :mod:`~capsule_env.identification.predict`: :func:`predict_force`, a model's force on a loop;
 - :mod:`~capsule_env.identification.results`: whole runs (:func:`identify_reference`,
-  :func:`identify_measured`), their results and JSON, and dataclass default lines.
+  :func:`identify_measured`, :func:`identify_files`), their results and JSON, and dataclass
+  default lines.
 
 The figures (:func:`plot_fits`) live in :mod:`capsule_env.plots`; ``plot_fits`` is importable
 from here too, loaded on first use (:mod:`capsule_env.plots` imports this package, so importing
@@ -58,9 +61,15 @@ from capsule_env.identification.results import (
     IdentificationResult,
     ModelFit,
     dataclass_default_lines,
+    identify_files,
     identify_loops,
     identify_measured,
     identify_reference,
+)
+from capsule_env.identification.tabular import (
+    SUPPORTED_SUFFIXES,
+    derive_velocity,
+    load_loops,
 )
 from capsule_env.identification.tanh import fit_tanh
 
@@ -70,17 +79,21 @@ __all__ = [
     "MAX_MEASURED_MAGNITUDE",
     "MODEL_NAMES",
     "PAPER_RMSE_N",
+    "SUPPORTED_SUFFIXES",
     "BiExponentialTrends",
     "IdentificationResult",
     "Loop",
     "ModelFit",
     "dataclass_default_lines",
+    "derive_velocity",
     "fit_bi_exponential",
     "fit_bouc_wen",
     "fit_tanh",
+    "identify_files",
     "identify_loops",
     "identify_measured",
     "identify_reference",
+    "load_loops",
     "load_measured_loop",
     "measured_files",
     "plot_fits",

@@ -1,22 +1,22 @@
 """Measured force loops: reading laboratory damper test files as :class:`Loop` objects.
 
-Today's format is the Labcontrol MR-damper test file (MATLAB v5 ``.mat``: ``x_F`` = displacement
-mm, velocity mm/s, force N; time ``Tout`` or sample period ``Ts``), read by
-:func:`load_measured_loop`; :func:`measured_files` lists a folder of them.
+The format here is the Labcontrol MR-damper test file (MATLAB v5 ``.mat``: ``x_F`` =
+displacement mm, velocity mm/s, force N; time ``Tout`` or sample period ``Ts``), read by
+:func:`load_measured_loop`; :func:`measured_files` lists a folder of measured files.
 
-Every reader has two steps: a format-specific one that gets the time (s) and the three
-``x_F`` columns out of the file (:func:`_read_mat` for ``.mat``), and the shared
-:func:`_loop_from_samples`, which checks the samples (finite, plausible magnitudes, no constant
-column, increasing time) and converts them to a centred SI :class:`Loop`. A reader for another
-format (CSV, a NumPy ``.npz``) is another ``_read_*`` function here plus a ``load_*`` function
-that passes its arrays to :func:`_loop_from_samples`, so all formats give the same checks and
-the same error messages.
+The reader has two steps: a format-specific one that gets the time (s) and the three ``x_F``
+columns out of the file (:func:`_read_mat`), and :func:`_loop_from_samples`, which checks the
+samples (finite, plausible magnitudes, no constant column, increasing time) and converts them
+to a centred SI :class:`Loop`. CSV and NumPy files, whose columns have names, units and
+perhaps no velocity, are read by :mod:`capsule_env.identification.tabular`, with the same
+limits (:data:`MAX_MEASURED_MAGNITUDE`) and errors that name the file and the column.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,18 +38,22 @@ def _natural_key(path: Path) -> list[Any]:
     return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
 
 
-def measured_files(folder: str | Path) -> list[Path]:
-    """The ``.mat`` files of a folder of measured loops, sorted by name (numbers numerically).
+def measured_files(folder: str | Path, suffixes: Sequence[str] = (".mat",)) -> list[Path]:
+    """The files of a folder of measured loops with one of ``suffixes`` (default: ``.mat``;
+    any case), sorted by name (numbers numerically).
 
-    Raises ``ValueError`` when the folder does not exist or holds no ``.mat`` file.
+    Raises ``ValueError`` when the folder does not exist or holds no such file.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise ValueError(f"measured-data folder {str(folder)!r} does not exist or is not a folder")
-    files = sorted((p for p in folder.iterdir() if p.suffix == ".mat" and p.is_file()),
+    wanted = {s.lower() for s in suffixes}
+    files = sorted((p for p in folder.iterdir() if p.suffix.lower() in wanted and p.is_file()),
                    key=_natural_key)  # fmt: skip
     if not files:
-        raise ValueError(f"measured-data folder {str(folder)!r} holds no .mat files")
+        raise ValueError(
+            f"measured-data folder {str(folder)!r} holds no {', '.join(suffixes)} files"
+        )
     return files
 
 

@@ -30,8 +30,8 @@ from capsule_env.identification.loops import (
     group_by_current,
     reference_loops,
 )
-from capsule_env.identification.measured import load_measured_loop
 from capsule_env.identification.predict import predict_force
+from capsule_env.identification.tabular import load_loops
 from capsule_env.identification.tanh import fit_tanh
 
 __all__ = [
@@ -40,6 +40,7 @@ __all__ = [
     "IdentificationResult",
     "ModelFit",
     "dataclass_default_lines",
+    "identify_files",
     "identify_loops",
     "identify_measured",
     "identify_reference",
@@ -210,16 +211,39 @@ def identify_reference(
     return identify_loops(loops, d_rule=d_rule)
 
 
-def identify_measured(path: str | Path) -> IdentificationResult:
-    """Identify all models from one measured Labcontrol file (one unknown constant current).
+def identify_measured(
+    path: str | Path, d_rule: str = "mean", **load_options: Any
+) -> IdentificationResult:
+    """Identify all models from one measured file: a Labcontrol ``.mat``, a CSV or a NumPy
+    file (:func:`~capsule_env.identification.tabular.load_loops`, which takes
+    ``load_options``: ``columns``, ``current_a``, ``velocity_window``, ...).
 
-    The file is loaded by :func:`load_measured_loop` (SI units, centred stroke, mean force
-    removed) and fitted as a single loop at ``i = 0``: the current-independent coefficients
-    carry everything, the per-ampere ones are 0, and each Bi-exponential branch keeps its own
-    ``d``. ``rmse_n`` is the RMSE over the whole record.
+    A Labcontrol file (SI units, centred stroke, mean force removed) records no current: it is
+    fitted as a single loop at ``i = 0`` (or the ``current_a`` given): the
+    current-independent coefficients carry everything, the per-ampere ones are 0, and each
+    Bi-exponential branch keeps its own ``d``. A CSV or NumPy file with a current column gives
+    one loop per current, and the fit has current laws. ``rmse_n`` is the RMSE at the largest
+    current (over the whole record for one current).
     """
-    loop = load_measured_loop(path)
-    return identify_loops([loop], source=loop.source)
+    loops = load_loops(path, **load_options)
+    return identify_loops(loops, source=Path(path).name, d_rule=d_rule)
+
+
+def identify_files(
+    paths: Sequence[str | Path], d_rule: str = "mean", **load_options: Any
+) -> IdentificationResult:
+    """Identify all models from the loops of several files at once, e.g. one file per current
+    (``loop_0A.csv``, ``loop_0.5A.csv``, ...: the current laws across files). Each file is read
+    by :func:`~capsule_env.identification.tabular.load_loops` with ``load_options``."""
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ValueError("paths must hold at least one file")
+    loops = [loop for p in paths for loop in load_loops(p, **load_options)]
+    names = [p.name for p in paths]
+    source = (
+        ", ".join(names) if len(names) <= 3 else f"{len(names)} files ({names[0]} to {names[-1]})"
+    )
+    return identify_loops(loops, source=source, d_rule=d_rule)
 
 
 # ------------------------------------------------------------------------ package defaults
