@@ -61,7 +61,7 @@ BAD = [
     ({"trials": [{**GAINS, "grid": {"gain.c_sky": 3000}}]}, "grid.gain.c_sky: expected a non-empty list of values"),
     ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number, got 'big'"),
     ({"trials": [{**GAINS, "replicates": 3}]}, "trials[0].replicates: kind 'gains' is deterministic"),
-    ({"trials": [{**GAINS, "grid": {"env.sped_kmh": [600]}}]}, "unknown environment argument 'sped_kmh'; accepted:"),
+    ({"trials": [{**GAINS, "grid": {"env.sped_kmh": [600]}}]}, "unexpected keyword argument 'sped_kmh'; accepted:"),
     ({"trials": [{**GAINS, "params": {**GAINS["params"], "episode_length_s": 0.1}}]}, "episode_length_s 0.1 s (20 control steps) is too short"),
     ({"trials": [{**GAINS, "params": {**GAINS["params"], "episodes": 0}}]}, "episodes: expected an integer >= 1, got 0"),
     ({"seed": -1, "trials": [GAINS]}, "seed: expected an integer >= 0, got -1"),
