@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from capsule_env._fastmath import FAST, fast_cos_2pi, fast_log
+from capsule_env._fastmath import FAST, INTERNAL, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
@@ -204,7 +204,7 @@ def gaussian_pair(key, step, pair):
     return radius * fast_cos_2pi(u2), radius * fast_cos_2pi(u2 - 0.25)
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
     """Sensor noise of channels ``2 pair`` and ``2 pair + 1`` for ``nb`` vehicles (a SIMD loop:
     the views start at the block's first vehicle)."""
@@ -213,7 +213,7 @@ def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
 
 
 # ----------------------------------------------------------------------------- commands
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def _current_lanes(actions, i_max, i_command, f_desired):
     """Current mode: action in [-1, 1] -> command in [0, i_max] (no force request)."""
     for j in range(actions.shape[0]):
@@ -221,7 +221,7 @@ def _current_lanes(actions, i_max, i_command, f_desired):
         f_desired[j] = 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
     """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop).
 
@@ -236,7 +236,7 @@ def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_c
         f_desired[j] = f_d
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def env_commands(lo, hi, actions, params, state, out):
     """Vehicles ``lo .. hi-1``: action -> current command (through the inverse model in force
     mode, on this step's measurements), then the control delay: the command written into each
@@ -269,7 +269,7 @@ def env_commands(lo, hi, actions, params, state, out):
 
 
 # ----------------------------------------------------------------------------- sensing
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def env_sense(lo, hi, params, plant, state, out):
     """Vehicles ``lo .. hi-1`` after the plant step: sensor noise, measurements, reward,
     bump stop, signals and observations (clipped to where the sensors saturate)."""

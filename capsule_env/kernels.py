@@ -8,11 +8,15 @@ makes a pair:
 - ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
 - ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
 
-``args`` are those of :func:`step_range`.
+``args``: for an ``ENV`` kernel ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a
+``PLANT`` kernel ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``.
 
 The kind, model and mode are closure constants, so numba compiles each pair only for what it
 uses (the model-specific code is specialised on the constant: see :mod:`capsule_env.plant.block`)
-and caches it on disk. A vehicle's numbers do not depend on its chunk or thread: both kernels
+and caches it on disk. The parallel kernel's chunks call the serial one: one function between
+the Python call and the block kernels (each nesting level of numba functions re-optimises and
+re-emits the machine code of everything below it: a level cost about 0.8 s of the first step's
+compile). A vehicle's numbers do not depend on its chunk or thread: both kernels
 give the same bits. :class:`BatchedKernel` calls the right one for a batch size and skips
 numba's argument dispatch once the kernel is compiled (it would cost a few microseconds per
 call on the named-structure arguments: a large part of a single env's step).
@@ -30,8 +34,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from numba import njit, prange, types
-from numba.extending import overload
+from numba import njit, prange
 
 from capsule_env.env_kernel import EnvOutputs, EnvParams, EnvState, env_commands, env_sense
 from capsule_env.layout import VF_APPLIED
@@ -65,54 +68,27 @@ def work_item_size(n: int) -> int:
     return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
-def step_range(kind, model, mode, lo, hi, args):
-    """Step vehicles ``lo .. hi-1``, block by block: for an ``ENV`` kernel, ``args`` is
-    ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a ``PLANT`` kernel,
-    ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``. Compiled once per
-    (kind, model, mode): only their code compiles."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(step_range, prefer_literal=True, jit_options={"cache": True})
-def _step_range(kind, model, mode, lo, hi, args):
-    if not all(isinstance(a, types.IntegerLiteral) for a in (kind, model, mode)):
-        return None
-    if isinstance(lo, types.Literal) or isinstance(hi, types.Literal):
-        return None  # specialise on the kind, model and mode only
-    k, m, md = kind.literal_value, model.literal_value, mode.literal_value
-
-    def impl(kind, model, mode, lo, hi, args):
-        for b in range(lo, hi, BLOCK):
-            e = min(hi, b + BLOCK)
-            if k == ENV:
-                actions, params, plant, state, out = args
-                env_commands(b, e, actions, params, state, out)
-                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
-                dt, plant_out = params.dt_s, out.plant
-            else:
-                plant, x, i_cmd, route, dt, plant_out = args
-            if md == KERNEL_SCALAR:
-                scalar_step(m, b, e, plant, x, i_cmd, route, dt, plant_out)
-            else:
-                block_step(m, md, b, e, plant, x, i_cmd, route, dt, plant_out)
-            if k == ENV:
-                env_sense(b, e, params, plant, state, out)
-
-    return impl
-
-
 def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # kernels take them apart into arrays and scalars before the loop and put them together
     # again in each chunk.
+    # Called from Python (a CPython wrapper), never through a C pointer (no cfunc wrapper).
     if kind == ENV:
 
-        @njit(cache=True)
+        @njit(cache=True, no_cfunc_wrapper=True)
         def serial(lo, hi, actions, params, plant, state, out):
-            step_range(kind, model, mode, lo, hi, (actions, params, plant, state, out))
+            for b in range(lo, hi, BLOCK):
+                e = min(hi, b + BLOCK)
+                env_commands(b, e, actions, params, state, out)
+                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
+                if mode == KERNEL_SCALAR:
+                    scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+                else:
+                    block_step(model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+                env_sense(b, e, params, plant, state, out)
 
         # fmt: off
-        @njit(cache=True, parallel=True)
+        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
         def parallel(n, actions, params, plant, state, out):
             # EnvParams (taken apart and put back in order): 12 floats, 4 flags and codes, 5
             # arrays, the preview's count, step and survey error, the reward filter
@@ -124,8 +100,8 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
             obs, reward, terminated, signals, plant_out = out
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
-                args = (
-                    actions,
+                serial(
+                    c * chunk, min(n, (c + 1) * chunk), actions,
                     EnvParams(f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3,
                               a0, a1, a2, a3, a4, p0, p1, p2, r0),
                     PlantParams(dp, vp, table, constants, profiles, spacing),
@@ -133,24 +109,28 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
                              delay, slots),
                     EnvOutputs(obs, reward, terminated, signals, plant_out),
                 )
-                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
         # fmt: on
 
     else:
 
-        @njit(cache=True)
+        @njit(cache=True, no_cfunc_wrapper=True)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
-            step_range(kind, model, mode, lo, hi, (plant, x, i_cmd, route, dt, out))
+            for b in range(lo, hi, BLOCK):
+                e = min(hi, b + BLOCK)
+                if mode == KERNEL_SCALAR:
+                    scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
+                else:
+                    block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out)
 
-        @njit(cache=True, parallel=True)
+        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
         def parallel(n, plant, x, i_cmd, route, dt, out):
             dp, vp, table, constants, profiles, spacing = plant
             r0, r1, r2, r3 = route
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
-                args = (PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
-                        Route(r0, r1, r2, r3), dt, out)  # fmt: skip
-                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
+                serial(c * chunk, min(n, (c + 1) * chunk),
+                       PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
+                       Route(r0, r1, r2, r3), dt, out)  # fmt: skip
 
     return serial, parallel
 

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST
+from capsule_env._fastmath import FAST, INTERNAL
 from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
@@ -222,7 +222,7 @@ def _store_lane(wv, j, new, active):
     wv[j + _W_ZG0 * HALF] = new[8] if active else wv[j + _W_ZG0 * HALF]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
     """Guideway elevation at the middle and end of the substep of the sorted vehicles
     ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
@@ -251,7 +251,7 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(substep_lanes, prefer_literal=True, jit_options=FAST)
+@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
     if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
         return None  # specialise on the model, hysteresis and uniform flag only
@@ -287,7 +287,7 @@ def output_lanes(model, uniform, wv, count, p_uniform):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(output_lanes, prefer_literal=True, jit_options=FAST)
+@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _output_lanes(model, uniform, wv, count, p_uniform):
     if not isinstance(model, types.IntegerLiteral):
         return None
@@ -308,7 +308,7 @@ def _output_lanes(model, uniform, wv, count, p_uniform):
     return impl
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def _sort_by_substeps(nsub_of, nb, lo, order):
     """Stable sort of the block's vehicles by their substep count (insertion sort: a block has
     at most 64 vehicles, mostly in order already): ``order[rank]`` = vehicle index."""
@@ -327,7 +327,7 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(block_step, prefer_literal=True, jit_options={"cache": True, "error_model": "numpy"})
+@overload(block_step, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
     if not isinstance(model, types.IntegerLiteral):
         return None
@@ -404,7 +404,9 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
                 w[dst + j * HALF] = w[src + j * HALF]
         p_uniform, hc_uniform = row_params(dp, lo), _row_constants(derived, lo)
         # substep s advances the tail of the vehicles that need more than s substeps
-        first = 0
+        # an int64 from the start: a literal 0 would first type the calls below with
+        # Literal[int](0) and compile _guideway_lanes a second time for it
+        first = np.int64(0)
         s = 0
         while first < nb:
             _guideway_lanes(w, first, nb, order, profiles, spacing, route)

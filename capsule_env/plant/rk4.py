@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from capsule_env._fastmath import FAST
+from capsule_env._fastmath import FAST, INTERNAL
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
@@ -62,7 +62,7 @@ LANE_INPUT_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t", "h", "i_cmd"
                     "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end")  # fmt: skip
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def inv_dashpots(model, p, i):
     """``1 / (c0 + c1)`` of the reference damper at current ``i`` (1 for the other models)."""
     if model == REFERENCE:
@@ -70,7 +70,7 @@ def inv_dashpots(model, p, i):
     return 1.0
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
     """``(F, y')`` of the damper model at stroke ``x``, stroke rate ``v``, Spencer's internal
     displacement ``y``, hysteretic variable ``z`` and current ``i``."""
@@ -85,7 +85,7 @@ def damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
     return p[PV_DAMPING] * v, 0.0
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def _advance_z(model, hysteresis, z, du, p, hc):
     """The hysteretic variable after a deformation increment ``du`` (``hc``: the Riccati
     constants of the fast forms)."""
@@ -149,7 +149,7 @@ def rk4_substep(model, hysteresis, v, p, hc):
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def plant_outputs(model, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb, ks, kp, zg):
     """``(damper force, body acceleration, bogie acceleration)`` at a state."""
     force, _ = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic,
