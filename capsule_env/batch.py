@@ -327,9 +327,9 @@ class CapsuleBatch:
 
     def _reset_preview(self, n: int) -> None:
         """The first observation's preview columns (the kernel writes them at every step)."""
-        from capsule_env.env_kernel import preview_row
+        from capsule_env.env_kernel import reset_preview
 
-        preview_row(n, self.params, self.plant_params, self.env_state, self.obs)
+        reset_preview(n, self.params, self.plant_params, self.env_state, self.obs)
 
     # ---------------------------------------------------------------- step
     def step(self, actions: np.ndarray) -> None:

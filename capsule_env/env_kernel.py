@@ -401,7 +401,7 @@ def env_sense(lo, hi, params, plant, state, out):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def preview_row(n, params, plant, state, obs):
     """The guideway preview columns of vehicle ``n`` (the last ``preview_points`` of its
     observation, clipped by the caller): the surveyed elevation ``k * preview_step_s`` ahead of
@@ -420,3 +420,11 @@ def preview_row(n, params, plant, state, obs):
         ahead = here + speed * (j + 1) * params.preview_step_s
         z = g * guideway_elevation(profiles, k, spacing, last, ahead)
         obs[n, first + j] = z + guideway_elevation(err, k, spacing, last, ahead) - ref
+
+
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+def reset_preview(n, params, plant, state, obs):
+    """:func:`preview_row` called from Python (a vehicle's first observation at its reset): a
+    function of its own, compiled only where preview is used (the CPython wrapper of a function
+    taking the env's named structures is a large part of its compile time)."""
+    preview_row(n, params, plant, state, obs)

@@ -101,7 +101,7 @@ def _advance_z(model, hysteresis, z, du, p, hc):
                                   tanh_unload)  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def rk4_substep(model, hysteresis, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
     damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
