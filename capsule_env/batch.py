@@ -39,6 +39,7 @@ from capsule_env.env_kernel import (
     EnvOutputs,
     EnvParams,
     EnvState,
+    command_path,
     noise_pairs,
 )
 from capsule_env.guideway import make_profile, random_profile
@@ -209,7 +210,10 @@ class CapsuleBatch:
         self._new_signals(np.zeros)
         self._action_buf = np.zeros(n)
         self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
-        self._kernel = BatchedKernel(ENV, self.plant.code, self.kernel_mode, n)
+        self._kernel = BatchedKernel(
+            ENV, self.plant.code, self.kernel_mode, n,
+            command_path(self.params.current_mode, self.params.inverse_code),
+        )  # fmt: skip
 
     def _new_signals(self, allocate: Any) -> None:
         self._signals_buf = allocate((N_SIGNALS, self.num_envs + _SIGNAL_PADDING))

@@ -18,7 +18,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from capsule_env._fastmath import FAST, INTERNAL, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
@@ -93,6 +94,8 @@ __all__ = [
     "OBS_MEASURED",
     "OBSERVATION_CODES",
     "noise_pairs",
+    "COMMAND_CURRENT",
+    "command_path",
 ]
 
 #: Observation sets (``EnvParams.observation``), by the names of ``EnvConfig.observation``.
@@ -113,6 +116,18 @@ _CHANNELS_READ = {
 }
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
+
+
+#: :func:`command_path` of current mode (force mode's is the inverted model's damper code).
+COMMAND_CURRENT = -1
+
+
+def command_path(current_mode: bool, inverse_code: int) -> int:
+    """How the env turns actions into current commands, a compile-time constant of its kernel:
+    :data:`COMMAND_CURRENT` in current mode, else the damper code of the inverted model
+    (``BOUC_WEN``: the CSDC inverse with its hysteresis estimate; ``BI_EXPONENTIAL``, ``TANH``:
+    the algebraic inverses)."""
+    return COMMAND_CURRENT if current_mode else int(inverse_code)
 
 
 def noise_pairs(observation: int) -> np.ndarray:
@@ -221,51 +236,78 @@ def _current_lanes(actions, i_max, i_command, f_desired):
         f_desired[j] = 0.0
 
 
-@njit(**FAST, **INTERNAL)
 def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
     """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop).
+    ``inv_code`` is a literal: only its model's inverse compiles (a closure constant below,
+    which numba's branch pruning sees through the inlined :func:`affine_in_current`).
 
     The parameters are read into a tuple first: ``p[k] if up else p[j]`` on an array is a
     conditional load, which LLVM does not vectorise (the loop ran 3x slower); on a tuple it is
     a select between two values."""
-    p = row_params(inv_p.reshape(1, -1), 0)
-    for j in range(actions.shape[0]):
-        f_d = actions[j] * max_force
-        f0, slope = affine_in_current(inv_code, p, stroke[j], rate[j], 0.0)
-        i_command[j] = invert_affine(f_d, f0, slope, rate[j], i_max)
-        f_desired[j] = f_d
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@njit(**FAST, **INTERNAL)
-def env_commands(lo, hi, actions, params, state, out):
-    """Vehicles ``lo .. hi-1``: action -> current command (through the inverse model in force
-    mode, on this step's measurements), then the control delay: the command written into each
-    vehicle's ring buffer, the one from ``control_delay_steps`` ago applied."""
-    sig, meas, vf = out.signals, state.measured, state.floats
-    i_max = params.i_max_a
-    f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
-    if params.current_mode:
-        _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
-    elif params.inverse_code == BOUC_WEN:  # CSDC: a hysteresis estimate per vehicle, scalar
-        inv_p = params.inverse_params
+@overload(_inverse_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+def _inverse_lanes_impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command,
+                        f_desired):  # fmt: skip
+    if not isinstance(inv_code, types.IntegerLiteral):
+        return None
+    code = inv_code.literal_value
+
+    def impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
+        p = row_params(inv_p.reshape(1, -1), 0)
+        for j in range(actions.shape[0]):
+            f_d = actions[j] * max_force
+            f0, slope = affine_in_current(code, p, stroke[j], rate[j], 0.0)
+            i_command[j] = invert_affine(f_d, f0, slope, rate[j], i_max)
+            f_desired[j] = f_d
+
+    return impl
+
+
+def env_commands(command, lo, hi, actions, params, state, out):
+    """Vehicles ``lo .. hi-1``: action -> current command (directly in current mode, through
+    the inverse model on this step's measurements in force mode), then the control delay: the
+    command written into each vehicle's ring buffer, the one from ``control_delay_steps`` ago
+    applied. ``command`` (:func:`command_path`) is a compile-time constant: only the path in
+    use compiles (the unused ones were a sixth of a first step's compile time)."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(env_commands, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+def _env_commands(command, lo, hi, actions, params, state, out):
+    if not isinstance(command, types.IntegerLiteral) or isinstance(lo, types.Literal):
+        return None  # specialise on the command path only
+    cmd = command.literal_value
+
+    def impl(command, lo, hi, actions, params, state, out):
+        sig, meas, vf = out.signals, state.measured, state.floats
+        i_max = params.i_max_a
+        f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
+        if cmd == COMMAND_CURRENT:
+            _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
+        elif cmd == BOUC_WEN:  # CSDC: a hysteresis estimate per vehicle, scalar
+            inv_p = params.inverse_params
+            for n in range(lo, hi):
+                f_d = actions[n] * params.max_force_n
+                x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
+                z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
+                vf[VF_CSDC_Z, n] = z_est
+                vf[VF_CSDC_STROKE, n] = x_m
+                f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
+                sig[SIG_DESIRED_FORCE, n] = f_d
+                sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
+        else:
+            _inverse_lanes(cmd, params.inverse_params, actions[lo:hi],
+                           meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
+                           params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
+        write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
         for n in range(lo, hi):
-            f_d = actions[n] * params.max_force_n
-            x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
-            z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
-            vf[VF_CSDC_Z, n] = z_est
-            vf[VF_CSDC_STROKE, n] = x_m
-            f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
-            sig[SIG_DESIRED_FORCE, n] = f_d
-            sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
-    else:
-        _inverse_lanes(params.inverse_code, params.inverse_params, actions[lo:hi],
-                       meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
-                       params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
-    write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
-    for n in range(lo, hi):
-        state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
-        vf[VF_APPLIED, n] = state.delay[n, read]
-        state.step_count[n] += 1
+            state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
+            vf[VF_APPLIED, n] = state.delay[n, read]
+            state.step_count[n] += 1
+
+    return impl
 
 
 # ----------------------------------------------------------------------------- sensing
