@@ -213,6 +213,7 @@ class CapsuleBatch:
         self._kernel = BatchedKernel(
             ENV, self.plant.code, self.kernel_mode, n,
             command_path(self.params.current_mode, self.params.inverse_code),
+            preview=config.preview_points > 0,
         )  # fmt: skip
 
     def _new_signals(self, allocate: Any) -> None:

@@ -314,7 +314,8 @@ def _env_commands(command, lo, hi, actions, params, state, out):
 @njit(**FAST, **INTERNAL)
 def env_sense(lo, hi, params, plant, state, out):
     """Vehicles ``lo .. hi-1`` after the plant step: sensor noise, measurements, reward,
-    bump stop, signals and observations (clipped to where the sensors saturate)."""
+    bump stop, signals and observations (clipped to where the sensors saturate; the guideway
+    preview columns are :func:`env_preview`'s)."""
     x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
     std = params.noise_std
     nb = hi - lo
@@ -435,11 +436,22 @@ def env_sense(lo, hi, params, plant, state, out):
         for n in range(lo, hi):
             for j in range(MEAS_COMMAND + 1):
                 obs[n, j] = meas[j, n]
-    if params.preview_points > 0:
-        for n in range(lo, hi):
-            preview_row(n, params, plant, state, obs)
+    # the preview columns (the last preview_points) are env_preview's
     for n in range(lo, hi):
-        for j in range(obs.shape[1]):
+        for j in range(obs.shape[1] - params.preview_points):
+            obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
+
+
+@njit(**FAST, **INTERNAL)
+def env_preview(lo, hi, params, plant, state, obs):
+    """Vehicles ``lo .. hi-1`` after :func:`env_sense`: the guideway preview columns of their
+    observations (:func:`preview_row`), clipped to the observation space. Called by the
+    kernels of configurations with preview only (not compiled for the others)."""
+    bounds = params.obs_bounds
+    for n in range(lo, hi):
+        preview_row(n, params, plant, state, obs)
+    for n in range(lo, hi):
+        for j in range(obs.shape[1] - params.preview_points, obs.shape[1]):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
 
 

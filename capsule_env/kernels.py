@@ -3,7 +3,7 @@
 Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
 (:func:`capsule_env.plant.step_batch`) and the whole env step (:class:`capsule_env.batch.CapsuleBatch`:
 commands, plant, sensors, reward). For each (kind, damper model, kernel mode, and for the env its
-command path), :func:`kernels` makes a pair:
+command path and whether it previews the guideway), :func:`kernels` makes a pair:
 
 - ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
 - ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
@@ -11,7 +11,7 @@ command path), :func:`kernels` makes a pair:
 ``args``: for an ``ENV`` kernel ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a
 ``PLANT`` kernel ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``.
 
-The kind, model, mode and command path are closure constants, so numba compiles each pair only for what it
+The kind, model, mode, command path and preview flag are closure constants, so numba compiles each pair only for what it
 uses (the model-specific code is specialised on the constant: see :mod:`capsule_env.plant.block`)
 and caches it on disk. The parallel kernel's chunks call the serial one: one function between
 the Python call and the block kernels (each nesting level of numba functions re-optimises and
@@ -36,7 +36,14 @@ from typing import Any
 
 from numba import njit, prange
 
-from capsule_env.env_kernel import EnvOutputs, EnvParams, EnvState, env_commands, env_sense
+from capsule_env.env_kernel import (
+    EnvOutputs,
+    EnvParams,
+    EnvState,
+    env_commands,
+    env_preview,
+    env_sense,
+)
 from capsule_env.layout import VF_APPLIED
 from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_step
 from capsule_env.plant.params import PlantParams, Route
@@ -68,7 +75,7 @@ def work_item_size(n: int) -> int:
     return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
-def _make_kernels(kind: int, model: int, mode: int, command: int) -> tuple[Any, Any]:
+def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # kernels take them apart into arrays and scalars before the loop and put them together
     # again in each chunk.
@@ -86,6 +93,8 @@ def _make_kernels(kind: int, model: int, mode: int, command: int) -> tuple[Any, 
                 else:
                     block_step(model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
                 env_sense(b, e, params, plant, state, out)
+                if preview:
+                    env_preview(b, e, params, plant, state, out.obs)
 
         # fmt: off
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
@@ -135,14 +144,18 @@ def _make_kernels(kind: int, model: int, mode: int, command: int) -> tuple[Any, 
     return serial, parallel
 
 
-_KERNELS: dict[tuple[int, int, int, int], tuple[Any, Any]] = {}
+_KERNELS: dict[tuple[int, int, int, int, bool], tuple[Any, Any]] = {}
 
 
-def kernels(kind: int, model: int, mode: int, command: int = 0) -> tuple[Any, Any]:
-    """``(serial, parallel)`` compiled kernels of a kind for a damper model, kernel mode and
-    (``ENV`` kernels) command path (``env_kernel.command_path``; memoised; compiled when first
-    called, then loaded from numba's disk cache)."""
-    key = (int(kind), int(model), int(mode), int(command) if kind == ENV else 0)
+def kernels(
+    kind: int, model: int, mode: int, command: int = 0, preview: bool = False
+) -> tuple[Any, Any]:
+    """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode,
+    and for ``ENV`` kernels a command path (``env_kernel.command_path``) and whether the
+    observations carry guideway preview (memoised; compiled when first called, then loaded
+    from numba's disk cache)."""
+    env = kind == ENV
+    key = (int(kind), int(model), int(mode), int(command) if env else 0, bool(preview) and env)
     if key not in _KERNELS:
         _KERNELS[key] = _make_kernels(*key)
     return _KERNELS[key]
@@ -153,8 +166,11 @@ class BatchedKernel:
     docstring) and ``parallel(n, *args)`` for a large one, through the compiled entry points
     once they exist (the argument types of a batch never change)."""
 
-    def __init__(self, kind: int, model: int, mode: int, num_envs: int, command: int = 0) -> None:
-        self.serial, self.parallel = kernels(kind, model, mode, command)
+    def __init__(
+        self, kind: int, model: int, mode: int, num_envs: int, command: int = 0,
+        preview: bool = False,
+    ) -> None:  # fmt: skip
+        self.serial, self.parallel = kernels(kind, model, mode, command, preview)
         self.num_envs = num_envs
         self._entry: dict[bool, Any] = {}
 
