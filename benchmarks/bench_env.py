@@ -36,6 +36,7 @@ import sys
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -175,19 +176,22 @@ def cold_first_step(**kwargs) -> dict[str, float]:
     """Empty numba cache, fresh interpreter: ``import capsule_env`` + ``gym.make`` (with
     ``kwargs``) + reset + first step; wall and CPU seconds of each phase, of the four together
     (``total_*``) and of the whole process (``process_*``: interpreter start-up and exit too)."""
+    load = os.getloadavg()[0]
     out, process = _run_cold([sys.executable, "-c", _COLD_CODE, json.dumps(kwargs)])
-    return {**json.loads(out.stdout.strip().splitlines()[-1]), **process}
+    return {**json.loads(out.stdout.strip().splitlines()[-1]), **process, "load_before": load}
 
 
 def cold_demo() -> dict[str, float]:
     """Empty numba cache: ``python evaluate.py`` (the README demo: both settings, every default
-    controller, the shipped policy), wall and CPU seconds of the process."""
+    controller, the shipped policy), wall and CPU seconds of the process, and the load average
+    before it (the machine is shared)."""
     root = Path(__file__).resolve().parents[1]
+    load = os.getloadavg()[0]
     _, process = _run_cold([sys.executable, "evaluate.py"], cwd=root)
-    return process
+    return {**process, "load_before": load}
 
 
-def interleaved(runs: dict[str, object], repeats: int) -> dict[str, list[float]]:
+def interleaved(runs: dict[str, Callable[[], float]], repeats: int) -> dict[str, list[float]]:
     """``runs``: name -> a function timing one window (items per second). Each repeat runs
     every window once, in turn (ours and the reference alternate: a slow spell of the shared
     machine hits both); returns each name's rates."""
@@ -331,7 +335,9 @@ def main(argv: list[str] | None = None) -> int:
     per_env, bank = memory_per_env(1024, setting="hils")
     res["memory"] = {"bytes_per_env": per_env, "guideway_bank_bytes": bank}
     res["long_window"] = long_windows(max(20, int(1500 * scale)), num_envs=1024)
-    res["cold_start"] = cold_first_step() if (not args.quick or args.cold) else None
+    res["cold_start"] = None
+    if not args.quick or args.cold:  # the default env (sim), then hils (the other kernels)
+        res["cold_start"] = {s: cold_first_step(setting=s) for s in ("sim", "hils")}
     res["cold_demo"] = cold_demo() if args.cold_demo else None
 
     print(f"machine: {res['machine']}  date: {res['date']}")
@@ -366,18 +372,16 @@ def main(argv: list[str] | None = None) -> int:
             ours, ref = cmp["median"]["capsule"], cmp["median"][cmp["reference"]]
             print(f"  {name:<18}{ours:>14,.0f} vs {cmp['reference']} {ref:>13,.0f}   "
                   f"x{cmp['ratio']:5.2f}")  # fmt: skip
-    for key, title in (("cold_start", "cold start (empty numba cache): import + make + reset + "
-                        "first step"), ("cold_demo", "cold demo (empty numba cache): python "
-                        "evaluate.py"),):  # fmt: skip
-        cold = res[key]
-        if cold is None:
-            continue
-        line = f"\n{title}: process {cold['process_wall_s']:.1f} s wall, {cold['process_cpu_s']:.1f} s CPU"
-        if "total_wall_s" in cold:
-            line += (f"; in it {cold['total_wall_s']:.1f} s wall, {cold['total_cpu_s']:.1f} s CPU "
-                     f"(import {cold['import_cpu_s']:.1f}, first step {cold['first_step_cpu_s']:.1f} "
-                     "s CPU)")  # fmt: skip
-        print(line)
+    cold = res["cold_start"] or {}
+    for setting, c in cold.items():
+        print(f"\ncold start, {setting} (empty numba cache; import + make + reset + first step): "
+              f"{c['total_wall_s']:.1f} s wall, {c['total_cpu_s']:.1f} s CPU (import "
+              f"{c['import_cpu_s']:.1f} s, first step {c['first_step_cpu_s']:.1f} s CPU); whole "
+              f"process {c['process_wall_s']:.1f} s wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
+    if res["cold_demo"] is not None:
+        c = res["cold_demo"]
+        print(f"\ncold demo (empty numba cache): python evaluate.py {c['process_wall_s']:.1f} s "
+              f"wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(res, fh, indent=2)
