@@ -154,7 +154,10 @@ def _slot(rank):
     return (rank & 1) * _W_HALF_SIZE + (rank >> 1)
 
 
-@njit(**FAST, inline="always")
+# The lane accessors are inlined by LLVM (forceinline), not by numba: numba's inlining copies
+# their IR into the loop at every call site (two vehicles per iteration: twice) before typing
+# and lowering it, which made the loop the costliest function of a first step to compile.
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_values(wv, j):
     """The scratch values of one vehicle (rows z_c .. zg_end) as a tuple (offset ``j``)."""
     return (
@@ -166,7 +169,7 @@ def _lane_values(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_constants(wv, j):
     """The Riccati constants of one vehicle from the scratch view."""
     b = j + _W_A * HALF
@@ -176,7 +179,7 @@ def _lane_constants(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_params(wv, j):
     """The packed damper parameters of one vehicle from the scratch view."""
     b = j + _W_P * HALF
@@ -208,7 +211,7 @@ def _row_constants(derived, n):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _store_lane(wv, j, new, active):
     """Write a vehicle's new state (rows z_c .. t and zg_start) if ``active`` (a select)."""
     wv[j + 0 * HALF] = new[0] if active else wv[j + 0 * HALF]
