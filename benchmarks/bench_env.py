@@ -181,11 +181,11 @@ def cold_first_step(**kwargs) -> dict[str, float]:
     return {**json.loads(out.stdout.strip().splitlines()[-1]), **process, "load_before": load}
 
 
-def cold_demo() -> dict[str, float]:
-    """Empty numba cache: ``python evaluate.py`` (the README demo: both settings, every default
-    controller, the shipped policy), wall and CPU seconds of the process, and the load average
-    before it (the machine is shared)."""
-    root = Path(__file__).resolve().parents[1]
+def cold_demo(root: Path | None = None) -> dict[str, float]:
+    """Empty numba cache: ``python evaluate.py`` of the checkout ``root`` (default this one; the
+    README demo: both settings, every default controller, the shipped policy), wall and CPU
+    seconds of the process, and the load average before it (the machine is shared)."""
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
     load = os.getloadavg()[0]
     _, process = _run_cold([sys.executable, "evaluate.py"], cwd=root)
     return {**process, "load_before": load}
