@@ -3,7 +3,8 @@
 For a block of vehicles, :func:`env_commands` turns actions into coil-current commands (through
 the inverse model in force mode) and applies the control delay; the plant kernel advances the
 vehicles (:mod:`capsule_env.plant`); :func:`env_sense` draws the sensor noise, measures, and
-writes the reward, the signals (``info``) and the observations. The arguments are named
+writes the reward, the signals (``info``) and the observations; :func:`env_preview` adds the
+guideway preview columns where the configuration has them. The arguments are named
 structures (:class:`EnvParams`, :class:`EnvState`, :class:`EnvOutputs`) whose arrays have the
 layouts of :mod:`capsule_env.layout`. Pure numba/numpy, no Gym import.
 

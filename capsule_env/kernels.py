@@ -1,22 +1,23 @@
 """The one kernel factory: compiled kernels for a damper model, serial and on all cores.
 
 Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
-(:func:`capsule_env.plant.step_batch`) and the whole env step (:class:`capsule_env.batch.CapsuleBatch`:
-commands, plant, sensors, reward). For each (kind, damper model, kernel mode, and for the env its
-command path and whether it previews the guideway), :func:`kernels` makes a pair:
+(:func:`capsule_env.plant.step_batch`) and the whole env step
+(:class:`capsule_env.batch.CapsuleBatch`: commands, plant, sensors, reward). For each (kind,
+damper model, kernel mode, and for the env its command path and whether it previews the
+guideway), :func:`kernels` makes a pair:
 
 - ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
 - ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
 
-``args``: for an ``ENV`` kernel ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a
-``PLANT`` kernel ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``.
+``args``: for an ``ENV`` kernel ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``;
+for a ``PLANT`` kernel ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``.
 
-The kind, model, mode, command path and preview flag are closure constants, so numba compiles each pair only for what it
-uses (the model-specific code is specialised on the constant: see :mod:`capsule_env.plant.block`)
-and caches it on disk. The parallel kernel's chunks call the serial one: one function between
-the Python call and the block kernels (each nesting level of numba functions re-optimises and
-re-emits the machine code of everything below it: a level cost about 0.8 s of the first step's
-compile). A vehicle's numbers do not depend on its chunk or thread: both kernels
+The kind, model, mode, command path and preview flag are closure constants, so numba compiles
+each pair only for what it uses (the model-specific code is chosen at typing: see
+:mod:`capsule_env.plant.block` and :mod:`capsule_env.plant.rk4`) and caches it on disk. The
+parallel kernel's chunks call the serial one: one function between the Python call and the
+block kernels (each nesting level of numba functions re-optimises and re-emits the machine code
+of everything below it). A vehicle's numbers do not depend on its chunk or thread: both kernels
 give the same bits. :class:`BatchedKernel` calls the right one for a batch size and skips
 numba's argument dispatch once the kernel is compiled (it would cost a few microseconds per
 call on the named-structure arguments: a large part of a single env's step).
