@@ -76,14 +76,36 @@ def work_item_size(n: int) -> int:
     return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
+def _unique(variant: str) -> Any:
+    """Give a kernel closure a qualified name of its own (``serial_<variant>``).
+
+    Numba names a compiled function after its qualified name, a per-process counter and its
+    argument types, and every variant of ``serial`` takes the same types. Two variants compiled
+    in different processes (each the first kernel of its process) thus get the same symbol, and
+    once both are loaded from the disk cache into one process, the parallel kernel of one
+    (which calls ``serial``) could be linked to the other's code: different trajectories from
+    the threaded kernel than from the serial one. A name per variant rules that out (and gives
+    each variant its own cache index file)."""
+
+    def rename(fn: Any) -> Any:
+        fn.__qualname__ = f"{fn.__qualname__}_{variant}"
+        fn.__name__ = f"{fn.__name__}_{variant}"
+        return fn
+
+    return rename
+
+
 def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # kernels take them apart into arrays and scalars before the loop and put them together
     # again in each chunk.
     # Called from Python (a CPython wrapper), never through a C pointer (no cfunc wrapper).
+    # Each variant gets a name of its own (_unique): see there.
+    variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
     if kind == ENV:
 
         @njit(cache=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def serial(lo, hi, actions, params, plant, state, out):
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
@@ -99,6 +121,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
 
         # fmt: off
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def parallel(n, actions, params, plant, state, out):
             # EnvParams (taken apart and put back in order): 12 floats, 4 flags and codes, 5
             # arrays, the preview's count, step and survey error, the reward filter
@@ -124,6 +147,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
     else:
 
         @njit(cache=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
@@ -133,6 +157,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
                     block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out)
 
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def parallel(n, plant, x, i_cmd, route, dt, out):
             dp, vp, table, constants, profiles, spacing = plant
             r0, r1, r2, r3 = route
