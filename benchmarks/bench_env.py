@@ -3,6 +3,7 @@
     python benchmarks/bench_env.py                 # prints the table
     python benchmarks/bench_env.py --json out.json # and writes it as JSON
     python benchmarks/bench_env.py --quick         # fewer steps (smoke test)
+    python benchmarks/bench_env.py --cold-demo     # also the README demo with an empty cache
 
 Measures (pre-sampled actions, the same machine, the same process):
 1. single env through ``gymnasium.make`` vs Pendulum-v1 and CartPole-v1 (steps/s, ratio);
@@ -10,7 +11,16 @@ Measures (pre-sampled actions, the same machine, the same process):
    and ``hils`` (env-steps/s, ratio);
 3. the SB3 VecEnv alone (N = 64, 1024);
 4. real-time factor (simulated seconds per wall second) of one vehicle, ``sim`` and ``hils``;
-5. memory per vehicle in the vector env, import time, first-step (numba compile/cache load) time.
+5. memory per vehicle in the vector env, import time, first-step (numba compile/cache load) time;
+6. long windows (the figures the targets are judged on): the native vector env at N = 1024 in
+   ``sim`` and ``hils`` vs CartPole's native vector env, and the single env vs Pendulum-v1;
+   windows of 1500 steps (the single env: 10 x 1500), ours and the reference alternating,
+   3 repeats: the median rate of each and their ratio (short best-of-3 windows flatter a
+   threaded kernel on a shared machine);
+7. cold start: a fresh interpreter with ``NUMBA_CACHE_DIR`` an empty folder, ``import
+   capsule_env`` + ``gym.make("CapsuleSuspension-v0")`` + reset + first step (wall and CPU
+   seconds: compiling is single-threaded, so the CPU time is what an idle machine's wall time
+   would be); with ``--cold-demo`` also ``python evaluate.py`` (the README demo) the same way.
 """
 
 from __future__ import annotations
@@ -19,10 +29,15 @@ import argparse
 import json
 import os
 import platform
+import resource
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -111,6 +126,155 @@ def import_and_first_step() -> dict[str, float]:
     return {"import_s": imp, "first_step_s": first}
 
 
+def _children_cpu_s() -> float:
+    """User + system CPU seconds of this process's finished children so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run_cold(argv: list[str], cwd: Path | None = None) -> tuple[subprocess.CompletedProcess, dict]:
+    """Run ``argv`` with ``NUMBA_CACHE_DIR`` an empty temporary folder (removed after): the
+    completed process, and its wall and CPU (user + system) seconds."""
+    with tempfile.TemporaryDirectory(prefix="numba-cold-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        cpu0, t0 = _children_cpu_s(), time.perf_counter()
+        out = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True)
+        wall, cpu = time.perf_counter() - t0, _children_cpu_s() - cpu0
+    if out.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed:\n{out.stderr[-3000:]}")
+    return out, {"process_wall_s": wall, "process_cpu_s": cpu}
+
+
+#: The cold first step, timed inside the fresh interpreter: each phase's wall and CPU seconds.
+_COLD_CODE = """
+import json, sys, time
+def now():
+    return time.perf_counter(), time.process_time()
+marks = {"start": now()}
+import capsule_env
+marks["import"] = now()
+import gymnasium as gym
+import numpy as np
+env = gym.make("CapsuleSuspension-v0", **json.loads(sys.argv[1]))
+marks["make"] = now()
+env.reset(seed=0)
+marks["reset"] = now()
+env.step(np.zeros(1, dtype=np.float32))
+marks["first_step"] = now()
+names = list(marks)
+out = {}
+for a, b in zip(names, names[1:]):
+    out[b + "_wall_s"] = marks[b][0] - marks[a][0]
+    out[b + "_cpu_s"] = marks[b][1] - marks[a][1]
+out["total_wall_s"] = marks[names[-1]][0] - marks["start"][0]
+out["total_cpu_s"] = marks[names[-1]][1] - marks["start"][1]
+print(json.dumps(out))
+"""
+
+
+def cold_first_step(**kwargs) -> dict[str, float]:
+    """Empty numba cache, fresh interpreter: ``import capsule_env`` + ``gym.make`` (with
+    ``kwargs``) + reset + first step; wall and CPU seconds of each phase, of the four together
+    (``total_*``) and of the whole process (``process_*``: interpreter start-up and exit too)."""
+    load = os.getloadavg()[0]
+    out, process = _run_cold([sys.executable, "-c", _COLD_CODE, json.dumps(kwargs)])
+    return {**json.loads(out.stdout.strip().splitlines()[-1]), **process, "load_before": load}
+
+
+def cold_demo(root: Path | None = None) -> dict[str, float]:
+    """Empty numba cache: ``python evaluate.py`` of the checkout ``root`` (default this one; the
+    README demo: both settings, every default controller, the shipped policy), wall and CPU
+    seconds of the process, and the load average before it (the machine is shared)."""
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
+    load = os.getloadavg()[0]
+    _, process = _run_cold([sys.executable, "evaluate.py"], cwd=root)
+    return {**process, "load_before": load}
+
+
+def interleaved(runs: dict[str, Callable[[], float]], repeats: int) -> dict[str, list[float]]:
+    """``runs``: name -> a function timing one window (items per second). Each repeat runs
+    every window once, in turn (ours and the reference alternate: a slow spell of the shared
+    machine hits both); returns each name's rates."""
+    rates: dict[str, list[float]] = {name: [] for name in runs}
+    for _ in range(repeats):
+        for name, window in runs.items():
+            rates[name].append(window())
+    return rates
+
+
+def _window(step, n_steps: int, batch: int):
+    def run() -> float:
+        t0 = time.perf_counter()
+        for k in range(n_steps):
+            step(k)
+        return n_steps * batch / (time.perf_counter() - t0)
+
+    return run
+
+
+def _vector_stepper(env_id: str, num_envs: int, **kwargs):
+    import gymnasium as gym
+
+    env = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    actions = [env.action_space.sample() for _ in range(200)]
+    for k in range(20):  # compiled (or loaded), threads started, caches warm
+        env.step(actions[k])
+    return lambda k: env.step(actions[k % 200])
+
+
+def _single_stepper(env_id: str, **kwargs):
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    space = env.action_space
+    space.seed(0)
+    actions = [space.sample() for _ in range(1000)]
+
+    def step(k):
+        _, _, terminated, truncated, _ = env.step(actions[k % 1000])
+        if terminated or truncated:
+            env.reset()
+
+    for k in range(50):
+        step(k)
+    return step
+
+
+def long_windows(window_steps: int = 1500, repeats: int = 3, num_envs: int = 1024) -> dict:
+    """The long-window comparison (module docstring, item 6): per comparison, each side's
+    window rates, their medians and ``ratio = median(ours) / median(reference)``; the load
+    average before and after (the machine is shared)."""
+    res: dict = {"window_steps": window_steps, "repeats": repeats, "num_envs": num_envs,
+                 "load_before": list(os.getloadavg())}  # fmt: skip
+    cart = _vector_stepper("CartPole-v1", num_envs)
+    for setting in ("sim", "hils"):
+        ours = _vector_stepper("CapsuleSuspension-v0", num_envs, setting=setting)
+        rates = interleaved(
+            {"capsule": _window(ours, window_steps, num_envs),
+             "CartPole-v1": _window(cart, window_steps, num_envs)}, repeats,
+        )  # fmt: skip
+        res[f"vector-{setting}/N={num_envs}"] = _compare(rates, "capsule", "CartPole-v1")
+    single_steps = 10 * window_steps  # one step is ~10 us: 1500 would be a 15 ms window
+    pend = _single_stepper("Pendulum-v1")
+    for setting in ("sim", "hils"):
+        ours = _single_stepper("CapsuleSuspension-v0", setting=setting)
+        rates = interleaved(
+            {"capsule": _window(ours, single_steps, 1),
+             "Pendulum-v1": _window(pend, single_steps, 1)}, repeats,
+        )  # fmt: skip
+        res[f"single-{setting}"] = _compare(rates, "capsule", "Pendulum-v1")
+    res["load_after"] = list(os.getloadavg())
+    return res
+
+
+def _compare(rates: dict[str, list[float]], ours: str, ref: str) -> dict:
+    med = {name: statistics.median(r) for name, r in rates.items()}
+    return {"rates": rates, "median": med, "reference": ref, "ratio": med[ours] / med[ref]}
+
+
 def machine() -> str:
     cpu = platform.processor() or platform.machine()
     try:
@@ -129,7 +293,17 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
     parser.add_argument("--json", help="also write the results to this JSON file")
-    parser.add_argument("--quick", action="store_true", help="few steps: a smoke test")
+    parser.add_argument(
+        "--quick", action="store_true", help="few steps: a smoke test (no cold start unless --cold)"
+    )
+    parser.add_argument(
+        "--cold", action="store_true", help="with --quick: measure the cold first step all the same"
+    )
+    parser.add_argument(
+        "--cold-demo",
+        action="store_true",
+        help="also time `python evaluate.py` with an empty numba cache (minutes)",
+    )
     args = parser.parse_args(argv)
     scale = 0.05 if args.quick else 1.0
     n_single = max(200, int(20_000 * scale))
@@ -160,6 +334,11 @@ def main(argv: list[str] | None = None) -> int:
         res["realtime"][setting] = res["single"][f"capsule-{setting}"] * dt
     per_env, bank = memory_per_env(1024, setting="hils")
     res["memory"] = {"bytes_per_env": per_env, "guideway_bank_bytes": bank}
+    res["long_window"] = long_windows(max(20, int(1500 * scale)), num_envs=1024)
+    res["cold_start"] = None
+    if not args.quick or args.cold:  # the default env (sim), then hils (the other kernels)
+        res["cold_start"] = {s: cold_first_step(setting=s) for s in ("sim", "hils")}
+    res["cold_demo"] = cold_demo() if args.cold_demo else None
 
     print(f"machine: {res['machine']}  date: {res['date']}")
     print(f"import capsule_env: {res['startup']['import_s']:.2f} s; first reset+step "
@@ -184,6 +363,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {setting:<6}{rtf:10.0f}")
     print(f"\nmemory: {res['memory']['bytes_per_env'] / 1024:.1f} KiB per vehicle "
           f"(+ shared guideway bank {res['memory']['guideway_bank_bytes'] / 2**20:.1f} MiB)")  # fmt: skip
+    lw = res["long_window"]
+    print(f"\nlong windows ({lw['window_steps']} steps, the single env {10 * lw['window_steps']}; "
+          f"median of {lw['repeats']} interleaved repeats; load {lw['load_before'][0]:.1f} -> "
+          f"{lw['load_after'][0]:.1f})")  # fmt: skip
+    for name, cmp in lw.items():
+        if isinstance(cmp, dict) and "ratio" in cmp:
+            ours, ref = cmp["median"]["capsule"], cmp["median"][cmp["reference"]]
+            print(f"  {name:<18}{ours:>14,.0f} vs {cmp['reference']} {ref:>13,.0f}   "
+                  f"x{cmp['ratio']:5.2f}")  # fmt: skip
+    cold = res["cold_start"] or {}
+    for setting, c in cold.items():
+        print(f"\ncold start, {setting} (empty numba cache; import + make + reset + first step): "
+              f"{c['total_wall_s']:.1f} s wall, {c['total_cpu_s']:.1f} s CPU (import "
+              f"{c['import_cpu_s']:.1f} s, first step {c['first_step_cpu_s']:.1f} s CPU); whole "
+              f"process {c['process_wall_s']:.1f} s wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
+    if res["cold_demo"] is not None:
+        c = res["cold_demo"]
+        print(f"\ncold demo (empty numba cache): python evaluate.py {c['process_wall_s']:.1f} s "
+              f"wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(res, fh, indent=2)

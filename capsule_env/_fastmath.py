@@ -20,10 +20,15 @@ import math
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["fast_exp", "fast_log", "fast_cos_2pi", "fast_tanh_nonneg", "FAST"]
+__all__ = ["fast_exp", "fast_log", "fast_cos_2pi", "fast_tanh_nonneg", "FAST", "INTERNAL"]
 
 #: Decorator options of every function that must vectorise.
 FAST = {"cache": True, "error_model": "numpy"}
+#: Decorator options of a function only ever called from other numba functions: no CPython
+#: wrapper (Python cannot call it) and no C-callable wrapper. Numba generates, optimises and
+#: emits both for every compiled function otherwise; the CPython wrapper of a function taking
+#: the env's named structures unboxes each of their fields: a large share of its compile time.
+INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10

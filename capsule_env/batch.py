@@ -39,6 +39,7 @@ from capsule_env.env_kernel import (
     EnvOutputs,
     EnvParams,
     EnvState,
+    command_path,
     noise_pairs,
 )
 from capsule_env.guideway import make_profile, random_profile
@@ -211,7 +212,11 @@ class CapsuleBatch:
         self._new_signals(np.zeros)
         self._action_buf = np.zeros(n)
         self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
-        self._kernel = BatchedKernel(ENV, self.plant.code, self.kernel_mode, n)
+        self._kernel = BatchedKernel(
+            ENV, self.plant.code, self.kernel_mode, n,
+            command_path(self.params.current_mode, self.params.inverse_code),
+            preview=config.preview_points > 0,
+        )  # fmt: skip
 
     def _new_signals(self, allocate: Any) -> None:
         self._signals_buf = allocate((N_SIGNALS, self.num_envs + _SIGNAL_PADDING))
@@ -337,9 +342,9 @@ class CapsuleBatch:
 
     def _reset_preview(self, n: int) -> None:
         """The first observation's preview columns (the kernel writes them at every step)."""
-        from capsule_env.env_kernel import preview_row
+        from capsule_env.env_kernel import reset_preview
 
-        preview_row(n, self.params, self.plant_params, self.env_state, self.obs)
+        reset_preview(n, self.params, self.plant_params, self.env_state, self.obs)
 
     # ---------------------------------------------------------------- step
     def step(self, actions: np.ndarray) -> None:

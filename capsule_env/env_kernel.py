@@ -3,7 +3,8 @@
 For a block of vehicles, :func:`env_commands` turns actions into coil-current commands (through
 the inverse model in force mode) and applies the control delay; the plant kernel advances the
 vehicles (:mod:`capsule_env.plant`); :func:`env_sense` draws the sensor noise, measures, and
-writes the reward, the signals (``info``) and the observations. The arguments are named
+writes the reward, the signals (``info``) and the observations; :func:`env_preview` adds the
+guideway preview columns where the configuration has them. The arguments are named
 structures (:class:`EnvParams`, :class:`EnvState`, :class:`EnvOutputs`) whose arrays have the
 layouts of :mod:`capsule_env.layout`. Pure numba/numpy, no Gym import.
 
@@ -18,9 +19,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from capsule_env._fastmath import FAST, fast_cos_2pi, fast_log
+from capsule_env._fastmath import FAST, INTERNAL, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
@@ -93,6 +95,8 @@ __all__ = [
     "OBS_MEASURED",
     "OBSERVATION_CODES",
     "noise_pairs",
+    "COMMAND_CURRENT",
+    "command_path",
 ]
 
 #: Observation sets (``EnvParams.observation``), by the names of ``EnvConfig.observation``.
@@ -113,6 +117,18 @@ _CHANNELS_READ = {
 }
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
+
+
+#: :func:`command_path` of current mode (force mode's is the inverted model's damper code).
+COMMAND_CURRENT = -1
+
+
+def command_path(current_mode: bool, inverse_code: int) -> int:
+    """How the env turns actions into current commands, a compile-time constant of its kernel:
+    :data:`COMMAND_CURRENT` in current mode, else the damper code of the inverted model
+    (``BOUC_WEN``: the CSDC inverse with its hysteresis estimate; ``BI_EXPONENTIAL``, ``TANH``:
+    the algebraic inverses)."""
+    return COMMAND_CURRENT if current_mode else int(inverse_code)
 
 
 def noise_pairs(observation: int) -> np.ndarray:
@@ -204,7 +220,7 @@ def gaussian_pair(key, step, pair):
     return radius * fast_cos_2pi(u2), radius * fast_cos_2pi(u2 - 0.25)
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
     """Sensor noise of channels ``2 pair`` and ``2 pair + 1`` for ``nb`` vehicles (a SIMD loop:
     the views start at the block's first vehicle)."""
@@ -213,7 +229,7 @@ def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
 
 
 # ----------------------------------------------------------------------------- commands
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def _current_lanes(actions, i_max, i_command, f_desired):
     """Current mode: action in [-1, 1] -> command in [0, i_max] (no force request)."""
     for j in range(actions.shape[0]):
@@ -221,58 +237,86 @@ def _current_lanes(actions, i_max, i_command, f_desired):
         f_desired[j] = 0.0
 
 
-@njit(cache=True, error_model="numpy")
 def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
     """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop).
+    ``inv_code`` is a literal: only its model's inverse compiles (a closure constant below,
+    which numba's branch pruning sees through the inlined :func:`affine_in_current`).
 
     The parameters are read into a tuple first: ``p[k] if up else p[j]`` on an array is a
     conditional load, which LLVM does not vectorise (the loop ran 3x slower); on a tuple it is
     a select between two values."""
-    p = row_params(inv_p.reshape(1, -1), 0)
-    for j in range(actions.shape[0]):
-        f_d = actions[j] * max_force
-        f0, slope = affine_in_current(inv_code, p, stroke[j], rate[j], 0.0)
-        i_command[j] = invert_affine(f_d, f0, slope, rate[j], i_max)
-        f_desired[j] = f_d
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@njit(cache=True, error_model="numpy")
-def env_commands(lo, hi, actions, params, state, out):
-    """Vehicles ``lo .. hi-1``: action -> current command (through the inverse model in force
-    mode, on this step's measurements), then the control delay: the command written into each
-    vehicle's ring buffer, the one from ``control_delay_steps`` ago applied."""
-    sig, meas, vf = out.signals, state.measured, state.floats
-    i_max = params.i_max_a
-    f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
-    if params.current_mode:
-        _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
-    elif params.inverse_code == BOUC_WEN:  # CSDC: a hysteresis estimate per vehicle, scalar
-        inv_p = params.inverse_params
+@overload(_inverse_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+def _inverse_lanes_impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command,
+                        f_desired):  # fmt: skip
+    if not isinstance(inv_code, types.IntegerLiteral):
+        return None
+    code = inv_code.literal_value
+
+    def impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
+        p = row_params(inv_p.reshape(1, -1), 0)
+        for j in range(actions.shape[0]):
+            f_d = actions[j] * max_force
+            f0, slope = affine_in_current(code, p, stroke[j], rate[j], 0.0)
+            i_command[j] = invert_affine(f_d, f0, slope, rate[j], i_max)
+            f_desired[j] = f_d
+
+    return impl
+
+
+def env_commands(command, lo, hi, actions, params, state, out):
+    """Vehicles ``lo .. hi-1``: action -> current command (directly in current mode, through
+    the inverse model on this step's measurements in force mode), then the control delay: the
+    command written into each vehicle's ring buffer, the one from ``control_delay_steps`` ago
+    applied. ``command`` (:func:`command_path`) is a compile-time constant: only the path in
+    use compiles (the unused ones were a sixth of a first step's compile time)."""
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
+
+
+@overload(env_commands, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+def _env_commands(command, lo, hi, actions, params, state, out):
+    if not isinstance(command, types.IntegerLiteral) or isinstance(lo, types.Literal):
+        return None  # specialise on the command path only
+    cmd = command.literal_value
+
+    def impl(command, lo, hi, actions, params, state, out):
+        sig, meas, vf = out.signals, state.measured, state.floats
+        i_max = params.i_max_a
+        f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
+        if cmd == COMMAND_CURRENT:
+            _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
+        elif cmd == BOUC_WEN:  # CSDC: a hysteresis estimate per vehicle, scalar
+            inv_p = params.inverse_params
+            for n in range(lo, hi):
+                f_d = actions[n] * params.max_force_n
+                x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
+                z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
+                vf[VF_CSDC_Z, n] = z_est
+                vf[VF_CSDC_STROKE, n] = x_m
+                f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
+                sig[SIG_DESIRED_FORCE, n] = f_d
+                sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
+        else:
+            _inverse_lanes(cmd, params.inverse_params, actions[lo:hi],
+                           meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
+                           params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
+        write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
         for n in range(lo, hi):
-            f_d = actions[n] * params.max_force_n
-            x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
-            z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
-            vf[VF_CSDC_Z, n] = z_est
-            vf[VF_CSDC_STROKE, n] = x_m
-            f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
-            sig[SIG_DESIRED_FORCE, n] = f_d
-            sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
-    else:
-        _inverse_lanes(params.inverse_code, params.inverse_params, actions[lo:hi],
-                       meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
-                       params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
-    write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
-    for n in range(lo, hi):
-        state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
-        vf[VF_APPLIED, n] = state.delay[n, read]
-        state.step_count[n] += 1
+            state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
+            vf[VF_APPLIED, n] = state.delay[n, read]
+            state.step_count[n] += 1
+
+    return impl
 
 
 # ----------------------------------------------------------------------------- sensing
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def env_sense(lo, hi, params, plant, state, out):
     """Vehicles ``lo .. hi-1`` after the plant step: sensor noise, measurements, reward,
-    bump stop, signals and observations (clipped to where the sensors saturate)."""
+    bump stop, signals and observations (clipped to where the sensors saturate; the guideway
+    preview columns are :func:`env_preview`'s)."""
     x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
     std = params.noise_std
     nb = hi - lo
@@ -393,15 +437,26 @@ def env_sense(lo, hi, params, plant, state, out):
         for n in range(lo, hi):
             for j in range(MEAS_COMMAND + 1):
                 obs[n, j] = meas[j, n]
-    if params.preview_points > 0:
-        for n in range(lo, hi):
-            preview_row(n, params, plant, state, obs)
+    # the preview columns (the last preview_points) are env_preview's
     for n in range(lo, hi):
-        for j in range(obs.shape[1]):
+        for j in range(obs.shape[1] - params.preview_points):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
+def env_preview(lo, hi, params, plant, state, obs):
+    """Vehicles ``lo .. hi-1`` after :func:`env_sense`: the guideway preview columns of their
+    observations (:func:`preview_row`), clipped to the observation space. Called by the
+    kernels of configurations with preview only (not compiled for the others)."""
+    bounds = params.obs_bounds
+    for n in range(lo, hi):
+        preview_row(n, params, plant, state, obs)
+    for n in range(lo, hi):
+        for j in range(obs.shape[1] - params.preview_points, obs.shape[1]):
+            obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
+
+
+@njit(**FAST, **INTERNAL)
 def preview_row(n, params, plant, state, obs):
     """The guideway preview columns of vehicle ``n`` (the last ``preview_points`` of its
     observation, clipped by the caller): the surveyed elevation ``k * preview_step_s`` ahead of
@@ -420,3 +475,11 @@ def preview_row(n, params, plant, state, obs):
         ahead = here + speed * (j + 1) * params.preview_step_s
         z = g * guideway_elevation(profiles, k, spacing, last, ahead)
         obs[n, first + j] = z + guideway_elevation(err, k, spacing, last, ahead) - ref
+
+
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+def reset_preview(n, params, plant, state, obs):
+    """:func:`preview_row` called from Python (a vehicle's first observation at its reset): a
+    function of its own, compiled only where preview is used (the CPython wrapper of a function
+    taking the env's named structures is a large part of its compile time)."""
+    preview_row(n, params, plant, state, obs)

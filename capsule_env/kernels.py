@@ -1,18 +1,23 @@
 """The one kernel factory: compiled kernels for a damper model, serial and on all cores.
 
 Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
-(:func:`capsule_env.plant.step_batch`) and the whole env step (:class:`capsule_env.batch.CapsuleBatch`:
-commands, plant, sensors, reward). For each (kind, damper model, kernel mode), :func:`kernels`
-makes a pair:
+(:func:`capsule_env.plant.step_batch`) and the whole env step
+(:class:`capsule_env.batch.CapsuleBatch`: commands, plant, sensors, reward). For each (kind,
+damper model, kernel mode, and for the env its command path and whether it previews the
+guideway), :func:`kernels` makes a pair:
 
 - ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
 - ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
 
-``args`` are those of :func:`step_range`.
+``args``: for an ``ENV`` kernel ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``;
+for a ``PLANT`` kernel ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``.
 
-The kind, model and mode are closure constants, so numba compiles each pair only for what it
-uses (the model-specific code is specialised on the constant: see :mod:`capsule_env.plant.block`)
-and caches it on disk. A vehicle's numbers do not depend on its chunk or thread: both kernels
+The kind, model, mode, command path and preview flag are closure constants, so numba compiles
+each pair only for what it uses (the model-specific code is chosen at typing: see
+:mod:`capsule_env.plant.block` and :mod:`capsule_env.plant.rk4`) and caches it on disk. The
+parallel kernel's chunks call the serial one: one function between the Python call and the
+block kernels (each nesting level of numba functions re-optimises and re-emits the machine code
+of everything below it). A vehicle's numbers do not depend on its chunk or thread: both kernels
 give the same bits. :class:`BatchedKernel` calls the right one for a batch size and skips
 numba's argument dispatch once the kernel is compiled (it would cost a few microseconds per
 call on the named-structure arguments: a large part of a single env's step).
@@ -30,10 +35,16 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from numba import njit, prange, types
-from numba.extending import overload
+from numba import njit, prange
 
-from capsule_env.env_kernel import EnvOutputs, EnvParams, EnvState, env_commands, env_sense
+from capsule_env.env_kernel import (
+    EnvOutputs,
+    EnvParams,
+    EnvState,
+    env_commands,
+    env_preview,
+    env_sense,
+)
 from capsule_env.layout import VF_APPLIED
 from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_step
 from capsule_env.plant.params import PlantParams, Route
@@ -65,54 +76,52 @@ def work_item_size(n: int) -> int:
     return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
-def step_range(kind, model, mode, lo, hi, args):
-    """Step vehicles ``lo .. hi-1``, block by block: for an ``ENV`` kernel, ``args`` is
-    ``(actions, EnvParams, PlantParams, EnvState, EnvOutputs)``; for a ``PLANT`` kernel,
-    ``(PlantParams, state, current_command_a, Route, dt_s, plant_outputs)``. Compiled once per
-    (kind, model, mode): only their code compiles."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
+def _unique(variant: str) -> Any:
+    """Give a kernel closure a qualified name of its own (``serial_<variant>``).
+
+    Numba names a compiled function after its qualified name, a per-process counter and its
+    argument types, and every variant of ``serial`` takes the same types. Two variants compiled
+    in different processes (each the first kernel of its process) thus get the same symbol, and
+    once both are loaded from the disk cache into one process, the parallel kernel of one
+    (which calls ``serial``) could be linked to the other's code: different trajectories from
+    the threaded kernel than from the serial one. A name per variant rules that out (and gives
+    each variant its own cache index file)."""
+
+    def rename(fn: Any) -> Any:
+        fn.__qualname__ = f"{fn.__qualname__}_{variant}"
+        fn.__name__ = f"{fn.__name__}_{variant}"
+        return fn
+
+    return rename
 
 
-@overload(step_range, prefer_literal=True, jit_options={"cache": True})
-def _step_range(kind, model, mode, lo, hi, args):
-    if not all(isinstance(a, types.IntegerLiteral) for a in (kind, model, mode)):
-        return None
-    if isinstance(lo, types.Literal) or isinstance(hi, types.Literal):
-        return None  # specialise on the kind, model and mode only
-    k, m, md = kind.literal_value, model.literal_value, mode.literal_value
-
-    def impl(kind, model, mode, lo, hi, args):
-        for b in range(lo, hi, BLOCK):
-            e = min(hi, b + BLOCK)
-            if k == ENV:
-                actions, params, plant, state, out = args
-                env_commands(b, e, actions, params, state, out)
-                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
-                dt, plant_out = params.dt_s, out.plant
-            else:
-                plant, x, i_cmd, route, dt, plant_out = args
-            if md == KERNEL_SCALAR:
-                scalar_step(m, b, e, plant, x, i_cmd, route, dt, plant_out)
-            else:
-                block_step(m, md, b, e, plant, x, i_cmd, route, dt, plant_out)
-            if k == ENV:
-                env_sense(b, e, params, plant, state, out)
-
-    return impl
-
-
-def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
+def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # kernels take them apart into arrays and scalars before the loop and put them together
     # again in each chunk.
+    # Called from Python (a CPython wrapper), never through a C pointer (no cfunc wrapper).
+    # Each variant gets a name of its own (_unique): see there.
+    variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
     if kind == ENV:
 
-        @njit(cache=True)
+        @njit(cache=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def serial(lo, hi, actions, params, plant, state, out):
-            step_range(kind, model, mode, lo, hi, (actions, params, plant, state, out))
+            for b in range(lo, hi, BLOCK):
+                e = min(hi, b + BLOCK)
+                env_commands(command, b, e, actions, params, state, out)
+                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
+                if mode == KERNEL_SCALAR:
+                    scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+                else:
+                    block_step(model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+                env_sense(b, e, params, plant, state, out)
+                if preview:
+                    env_preview(b, e, params, plant, state, out.obs)
 
         # fmt: off
-        @njit(cache=True, parallel=True)
+        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def parallel(n, actions, params, plant, state, out):
             # EnvParams (taken apart and put back in order): 12 floats, 4 flags and codes, 5
             # arrays, the preview's count, step and survey error, the reward filter
@@ -124,8 +133,8 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
             obs, reward, terminated, signals, plant_out = out
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
-                args = (
-                    actions,
+                serial(
+                    c * chunk, min(n, (c + 1) * chunk), actions,
                     EnvParams(f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, c0, c1, c2, c3,
                               a0, a1, a2, a3, a4, p0, p1, p2, r0),
                     PlantParams(dp, vp, table, constants, profiles, spacing),
@@ -133,35 +142,46 @@ def _make_kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
                              delay, slots),
                     EnvOutputs(obs, reward, terminated, signals, plant_out),
                 )
-                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
         # fmt: on
 
     else:
 
-        @njit(cache=True)
+        @njit(cache=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
-            step_range(kind, model, mode, lo, hi, (plant, x, i_cmd, route, dt, out))
+            for b in range(lo, hi, BLOCK):
+                e = min(hi, b + BLOCK)
+                if mode == KERNEL_SCALAR:
+                    scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
+                else:
+                    block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out)
 
-        @njit(cache=True, parallel=True)
+        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+        @_unique(variant)
         def parallel(n, plant, x, i_cmd, route, dt, out):
             dp, vp, table, constants, profiles, spacing = plant
             r0, r1, r2, r3 = route
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
-                args = (PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
-                        Route(r0, r1, r2, r3), dt, out)  # fmt: skip
-                step_range(kind, model, mode, c * chunk, min(n, (c + 1) * chunk), args)
+                serial(c * chunk, min(n, (c + 1) * chunk),
+                       PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
+                       Route(r0, r1, r2, r3), dt, out)  # fmt: skip
 
     return serial, parallel
 
 
-_KERNELS: dict[tuple[int, int, int], tuple[Any, Any]] = {}
+_KERNELS: dict[tuple[int, int, int, int, bool], tuple[Any, Any]] = {}
 
 
-def kernels(kind: int, model: int, mode: int) -> tuple[Any, Any]:
-    """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode
-    (memoised; compiled when first called, then loaded from numba's disk cache)."""
-    key = (int(kind), int(model), int(mode))
+def kernels(
+    kind: int, model: int, mode: int, command: int = 0, preview: bool = False
+) -> tuple[Any, Any]:
+    """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode,
+    and for ``ENV`` kernels a command path (``env_kernel.command_path``) and whether the
+    observations carry guideway preview (memoised; compiled when first called, then loaded
+    from numba's disk cache)."""
+    env = kind == ENV
+    key = (int(kind), int(model), int(mode), int(command) if env else 0, bool(preview) and env)
     if key not in _KERNELS:
         _KERNELS[key] = _make_kernels(*key)
     return _KERNELS[key]
@@ -172,8 +192,11 @@ class BatchedKernel:
     docstring) and ``parallel(n, *args)`` for a large one, through the compiled entry points
     once they exist (the argument types of a batch never change)."""
 
-    def __init__(self, kind: int, model: int, mode: int, num_envs: int) -> None:
-        self.serial, self.parallel = kernels(kind, model, mode)
+    def __init__(
+        self, kind: int, model: int, mode: int, num_envs: int, command: int = 0,
+        preview: bool = False,
+    ) -> None:  # fmt: skip
+        self.serial, self.parallel = kernels(kind, model, mode, command, preview)
         self.num_envs = num_envs
         self._entry: dict[bool, Any] = {}
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -56,6 +57,20 @@ def test_bench_env_quick_runs(tmp_path):
     startup = data["startup"]
     assert 0.0 < startup["import_s"] and 0.0 < startup["first_step_s"]
     assert startup["import_s"] + startup["first_step_s"] < process_s
+    # the long windows: each side's median of its interleaved windows, and their ratio
+    windows = data["long_window"]
+    compared = {k for k, v in windows.items() if isinstance(v, dict) and "ratio" in v}
+    assert compared == {"vector-sim/N=1024", "vector-hils/N=1024", "single-sim", "single-hils"}
+    for name in compared:
+        cmp = windows[name]
+        assert set(cmp["rates"]) == {"capsule", cmp["reference"]}
+        for side, rates in cmp["rates"].items():
+            assert len(rates) == windows["repeats"] and all(0.0 < r < math.inf for r in rates)
+            assert cmp["median"][side] == statistics.median(rates)
+        ratio = cmp["median"]["capsule"] / cmp["median"][cmp["reference"]]
+        assert cmp["ratio"] == pytest.approx(ratio, rel=1e-12)
+    # --quick leaves out the cold start (an empty numba cache: compiling takes a while)
+    assert data["cold_start"] is None and data["cold_demo"] is None
 
 
 @pytest.mark.rl

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST
+from capsule_env._fastmath import FAST, INTERNAL
 from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
@@ -154,7 +154,10 @@ def _slot(rank):
     return (rank & 1) * _W_HALF_SIZE + (rank >> 1)
 
 
-@njit(**FAST, inline="always")
+# The lane accessors are inlined by LLVM (forceinline), not by numba: numba's inlining copies
+# their IR into the loop at every call site (two vehicles per iteration: twice) before typing
+# and lowering it, which made the loop the costliest function of a first step to compile.
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_values(wv, j):
     """The scratch values of one vehicle (rows z_c .. zg_end) as a tuple (offset ``j``)."""
     return (
@@ -166,7 +169,7 @@ def _lane_values(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_constants(wv, j):
     """The Riccati constants of one vehicle from the scratch view."""
     b = j + _W_A * HALF
@@ -176,7 +179,7 @@ def _lane_constants(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _lane_params(wv, j):
     """The packed damper parameters of one vehicle from the scratch view."""
     b = j + _W_P * HALF
@@ -208,7 +211,7 @@ def _row_constants(derived, n):
     )  # fmt: skip
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **INTERNAL, forceinline=True)
 def _store_lane(wv, j, new, active):
     """Write a vehicle's new state (rows z_c .. t and zg_start) if ``active`` (a select)."""
     wv[j + 0 * HALF] = new[0] if active else wv[j + 0 * HALF]
@@ -222,7 +225,7 @@ def _store_lane(wv, j, new, active):
     wv[j + _W_ZG0 * HALF] = new[8] if active else wv[j + _W_ZG0 * HALF]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**FAST, **INTERNAL)
 def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
     """Guideway elevation at the middle and end of the substep of the sorted vehicles
     ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
@@ -251,7 +254,7 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(substep_lanes, prefer_literal=True, jit_options=FAST)
+@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
     if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
         return None  # specialise on the model, hysteresis and uniform flag only
@@ -287,7 +290,7 @@ def output_lanes(model, uniform, wv, count, p_uniform):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(output_lanes, prefer_literal=True, jit_options=FAST)
+@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _output_lanes(model, uniform, wv, count, p_uniform):
     if not isinstance(model, types.IntegerLiteral):
         return None
@@ -308,7 +311,7 @@ def _output_lanes(model, uniform, wv, count, p_uniform):
     return impl
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def _sort_by_substeps(nsub_of, nb, lo, order):
     """Stable sort of the block's vehicles by their substep count (insertion sort: a block has
     at most 64 vehicles, mostly in order already): ``order[rank]`` = vehicle index."""
@@ -327,7 +330,7 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(block_step, prefer_literal=True, jit_options={"cache": True, "error_model": "numpy"})
+@overload(block_step, prefer_literal=True, jit_options={**FAST, **INTERNAL})
 def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
     if not isinstance(model, types.IntegerLiteral):
         return None
@@ -404,7 +407,9 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
                 w[dst + j * HALF] = w[src + j * HALF]
         p_uniform, hc_uniform = row_params(dp, lo), _row_constants(derived, lo)
         # substep s advances the tail of the vehicles that need more than s substeps
-        first = 0
+        # an int64 from the start: a literal 0 would first type the calls below with
+        # Literal[int](0) and compile _guideway_lanes a second time for it
+        first = np.int64(0)
         s = 0
         while first < nb:
             _guideway_lanes(w, first, nb, order, profiles, spacing, route)

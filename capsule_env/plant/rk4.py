@@ -14,17 +14,21 @@ damper laws of :mod:`capsule_env.dampers`, :func:`~capsule_env.hysteresis.hyster
 so that a loop over vehicles vectorises; the scalar kernel uses the general hysteresis update
 (Bouc-Wen's unloading branch needs tan/atan).
 
-Only :func:`rk4_substep` is inlined by numba (into the kernels' loops); the functions it calls
-are separate numba functions that LLVM inlines, and whose branches on the model code it folds
-away (numba's own inlining copies the callee's IR at every call site, and nested inlines made
-compiling a kernel 10 times slower).
+Each function is compiled once per model and hysteresis form (literal arguments; the model's
+code is chosen at typing, see the overloads below) and inlined by LLVM: :func:`rk4_substep`
+into the kernels' loops with ``forceinline`` (LLVM's ``alwaysinline``), the functions it calls
+because they are small. Numba's own inlining (``inline="always"``) copies the callee's IR at
+every call site before typing: the block kernel's loop, which calls :func:`rk4_substep` twice,
+took twice as long to compile that way, and nested inlines made compiling a kernel 10 times
+slower.
 """
 
 from __future__ import annotations
 
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from capsule_env._fastmath import FAST
+from capsule_env._fastmath import FAST, INTERNAL
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
@@ -62,46 +66,113 @@ LANE_INPUT_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t", "h", "i_cmd"
                     "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end")  # fmt: skip
 
 
-@njit(**FAST)
+# The model and hysteresis codes are literal arguments: each function below is an overload
+# that picks the model's code in Python, at typing. (A plain numba function specialised on a
+# literal argument still types, lowers and optimises every branch of ``if model == ...``:
+# numba prunes branches on constants and closure variables, not on literal arguments. With
+# the four damper laws behind such branches, a kernel compiled the code of every model.)
+_JIT = {**FAST, **INTERNAL}
+
+
+def _literals(*codes) -> bool:
+    return all(isinstance(c, types.IntegerLiteral) for c in codes)
+
+
 def inv_dashpots(model, p, i):
     """``1 / (c0 + c1)`` of the reference damper at current ``i`` (1 for the other models)."""
-    if model == REFERENCE:
-        return spencer_inv_dashpots(p, i)
-    return 1.0
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@njit(**FAST)
+@overload(inv_dashpots, prefer_literal=True, jit_options=_JIT)
+def _inv_dashpots(model, p, i):
+    if not _literals(model):
+        return None
+    if model.literal_value == REFERENCE:
+
+        def impl(model, p, i):
+            return spencer_inv_dashpots(p, i)
+
+    else:
+
+        def impl(model, p, i):
+            return 1.0
+
+    return impl
+
+
 def damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
     """``(F, y')`` of the damper model at stroke ``x``, stroke rate ``v``, Spencer's internal
     displacement ``y``, hysteretic variable ``z`` and current ``i``."""
-    if model == REFERENCE:
-        return spencer_force(p, x, v, y, z, i, inv_c)
-    if model == BOUC_WEN:
-        return bouc_wen_force(p, x, v, z, i), 0.0
-    if model == BI_EXPONENTIAL:
-        return bi_exponential_force(p, x, v, i), 0.0
-    if model == TANH:
-        return tanh_force(p, x, v, i), 0.0
-    return p[PV_DAMPING] * v, 0.0
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@njit(**FAST)
+@overload(damper_force_and_rate, prefer_literal=True, jit_options=_JIT)
+def _damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
+    if not _literals(model):
+        return None
+    m = model.literal_value
+    if m == REFERENCE:
+
+        def impl(model, p, x, v, y, z, i, inv_c):
+            return spencer_force(p, x, v, y, z, i, inv_c)
+
+    elif m == BOUC_WEN:
+
+        def impl(model, p, x, v, y, z, i, inv_c):
+            return bouc_wen_force(p, x, v, z, i), 0.0
+
+    elif m == BI_EXPONENTIAL:
+
+        def impl(model, p, x, v, y, z, i, inv_c):
+            return bi_exponential_force(p, x, v, i), 0.0
+
+    elif m == TANH:
+
+        def impl(model, p, x, v, y, z, i, inv_c):
+            return tanh_force(p, x, v, i), 0.0
+
+    else:
+
+        def impl(model, p, x, v, y, z, i, inv_c):
+            return p[PV_DAMPING] * v, 0.0
+
+    return impl
+
+
 def _advance_z(model, hysteresis, z, du, p, hc):
     """The hysteretic variable after a deformation increment ``du`` (``hc``: the Riccati
     constants of the fast forms)."""
-    if hysteresis == HYST_GENERAL:
-        if model == REFERENCE:
-            return hysteresis_update(z, du, p[SP_A], p[SP_GAMMA], p[SP_BETA])
-        return hysteresis_update(z, du, p[BW_A], p[BW_GAMMA], p[BW_BETA])
-    if hysteresis == HYST_NONE:
-        return z
-    a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u = hc
-    tanh_unload = hysteresis == HYST_FAST_TANH_UNLOAD
-    return hysteresis_update_fast(z, du, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u,
-                                  tanh_unload)  # fmt: skip
+    raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@njit(**FAST, inline="always")
+@overload(_advance_z, prefer_literal=True, jit_options=_JIT)
+def _advance_z_impl(model, hysteresis, z, du, p, hc):
+    if not _literals(model, hysteresis):
+        return None
+    m, hyst = model.literal_value, hysteresis.literal_value
+    if hyst == HYST_GENERAL:
+        a_k, g_k, b_k = (SP_A, SP_GAMMA, SP_BETA) if m == REFERENCE else (BW_A, BW_GAMMA, BW_BETA)
+
+        def impl(model, hysteresis, z, du, p, hc):
+            return hysteresis_update(z, du, p[a_k], p[g_k], p[b_k])
+
+    elif hyst == HYST_NONE:
+
+        def impl(model, hysteresis, z, du, p, hc):
+            return z
+
+    else:
+
+        def impl(model, hysteresis, z, du, p, hc):
+            a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u = hc
+            tanh_unload = hysteresis == HYST_FAST_TANH_UNLOAD
+            return hysteresis_update_fast(z, du, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u,
+                                          inv_k_u, tanh_unload)  # fmt: skip
+
+    return impl
+
+
+@njit(**FAST, **INTERNAL, forceinline=True)
 def rk4_substep(model, hysteresis, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
     damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
@@ -149,7 +220,7 @@ def rk4_substep(model, hysteresis, v, p, hc):
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
-@njit(**FAST)
+@njit(**FAST, **INTERNAL)
 def plant_outputs(model, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb, ks, kp, zg):
     """``(damper force, body acceleration, bogie acceleration)`` at a state."""
     force, _ = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic,
