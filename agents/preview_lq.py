@@ -203,6 +203,14 @@ class PreviewLQController(ForceLaw):
         super().__init__("preview-lq", inverse_model, max_force_n, observation)
         if int(preview_points) < 1:
             raise ValueError(f"preview_points must be >= 1, got {preview_points!r}")
+        if not (1e-3 <= float(preview_horizon_s) <= 10.0):  # the env's range
+            raise ValueError(
+                f"preview_horizon_s must be in [0.001, 10] s, got {preview_horizon_s!r}"
+            )
+        if not float(dt_s) > 0.0 or int(delay_steps) < 0:
+            raise ValueError(
+                f"dt_s must be > 0 and delay_steps >= 0, got {dt_s!r}, {delay_steps!r}"
+            )
         self.env_kwargs = {**self.env_kwargs, "preview_points": int(preview_points),
                            "preview_horizon_s": float(preview_horizon_s)}  # fmt: skip
         self.preview_points, self.preview_horizon_s = int(preview_points), float(preview_horizon_s)
@@ -226,6 +234,11 @@ class PreviewLQController(ForceLaw):
         self.state_gain = np.array([g.state_gain for g in rows]).reshape(*shape, 4)
         self.delay_gain = np.array([g.delay_gain for g in rows]).reshape(*shape, self.delay_steps)
         self.preview_gain = np.array([g.preview_gain for g in rows]).reshape(*shape, -1)
+        # The rises are linear in the preview columns: fold the interpolation into the gain,
+        # one weight per preview column (computed once, not every step).
+        step = self.preview_horizon_s / self.preview_points
+        rise_matrix = preview_rises(np.eye(self.preview_points), step, self.dt_s, self.n_preview)
+        self.preview_weight = self.preview_gain @ rise_matrix.T  # (..., preview_points)
         self._in_flight: np.ndarray | None = None  # (N, delay_steps) N, newest first
 
     @property
@@ -248,12 +261,10 @@ class PreviewLQController(ForceLaw):
         if self._in_flight is None or self._in_flight.shape[0] != n:
             self._in_flight = np.zeros((n, self.delay_steps))
         x = np.stack([self.signal(obs, s) for s in self.SIGNALS], axis=1)
-        step = self.preview_horizon_s / self.preview_points
-        rises = preview_rises(obs[:, -self.preview_points :], step, self.dt_s, self.n_preview)
         force = -(
             np.sum(x * self.state_gain, axis=-1)
             + np.sum(self._in_flight * self.delay_gain, axis=-1)
-            + np.sum(rises * self.preview_gain, axis=-1)
+            + np.sum(obs[:, -self.preview_points :] * self.preview_weight, axis=-1)
         )
         requested = np.clip(force, -self.max_force_n, self.max_force_n)  # what the env takes
         if self.delay_steps:

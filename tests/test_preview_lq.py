@@ -191,3 +191,19 @@ def test_preview_helps_on_a_bump_with_the_same_weights():
         roll = run_episodes(ctrl, {**ctrl.env_kwargs, **env}, episodes=1, episode_length_s=3.0)
         rms[name] = float(np.sqrt(np.mean(roll.signals["car_body_acceleration_m_s2"] ** 2)))
     assert rms["preview"] < 0.93 * rms["lqr"], rms
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"preview_horizon_s": 0.0}, "preview_horizon_s"),
+        ({"preview_points": 0}, "preview_points"),
+        ({"delay_steps": -1}, "delay_steps"),
+        ({"dt_s": float("nan")}, "dt_s"),
+    ],
+)
+def test_bad_preview_arguments_are_named(kwargs, match):
+    from agents.preview_lq import PreviewLQController
+
+    with pytest.raises(ValueError, match=match):
+        PreviewLQController(**kwargs)
