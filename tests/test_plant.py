@@ -614,13 +614,19 @@ def test_block_kernel_mode_falls_back_to_scalar_where_it_must():
 
 
 @pytest.mark.slow
-def test_adaptive_substeps_batch_equals_each_vehicle_alone():
+@pytest.mark.parametrize("spread", [False, True])
+def test_adaptive_substeps_batch_equals_each_vehicle_alone(spread):
     # With adaptive substeps the block kernel sorts its vehicles by substep count; a vehicle's
     # result must not depend on its block mates: the batch (multi-threaded, 2 blocks) against
-    # each of a sample of vehicles stepped alone.
+    # each of a sample of vehicles stepped alone. ``spread``: every third vehicle takes 100x
+    # the substeps, counts too far apart for the kernel's counting sort (its fallback).
     damper = ReferenceDamper()
     n = PARALLEL_THRESHOLD + 7
     inp = _block_inputs(damper, n, seed=8)
+    if spread:
+        inp["table"] = np.ascontiguousarray(
+            inp["table"] * np.where(np.arange(n) % 3, 1, 100)[:, None]
+        )
     mode = block.block_kernel_mode(damper.code, inp["dp"])
     s_all = _run_kernel(mode, inp, n, damper.code, threaded=True)
     for row in (0, 5, 33, 63, 64, n - 1):

@@ -313,15 +313,27 @@ def _output_lanes(model, uniform, wv, count, p_uniform):
 
 @njit(cache=True, **INTERNAL)
 def _sort_by_substeps(nsub_of, nb, lo, order):
-    """Stable sort of the block's vehicles by their substep count (insertion sort: a block has
-    at most 64 vehicles, mostly in order already): ``order[rank]`` = vehicle index."""
-    for m in range(nb):
-        ns = nsub_of[m]
-        r = m
-        while r > 0 and nsub_of[order[r - 1] - lo] > ns:
-            order[r] = order[r - 1]
-            r -= 1
-        order[r] = lo + m
+    """Stable sort of the block's vehicles by their substep count: ``order[rank]`` = vehicle
+    index. A counting sort (the counts span a few values): linear in the block size whatever
+    the order. (An insertion sort, used for a while, moves O(nb^2) entries when the currents,
+    and so the counts, are random from vehicle to vehicle: 10 % of a ``hils`` step.)"""
+    lo_sub, hi_sub = nsub_of[0], nsub_of[0]
+    for m in range(1, nb):
+        lo_sub, hi_sub = min(lo_sub, nsub_of[m]), max(hi_sub, nsub_of[m])
+    if hi_sub - lo_sub < BLOCK:
+        start = np.zeros(BLOCK + 1, dtype=np.int64)  # start[c]: first rank of count lo_sub + c
+        for m in range(nb):
+            start[nsub_of[m] - lo_sub + 1] += 1
+        for c in range(1, BLOCK + 1):
+            start[c] += start[c - 1]
+        for m in range(nb):
+            c = nsub_of[m] - lo_sub
+            order[start[c]] = lo + m
+            start[c] += 1
+    else:  # a hand-made table with widely spread entries
+        ranks = np.argsort(nsub_of[:nb], kind="mergesort")
+        for m in range(nb):
+            order[m] = lo + ranks[m]
 
 
 def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
