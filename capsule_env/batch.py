@@ -36,14 +36,13 @@ from capsule_env.env_kernel import (
     DELAY_WRITE,
     OBS_FULL_STATE,
     OBSERVATION_CODES,
-    EnvOutputs,
     EnvParams,
     EnvState,
     command_path,
     noise_pairs,
 )
 from capsule_env.guideway import make_profile, random_profile
-from capsule_env.kernels import ENV, BatchedKernel
+from capsule_env.kernels import ENV, BatchedKernel, env_args
 from capsule_env.layout import (
     BODY_DISP,
     BOGIE_DISP,
@@ -120,6 +119,9 @@ class CapsuleBatch:
     ``obs``, ``reward``, ``terminated``, ``step_count``; ``applied_current``; the route
     ``profile_index``, ``start_position``, ``speed``, ``gain`` over the guideway bank
     ``profiles`` (spacing ``spacing``); ``vehicle_params``, ``damper_params``, ``sub_table``.
+    The kernel's named structures ``params``, ``plant_params``, ``env_state`` are read-only:
+    the kernel is bound to them (and to the arrays above) at the first step, so change values
+    in place, never assign new arrays or structures.
     """
 
     def __init__(self, config: EnvConfig, num_envs: int = 1, fresh_signals: bool = True) -> None:
@@ -142,7 +144,7 @@ class CapsuleBatch:
 
         # What stays fixed: the options as the kernel reads them.
         noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
-        self.params = EnvParams(
+        self._params = EnvParams(
             max_force_n=float(config.max_force_n),
             i_max_a=float(self.i_max),
             dt_s=float(self.dt),
@@ -181,7 +183,7 @@ class CapsuleBatch:
         self.block_constants = block_constants(
             self.plant.code, self.damper_params, self.dt, self.sub_table
         )
-        self.plant_params = PlantParams(
+        self._plant_params = PlantParams(
             self.damper_params, self.vehicle_params, self.sub_table, self.block_constants,
             self.profiles, float(self.spacing),
         )  # fmt: skip
@@ -198,7 +200,7 @@ class CapsuleBatch:
         self.delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
         self._delay_slots = np.zeros(2, dtype=np.int64)
         self._delay_pos = 0
-        self.env_state = EnvState(
+        self._env_state = EnvState(
             self.state,
             Route(self.profile_index, self.start_position, self.speed, self.gain),
             self.floats, self.step_count, self.noise_key, self.measured, self.delay_buf,
@@ -211,12 +213,28 @@ class CapsuleBatch:
         self.plant_out = np.zeros((n, N_PLANT_OUTPUTS))
         self._new_signals(np.zeros)
         self._action_buf = np.zeros(n)
+        self._env_args: Any = None  # the kernel's EnvArgs, made at the first step (_run)
         self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
         self._kernel = BatchedKernel(
             ENV, self.plant.code, self.kernel_mode, n,
             command_path(self.params.current_mode, self.params.inverse_code),
             preview=config.preview_points > 0,
         )  # fmt: skip
+
+    @property
+    def params(self) -> EnvParams:
+        """The options as the kernel reads them (read-only)."""
+        return self._params
+
+    @property
+    def plant_params(self) -> PlantParams:
+        """Each vehicle's plant (read-only; its arrays change in place at resets)."""
+        return self._plant_params
+
+    @property
+    def env_state(self) -> EnvState:
+        """What evolves, per vehicle (read-only; its arrays change in place)."""
+        return self._env_state
 
     def _new_signals(self, allocate: Any) -> None:
         self._signals_buf = allocate((N_SIGNALS, self.num_envs + _SIGNAL_PADDING))
@@ -382,9 +400,19 @@ class CapsuleBatch:
         n_buf = self.delay_buf.shape[1]
         self._delay_slots[DELAY_WRITE] = self._delay_pos % n_buf
         self._delay_slots[DELAY_READ] = (self._delay_pos + 1) % n_buf
-        outputs = EnvOutputs(self.obs, self.reward, self.terminated, self._signals_buf,
-                             self.plant_out)  # fmt: skip
-        self._kernel(self._action_buf, self.params, self.plant_params, self.env_state, outputs)
+        args = self._env_args
+        if args is None:  # boxed once: a call then unboxes one object (kernels.EnvArgs)
+            args = self._env_args = env_args(
+                self.params, self.plant_params, self.env_state, self.obs, self.reward,
+                self.terminated, self.plant_out,
+            )  # fmt: skip
+        self._kernel(self._action_buf, self._signals_buf, args)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # A copy (copy.deepcopy: new arrays) makes its own EnvArgs at its first step.
+        state = self.__dict__.copy()
+        state["_env_args"] = None
+        return state
 
     @property
     def truncated(self) -> np.ndarray:

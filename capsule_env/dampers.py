@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from capsule_env._fastmath import FAST, INTERNAL, fast_exp, fast_tanh_nonneg
+from capsule_env._fastmath import BORROWED, FAST, fast_exp, fast_tanh_nonneg
 from capsule_env._validation import (
     check_array_in_range,
     check_choice,
@@ -404,13 +404,13 @@ def bi_exponential_branch(p, x: float):
 # parameters (an array row or a tuple), ``i``: the actual coil current (A).
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def spencer_inv_dashpots(p, i: float) -> float:
     """``1 / (c0 + c1)`` of the reference (Spencer) damper at current ``i``."""
     return 1.0 / ((p[SP_C0A] + p[SP_C0B] * i) + (p[SP_C1A] + p[SP_C1B] * i))
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def spencer_force(p, x: float, v: float, y: float, z: float, i: float, inv_c: float):
     """Reference (Spencer) damper: ``(F, y')`` with ``inv_c = 1 / (c0 + c1)`` at ``i``
     (:func:`spencer_inv_dashpots`, computed ahead, off the integrator's dependency chain)."""
@@ -421,7 +421,7 @@ def spencer_force(p, x: float, v: float, y: float, z: float, i: float, inv_c: fl
     return c1 * y_dot + p[SP_K1] * (x - p[SP_X0]), y_dot
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def bouc_wen_force(p, x: float, v: float, z: float, i: float) -> float:
     """Bouc-Wen damper (paper eq. 1): ``F = c0 v + k0 (x - x0) + alpha z``."""
     return (
@@ -431,7 +431,7 @@ def bouc_wen_force(p, x: float, v: float, z: float, i: float) -> float:
     )
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def tanh_force(p, x: float, v: float, i: float) -> float:
     """Hyperbolic-tangent model (paper eq. 3) with the sign of the stroke blended."""
     sx = 2.0 * branch_weight(x, p[BRANCH_BLEND]) - 1.0
@@ -446,7 +446,7 @@ def tanh_force(p, x: float, v: float, i: float) -> float:
     return force + p[TH_F0_A] + p[TH_F0_B] * i
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def bi_exponential_force(p, x: float, v: float, i: float) -> float:
     """Bi-exponential model (paper eq. 4, reconstructed) with the branches blended."""
     a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST, INTERNAL, fast_cos_2pi, fast_log
+from capsule_env._fastmath import BORROWED, FAST, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
@@ -83,7 +83,7 @@ from capsule_env.layout import (
     VF_POSITION_ERROR,
     VF_REWARD_FILTER,
 )
-from capsule_env.plant.block import guideway_elevation, row_params
+from capsule_env.plant.block import BLOCK, guideway_elevation, row_params
 from capsule_env.plant.params import Route
 
 __all__ = [
@@ -95,6 +95,7 @@ __all__ = [
     "OBS_MEASURED",
     "OBSERVATION_CODES",
     "noise_pairs",
+    "NOISE_SCRATCH_SHAPE",
     "COMMAND_CURRENT",
     "command_path",
 ]
@@ -115,6 +116,8 @@ _CHANNELS_READ = {
         NOISE_CURRENT,
     ),  # fmt: skip
 }
+#: Shape of :func:`env_sense`'s scratch: a row per noise channel, a column per vehicle of a block.
+NOISE_SCRATCH_SHAPE = (N_NOISE_CHANNELS + 1, BLOCK)
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
 
@@ -220,7 +223,7 @@ def gaussian_pair(key, step, pair):
     return radius * fast_cos_2pi(u2), radius * fast_cos_2pi(u2 - 0.25)
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
     """Sensor noise of channels ``2 pair`` and ``2 pair + 1`` for ``nb`` vehicles (a SIMD loop:
     the views start at the block's first vehicle)."""
@@ -229,7 +232,7 @@ def _noise_lanes(keys, steps, pair, nb, out_a, out_b):
 
 
 # ----------------------------------------------------------------------------- commands
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def _current_lanes(actions, i_max, i_command, f_desired):
     """Current mode: action in [-1, 1] -> command in [0, i_max] (no force request)."""
     for j in range(actions.shape[0]):
@@ -248,7 +251,7 @@ def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_c
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(_inverse_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+@overload(_inverse_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
 def _inverse_lanes_impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command,
                         f_desired):  # fmt: skip
     if not isinstance(inv_code, types.IntegerLiteral):
@@ -275,7 +278,7 @@ def env_commands(command, lo, hi, actions, params, state, out):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(env_commands, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+@overload(env_commands, prefer_literal=True, jit_options={**FAST, **BORROWED})
 def _env_commands(command, lo, hi, actions, params, state, out):
     if not isinstance(command, types.IntegerLiteral) or isinstance(lo, types.Literal):
         return None  # specialise on the command path only
@@ -312,16 +315,17 @@ def _env_commands(command, lo, hi, actions, params, state, out):
 
 
 # ----------------------------------------------------------------------------- sensing
-@njit(**FAST, **INTERNAL)
-def env_sense(lo, hi, params, plant, state, out):
-    """Vehicles ``lo .. hi-1`` after the plant step: sensor noise, measurements, reward,
-    bump stop, signals and observations (clipped to where the sensors saturate; the guideway
-    preview columns are :func:`env_preview`'s)."""
+@njit(**FAST, **BORROWED)
+def env_sense(lo, hi, params, plant, state, out, noise):
+    """Vehicles ``lo .. hi-1`` (at most ``BLOCK``) after the plant step: sensor noise,
+    measurements, reward, bump stop, signals and observations (clipped to where the sensors
+    saturate; the guideway preview columns are :func:`env_preview`'s). ``noise`` is scratch
+    of :data:`NOISE_SCRATCH_SHAPE` from the caller (this function allocates nothing)."""
     x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
     std = params.noise_std
     nb = hi - lo
     # 1. sensor noise, one Box-Muller pair of channels at a time across the block
-    noise = np.empty((N_NOISE_CHANNELS + 1, nb))  # rows that are read get written
+    # rows that are read get written (their first nb columns)
     if not params.noisy:
         noise[:] = 0.0
     else:
@@ -443,7 +447,7 @@ def env_sense(lo, hi, params, plant, state, out):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def env_preview(lo, hi, params, plant, state, obs):
     """Vehicles ``lo .. hi-1`` after :func:`env_sense`: the guideway preview columns of their
     observations (:func:`preview_row`), clipped to the observation space. Called by the
@@ -456,7 +460,7 @@ def env_preview(lo, hi, params, plant, state, obs):
             obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def preview_row(n, params, plant, state, obs):
     """The guideway preview columns of vehicle ``n`` (the last ``preview_points`` of its
     observation, clipped by the caller): the surveyed elevation ``k * preview_step_s`` ahead of

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from capsule_env._fastmath import FAST, INTERNAL, fast_exp, fast_log
+from capsule_env._fastmath import BORROWED, FAST, fast_exp, fast_log
 
 __all__ = [
     "hysteresis_update",
@@ -118,7 +118,7 @@ def riccati_constants(a_coef: np.ndarray, gamma: np.ndarray, beta: np.ndarray) -
     return np.stack((a, 1.0 / a, r_l, 1.0 / r_l, k_l, r_u, 1.0 / r_u, k_u, 1.0 / k_u), axis=1)
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def hysteresis_update_fast(z0, du, a, inv_a, r_l, inv_r_l, k_l, r_u, inv_r_u, k_u, inv_k_u,
                            tanh_unload):  # fmt: skip
     """:func:`hysteresis_update` without branches or library calls (so that a loop over

@@ -138,6 +138,37 @@ def test_parallel_kernel_matches_serial_bit_for_bit():
         np.testing.assert_array_equal(big.state[k], b.state[0])
 
 
+@pytest.mark.parametrize("num_envs", [1, 80])  # the serial and the threaded kernel
+def test_a_deep_copy_steps_on_its_own_arrays(num_envs):
+    # The kernel is bound to a batch's arrays at its first step (kernels.EnvArgs). A copy
+    # made mid-episode has arrays of its own: stepped with the same actions it follows the
+    # original bit for bit, and stepping it leaves the original untouched.
+    import copy
+
+    batch = CapsuleBatch(EnvConfig(setting="hils"), num_envs)
+    batch.seed(5)
+    batch.reset()
+    actions = np.random.default_rng(4).uniform(-1, 1, (60, num_envs))
+    for a in actions[:20]:
+        batch.step(a)
+    twin = copy.deepcopy(batch)
+    for a in actions[20:40]:
+        twin.step(a)
+    np.testing.assert_array_equal(batch.step_count, 20)  # the original did not move
+    for a in actions[20:40]:
+        batch.step(a)
+    for name in ("state", "obs", "reward", "signals", "step_count"):
+        np.testing.assert_array_equal(getattr(twin, name), getattr(batch, name))
+    assert twin.state.ctypes.data != batch.state.ctypes.data
+
+
+def test_the_kernels_named_structures_cannot_be_replaced():
+    batch = CapsuleBatch(EnvConfig(), 1)
+    for name in ("params", "plant_params", "env_state"):
+        with pytest.raises(AttributeError, match=name):
+            setattr(batch, name, getattr(batch, name))
+
+
 def test_nan_action_raises_and_out_of_range_is_clipped():
     env = gym.make(ENV_ID)
     env.reset(seed=0)

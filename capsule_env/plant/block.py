@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST, INTERNAL
+from capsule_env._fastmath import BORROWED, FAST, INTERNAL
 from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
@@ -157,7 +157,7 @@ def _slot(rank):
 # The lane accessors are inlined by LLVM (forceinline), not by numba: numba's inlining copies
 # their IR into the loop at every call site (two vehicles per iteration: twice) before typing
 # and lowering it, which made the loop the costliest function of a first step to compile.
-@njit(**FAST, **INTERNAL, forceinline=True)
+@njit(**FAST, **BORROWED, forceinline=True)
 def _lane_values(wv, j):
     """The scratch values of one vehicle (rows z_c .. zg_end) as a tuple (offset ``j``)."""
     return (
@@ -169,7 +169,7 @@ def _lane_values(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, **INTERNAL, forceinline=True)
+@njit(**FAST, **BORROWED, forceinline=True)
 def _lane_constants(wv, j):
     """The Riccati constants of one vehicle from the scratch view."""
     b = j + _W_A * HALF
@@ -179,7 +179,7 @@ def _lane_constants(wv, j):
     )  # fmt: skip
 
 
-@njit(**FAST, **INTERNAL, forceinline=True)
+@njit(**FAST, **BORROWED, forceinline=True)
 def _lane_params(wv, j):
     """The packed damper parameters of one vehicle from the scratch view."""
     b = j + _W_P * HALF
@@ -211,7 +211,7 @@ def _row_constants(derived, n):
     )  # fmt: skip
 
 
-@njit(**FAST, **INTERNAL, forceinline=True)
+@njit(**FAST, **BORROWED, forceinline=True)
 def _store_lane(wv, j, new, active):
     """Write a vehicle's new state (rows z_c .. t and zg_start) if ``active`` (a select)."""
     wv[j + 0 * HALF] = new[0] if active else wv[j + 0 * HALF]
@@ -225,7 +225,7 @@ def _store_lane(wv, j, new, active):
     wv[j + _W_ZG0 * HALF] = new[8] if active else wv[j + _W_ZG0 * HALF]
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
     """Guideway elevation at the middle and end of the substep of the sorted vehicles
     ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
@@ -254,7 +254,7 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
 def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
     if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
         return None  # specialise on the model, hysteresis and uniform flag only
@@ -290,7 +290,7 @@ def output_lanes(model, uniform, wv, count, p_uniform):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
 def _output_lanes(model, uniform, wv, count, p_uniform):
     if not isinstance(model, types.IntegerLiteral):
         return None

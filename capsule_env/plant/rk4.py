@@ -28,7 +28,7 @@ from __future__ import annotations
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST, INTERNAL
+from capsule_env._fastmath import BORROWED, FAST
 from capsule_env.dampers import (
     BI_EXPONENTIAL,
     BOUC_WEN,
@@ -71,7 +71,7 @@ LANE_INPUT_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t", "h", "i_cmd"
 # literal argument still types, lowers and optimises every branch of ``if model == ...``:
 # numba prunes branches on constants and closure variables, not on literal arguments. With
 # the four damper laws behind such branches, a kernel compiled the code of every model.)
-_JIT = {**FAST, **INTERNAL}
+_JIT = {**FAST, **BORROWED}
 
 
 def _literals(*codes) -> bool:
@@ -172,7 +172,7 @@ def _advance_z_impl(model, hysteresis, z, du, p, hc):
     return impl
 
 
-@njit(**FAST, **INTERNAL, forceinline=True)
+@njit(**FAST, **BORROWED, forceinline=True)
 def rk4_substep(model, hysteresis, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
     damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
@@ -220,7 +220,7 @@ def rk4_substep(model, hysteresis, v, p, hc):
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
-@njit(**FAST, **INTERNAL)
+@njit(**FAST, **BORROWED)
 def plant_outputs(model, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb, ks, kp, zg):
     """``(damper force, body acceleration, bogie acceleration)`` at a state."""
     force, _ = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic,

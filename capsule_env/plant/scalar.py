@@ -14,7 +14,7 @@ import math
 from numba import types
 from numba.extending import overload
 
-from capsule_env._fastmath import FAST, INTERNAL
+from capsule_env._fastmath import BORROWED, FAST
 from capsule_env.dampers import BOUC_WEN, PASSIVE, REFERENCE
 from capsule_env.layout import (
     BODY_DISP,
@@ -52,7 +52,7 @@ def scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(scalar_step, prefer_literal=True, jit_options={**FAST, **INTERNAL})
+@overload(scalar_step, prefer_literal=True, jit_options={**FAST, **BORROWED})
 def _scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
     if not isinstance(model, types.IntegerLiteral):
         return None
