@@ -132,7 +132,7 @@ def _new_env_args_impl(params, plant, state, obs, reward, terminated, plant_out)
     return impl
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)  # called from Python only
 def env_args(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN201
     """:class:`EnvArgs` of ``EnvParams``, ``PlantParams``, ``EnvState`` and the output arrays
     ``obs``, ``reward``, ``terminated``, ``plant_out`` (``EnvOutputs`` but ``signals``)."""
