@@ -40,6 +40,7 @@ slower than the serial kernel at N = 64: their thread wake-up costs 50-80 us a s
 
 from __future__ import annotations
 
+import functools
 import os
 from typing import Any
 
@@ -246,21 +247,34 @@ class BatchedKernel:
     ) -> None:  # fmt: skip
         self.serial, self.parallel = kernels(kind, model, mode, command, preview)
         self.num_envs = num_envs
-        self._entry: dict[bool, Any] = {}
+        self._threaded = num_envs >= PARALLEL_THRESHOLD
+        # compiled entry points with their leading arguments bound, by "threaded"; _entry is
+        # the one a call normally takes (the serial one in a forked child is in _entries)
+        self._entries: dict[bool, Any] = {}
+        self._entry: Any = None
 
     def __call__(self, *args: Any) -> None:
+        entry = self._entry
+        if entry is not None and not (self._threaded and _serial_only):
+            entry(*args)
+            return
+        self._call_slow(args)
+
+    def _call_slow(self, args: tuple[Any, ...]) -> None:
         global _launched_parallel
         n = self.num_envs
-        threaded = n >= PARALLEL_THRESHOLD and not _serial_only
-        head = (n,) if threaded else (0, n)
-        entry = self._entry.get(threaded)
+        threaded = self._threaded and not _serial_only
+        entry = self._entries.get(threaded)
         if entry is not None:
-            entry(*head, *args)
+            entry(*args)
             return
+        head = (n,) if threaded else (0, n)
         dispatcher = self.parallel if threaded else self.serial
         _launched_parallel |= threaded
         dispatcher(*head, *args)  # compiles (or loads from the cache) on the first call
         signature = tuple(dispatcher.typeof_pyval(a) for a in (*head, *args))
         compiled = dispatcher.overloads.get(signature)
         if compiled is not None:
-            self._entry[threaded] = compiled.entry_point
+            entry = self._entries[threaded] = functools.partial(compiled.entry_point, *head)
+            if threaded == self._threaded:
+                self._entry = entry

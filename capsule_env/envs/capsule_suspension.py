@@ -327,7 +327,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         )
 
     def _info(self) -> dict[str, Any]:
-        return dict(zip(SIGNAL_NAMES, self._batch.signals[:, 0].tolist(), strict=True))
+        # signals has N_SIGNALS = len(SIGNAL_NAMES) rows (layout); zip's strict check would
+        # cost a sixth of this dict's 1.1 us
+        return dict(zip(SIGNAL_NAMES, self._batch.signals[:, 0].tolist()))  # noqa: B905
 
     def render(self) -> np.ndarray | None:
         """A side view of the vehicle (RGB array) with ``render_mode="rgb_array"``, else None."""
