@@ -29,6 +29,9 @@ small allocation each). The env kernel reads about 26 arrays through its named s
 passed as tuples they cost about 1.4 us a call (measured: 1.84 us against 0.41 us for one
 ``EnvArgs``), a fifth of a single env's step. ``EnvArgs`` is a numba ``StructRef``: boxed once
 per batch, it holds the same arrays (their memory, not copies) and unboxes as one pointer.
+Inside, the functions that allocate nothing are compiled without reference counting
+(:data:`capsule_env._fastmath.BORROWED`), so that reading the arrays out of the structures costs
+no atomic operations either.
 
 Fork: numba's fastest threading layer here is GNU OpenMP, which terminates a child process that
 launches a parallel region after its parent did (``fork() called from a process already using
