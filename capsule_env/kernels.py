@@ -60,7 +60,7 @@ from capsule_env.env_kernel import (
     env_sense,
 )
 from capsule_env.layout import VF_APPLIED
-from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_step
+from capsule_env.plant.block import BLOCK, COUNT_ROWS, KERNEL_SCALAR, LANES_SIZE, block_step
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.scalar import scalar_step
 
@@ -176,7 +176,9 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
         def serial(lo, hi, actions, signals, args):
             params, plant, state = args.params, args.plant, args.state
             out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
-            noise = np.empty(NOISE_SCRATCH_SHAPE)  # env_sense's scratch, one per call
+            # scratch of env_sense and block_step, one per call (they allocate nothing)
+            noise = np.empty(NOISE_SCRATCH_SHAPE)
+            lanes, counts = np.empty(LANES_SIZE), np.empty((COUNT_ROWS, BLOCK + 1), np.int64)
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 env_commands(command, b, e, actions, params, state, out)
@@ -184,7 +186,10 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
                 if mode == KERNEL_SCALAR:
                     scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
                 else:
-                    block_step(model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+                    block_step(
+                        model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
+                        lanes, counts,
+                    )  # fmt: skip
                 env_sense(b, e, params, plant, state, out, noise)
                 if preview:
                     env_preview(b, e, params, plant, state, out.obs)
@@ -201,12 +206,13 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
         @njit(cache=True, no_cfunc_wrapper=True)
         @_unique(variant)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
+            lanes, counts = np.empty(LANES_SIZE), np.empty((COUNT_ROWS, BLOCK + 1), np.int64)
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 if mode == KERNEL_SCALAR:
                     scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
                 else:
-                    block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out)
+                    block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out, lanes, counts)
 
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
         @_unique(variant)

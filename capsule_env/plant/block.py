@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from capsule_env._fastmath import BORROWED, FAST, INTERNAL
+from capsule_env._fastmath import BORROWED, FAST
 from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
@@ -85,6 +85,12 @@ _W_ROWS = _W_P + N_DAMPER_PARAMS
 #: The scratch array holds two halves (even and odd sorted ranks), rows HALF apart.
 HALF = BLOCK // 2
 _W_HALF_SIZE = _W_ROWS * HALF
+#: Scratch of :func:`block_step`, given by its caller (one per kernel call, reused block after
+#: block): the lanes' working array (two halves of ``_W_ROWS`` rows, plus the padding that
+#: masked SIMD lanes read), and ``COUNT_ROWS`` int64 rows of ``BLOCK + 1``.
+LANES_SIZE = 2 * _W_HALF_SIZE + 8
+COUNT_ROWS = 5
+_C_NSUB_OF, _C_BIN_OF, _C_NSUB, _C_ORDER, _C_START = range(COUNT_ROWS)
 #: Columns of :func:`block_constants`: the Riccati constants, then the coil-lag factor
 #: ``exp(-h / (2 tau))`` of each substep-table bin.
 _D_EHALF = N_RICCATI_CONSTANTS
@@ -311,17 +317,19 @@ def _output_lanes(model, uniform, wv, count, p_uniform):
     return impl
 
 
-@njit(cache=True, **INTERNAL)
-def _sort_by_substeps(nsub_of, nb, lo, order):
+@njit(**FAST, **BORROWED)
+def _sort_by_substeps(nsub_of, nb, lo, order, start):
     """Stable sort of the block's vehicles by their substep count: ``order[rank]`` = vehicle
-    index. A counting sort (the counts span a few values): linear in the block size whatever
-    the order. (An insertion sort, used for a while, moves O(nb^2) entries when the currents,
-    and so the counts, are random from vehicle to vehicle: 10 % of a ``hils`` step.)"""
+    index (``start``: ``BLOCK + 1`` int64 of scratch). A counting sort (the counts span a few
+    values): linear in the block size whatever the order. (An insertion sort, used for a
+    while, moves O(nb^2) entries when the currents, and so the counts, are random from vehicle
+    to vehicle: 10 % of a ``hils`` step.) Counts spread over ``BLOCK`` or more values (a
+    hand-made table) take a stable insertion sort: the same order, rare, and no allocation."""
     lo_sub, hi_sub = nsub_of[0], nsub_of[0]
     for m in range(1, nb):
         lo_sub, hi_sub = min(lo_sub, nsub_of[m]), max(hi_sub, nsub_of[m])
     if hi_sub - lo_sub < BLOCK:
-        start = np.zeros(BLOCK + 1, dtype=np.int64)  # start[c]: first rank of count lo_sub + c
+        start[:] = 0  # start[c]: first rank of count lo_sub + c
         for m in range(nb):
             start[nsub_of[m] - lo_sub + 1] += 1
         for c in range(1, BLOCK + 1):
@@ -331,19 +339,24 @@ def _sort_by_substeps(nsub_of, nb, lo, order):
             order[start[c]] = lo + m
             start[c] += 1
     else:  # a hand-made table with widely spread entries
-        ranks = np.argsort(nsub_of[:nb], kind="mergesort")
         for m in range(nb):
-            order[m] = lo + ranks[m]
+            r = m
+            while r > 0 and nsub_of[order[r - 1] - lo] > nsub_of[m]:
+                order[r] = order[r - 1]
+                r -= 1
+            order[r] = lo + m
 
 
-def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
     """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt`` with the vectorised kernel
-    (``mode`` a block mode of :func:`block_kernel_mode`). Compiled once per (model, mode)."""
+    (``mode`` a block mode of :func:`block_kernel_mode`). ``lanes`` (``LANES_SIZE``,) float64
+    and ``counts`` (``COUNT_ROWS``, ``BLOCK + 1``) int64 are scratch from the caller: this
+    function allocates nothing. Compiled once per (model, mode)."""
     raise NotImplementedError  # pragma: no cover - compiled from the overload
 
 
-@overload(block_step, prefer_literal=True, jit_options={**FAST, **INTERNAL})
-def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+@overload(block_step, prefer_literal=True, jit_options={**FAST, **BORROWED})
+def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
     if not isinstance(model, types.IntegerLiteral):
         return None
     m, md = model.literal_value, mode.literal_value
@@ -356,24 +369,22 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
     else:
         hyst = HYST_FAST_LINEAR_UNLOAD
 
-    def impl(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
+    def impl(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
         dp, vp, table, derived = plant.damper, plant.vehicle, plant.substeps, plant.constants
         profiles, spacing = plant.profiles, plant.spacing_m
         nb = hi - lo
         # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD
         # lanes. The columns that only masked lanes read are zeroed, so that no lane computes
         # on denormal garbage (slow on x86); the rest is written below.
-        w = np.empty(2 * _W_HALF_SIZE + 8)
+        w = lanes
         w[2 * _W_HALF_SIZE :] = 0.0
         end = (nb + 1) >> 1
         for col in range(end, min(end + 3, HALF)):
             for r in range(_W_ROWS):
                 w[r * HALF + col] = 0.0
                 w[_W_HALF_SIZE + r * HALF + col] = 0.0
-        nsub_of = np.empty(BLOCK, dtype=np.int64)
-        bin_of = np.empty(BLOCK, dtype=np.int64)
-        nsub = np.empty(BLOCK, dtype=np.int64)
-        order = np.empty(BLOCK, dtype=np.int64)
+        nsub_of, bin_of, nsub = counts[_C_NSUB_OF], counts[_C_BIN_OF], counts[_C_NSUB]
+        order = counts[_C_ORDER]
         n_bins = table.shape[1]
         for j in range(nb):  # substeps per vehicle (from the highest current of the interval)
             n = lo + j
@@ -384,7 +395,7 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out):
             b = min(max(b, 0), n_bins - 1)
             nsub_of[j] = table[n, b]
             bin_of[j] = b
-        _sort_by_substeps(nsub_of, nb, lo, order)
+        _sort_by_substeps(nsub_of, nb, lo, order, counts[_C_START])
         last = profiles.shape[1] - 1.0
         for rank in range(nb):
             n = order[rank]
