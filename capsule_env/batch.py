@@ -16,6 +16,7 @@ on the batch size, the batch position or threading.
 from __future__ import annotations
 
 import math
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -102,6 +103,12 @@ def _clip_actions(actions, out):
     return bad
 
 
+def _bound(name: str, doc: str) -> property:
+    """A read-only attribute for an array the kernel is bound to (stored as ``_<name>``; a C
+    getter, about as fast as a plain attribute)."""
+    return property(attrgetter(f"_{name}"), doc=f"{doc} (read-only: the kernel is bound to it)")
+
+
 class CapsuleBatch:
     """``N`` capsule vehicles stepped together by one compiled kernel.
 
@@ -114,15 +121,35 @@ class CapsuleBatch:
 
     Notes
     -----
-    Public attributes (arrays, one row or entry per vehicle; read them, do not resize them):
-    ``state`` (N, STATE_SIZE) plant state; ``signals`` (N_SIGNALS, N) this step's signals;
-    ``obs``, ``reward``, ``terminated``, ``step_count``; ``applied_current``; the route
-    ``profile_index``, ``start_position``, ``speed``, ``gain`` over the guideway bank
-    ``profiles`` (spacing ``spacing``); ``vehicle_params``, ``damper_params``, ``sub_table``.
-    The kernel's named structures ``params``, ``plant_params``, ``env_state`` are read-only:
-    the kernel is bound to them (and to the arrays above) at the first step, so change values
-    in place, never assign new arrays or structures.
+    Public attributes (arrays, one row or entry per vehicle): ``state`` (N, STATE_SIZE) plant
+    state; ``signals`` (N_SIGNALS, N) this step's signals; ``obs``, ``reward``,
+    ``terminated``, ``step_count``; ``applied_current``; the route ``profile_index``,
+    ``start_position``, ``speed``, ``gain`` over the guideway bank ``profiles`` (spacing
+    ``spacing``); ``vehicle_params``, ``damper_params``, ``sub_table``. The kernel is bound to
+    these arrays and to its named structures ``params``, ``plant_params``, ``env_state``
+    (:class:`capsule_env.kernels.EnvArgs`, made at the first step): they are read-only
+    attributes. Change values in place; never resize them.
     """
+
+    profiles = _bound("profiles", "(K, L) guideway bank (m)")
+    damper_params = _bound("damper_params", "(N, N_DAMPER_PARAMS) each vehicle's packed damper")
+    vehicle_params = _bound("vehicle_params", "(N, 4) each vehicle's packed masses, stiffnesses")
+    speed = _bound("speed", "(N,) each vehicle's speed (m/s)")
+    sub_table = _bound("sub_table", "(N, SUBSTEP_BINS) RK4 substeps per vehicle, current bin")
+    block_constants = _bound("block_constants", "(N, ...) the block kernel's constants")
+    state = _bound("state", "(N, STATE_SIZE) plant state, columns layout.STATE_NAMES")
+    profile_index = _bound("profile_index", "(N,) int64 each vehicle's profile in the bank")
+    start_position = _bound("start_position", "(N,) each vehicle's start on its profile (m)")
+    gain = _bound("gain", "(N,) each vehicle's profile scale")
+    floats = _bound("floats", "(N_VEHICLE_FLOATS, N) rows layout.VEHICLE_FLOAT_NAMES")
+    step_count = _bound("step_count", "(N,) int64 steps since each vehicle's reset")
+    noise_key = _bound("noise_key", "(N,) uint64 each episode's sensor-noise key")
+    measured = _bound("measured", "(N_MEASUREMENTS, N) rows layout.MEASUREMENT_NAMES")
+    delay_buf = _bound("delay_buf", "(N, delay + 1) ring buffer of current commands (A)")
+    obs = _bound("obs", "(N, obs_dim) float32 observations")
+    reward = _bound("reward", "(N,) this step's rewards")
+    terminated = _bound("terminated", "(N,) bool: bump stop hit this step")
+    plant_out = _bound("plant_out", "(N, N_PLANT_OUTPUTS) the plant kernel's outputs")
 
     def __init__(self, config: EnvConfig, num_envs: int = 1, fresh_signals: bool = True) -> None:
         self.config = config
@@ -137,7 +164,7 @@ class CapsuleBatch:
         self.obs_dim = len(config.observation_names)
         self.guideway = gw = config.guideway_spec
         self.spacing = gw.spacing_m
-        self.profiles = self._build_bank()
+        self._profiles = self._build_bank()
         self.rngs = vehicle_streams(None, n)
         self._nominal_vehicle = self.vehicle.as_array()
         self._fresh_signals = bool(fresh_signals)
@@ -172,15 +199,15 @@ class CapsuleBatch:
             reward_filter=config.reward_filter_sos(),
         )
         # What each vehicle's plant is made of (vehicles may differ, after their resets).
-        self.damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
-        self.vehicle_params = np.ascontiguousarray(np.tile(self._nominal_vehicle, (n, 1)))
-        self.speed = np.full(n, config.speed_kmh / 3.6)
+        self._damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
+        self._vehicle_params = np.ascontiguousarray(np.tile(self._nominal_vehicle, (n, 1)))
+        self._speed = np.full(n, config.speed_kmh / 3.6)
         # substeps per vehicle and current bin, and the block kernel's per-vehicle constants;
         # recomputed at each vehicle's reset when vehicles differ (config.randomizes_substeps)
-        self.sub_table = np.ascontiguousarray(
+        self._sub_table = np.ascontiguousarray(
             np.tile(config.substep_tables(self.vehicle_params[:1], self.speed[:1]), (n, 1))
         )
-        self.block_constants = block_constants(
+        self._block_constants = block_constants(
             self.plant.code, self.damper_params, self.dt, self.sub_table
         )
         self._plant_params = PlantParams(
@@ -188,16 +215,15 @@ class CapsuleBatch:
             self.profiles, float(self.spacing),
         )  # fmt: skip
         # What evolves, per vehicle (one contiguous row per quantity for the SIMD loops).
-        self.state = np.zeros((n, STATE_SIZE))
-        self.profile_index = np.zeros(n, dtype=np.int64)
-        self.start_position = np.zeros(n)
-        self.gain = np.ones(n)
-        self.floats = np.zeros((N_VEHICLE_FLOATS, n))
-        self.applied_current = self.floats[VF_APPLIED]
-        self.step_count = np.zeros(n, dtype=np.int64)
-        self.noise_key = np.zeros(n, dtype=np.uint64)
-        self.measured = np.zeros((N_MEASUREMENTS, n))
-        self.delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
+        self._state = np.zeros((n, STATE_SIZE))
+        self._profile_index = np.zeros(n, dtype=np.int64)
+        self._start_position = np.zeros(n)
+        self._gain = np.ones(n)
+        self._floats = np.zeros((N_VEHICLE_FLOATS, n))
+        self._step_count = np.zeros(n, dtype=np.int64)
+        self._noise_key = np.zeros(n, dtype=np.uint64)
+        self._measured = np.zeros((N_MEASUREMENTS, n))
+        self._delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
         self._delay_slots = np.zeros(2, dtype=np.int64)
         self._delay_pos = 0
         self._env_state = EnvState(
@@ -207,10 +233,10 @@ class CapsuleBatch:
             self._delay_slots,
         )  # fmt: skip
         # What a step writes.
-        self.obs = np.zeros((n, self.obs_dim), dtype=np.float32)
-        self.reward = np.zeros(n)
-        self.terminated = np.zeros(n, dtype=bool)
-        self.plant_out = np.zeros((n, N_PLANT_OUTPUTS))
+        self._obs = np.zeros((n, self.obs_dim), dtype=np.float32)
+        self._reward = np.zeros(n)
+        self._terminated = np.zeros(n, dtype=bool)
+        self._plant_out = np.zeros((n, N_PLANT_OUTPUTS))
         self._new_signals(np.zeros)
         self._action_buf = np.zeros(n)
         self._env_args: Any = None  # the kernel's EnvArgs, made at the first step (_run)
@@ -220,6 +246,12 @@ class CapsuleBatch:
             command_path(self.params.current_mode, self.params.inverse_code),
             preview=config.preview_points > 0,
         )  # fmt: skip
+
+    @property
+    def applied_current(self) -> np.ndarray:
+        """(N,) the current command applied this step, after the control delay (A): a view of
+        ``floats``."""
+        return self._floats[VF_APPLIED]
 
     @property
     def params(self) -> EnvParams:
@@ -413,6 +445,12 @@ class CapsuleBatch:
         state = self.__dict__.copy()
         state["_env_args"] = None
         return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # copy.deepcopy copies a view as an array of its own: make signals a view of the
+        # copy's buffer again (the one its kernel writes)
+        self.__dict__.update(state)
+        self.signals = self._signals_buf[:, : self.num_envs]
 
     @property
     def truncated(self) -> np.ndarray:
