@@ -62,7 +62,7 @@ from capsule_env.env_kernel import (
     env_sense,
 )
 from capsule_env.layout import VF_APPLIED
-from capsule_env.plant.block import BLOCK, COUNT_ROWS, KERNEL_SCALAR, LANES_SIZE, block_step
+from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_scratch, block_step
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.scalar import scalar_step
 
@@ -180,7 +180,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
             out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
             # scratch of env_sense and block_step, one per call (they allocate nothing)
             noise = np.empty(NOISE_SCRATCH_SHAPE)
-            lanes, counts = np.empty(LANES_SIZE), np.empty((COUNT_ROWS, BLOCK + 1), np.int64)
+            lanes, counts = block_scratch()
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 env_commands(command, b, e, actions, params, state, out)
@@ -208,7 +208,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
         @njit(cache=True, no_cfunc_wrapper=True)
         @_unique(variant)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
-            lanes, counts = np.empty(LANES_SIZE), np.empty((COUNT_ROWS, BLOCK + 1), np.int64)
+            lanes, counts = block_scratch()
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 if mode == KERNEL_SCALAR:

@@ -317,6 +317,13 @@ def _output_lanes(model, uniform, wv, count, p_uniform):
     return impl
 
 
+@njit(inline="always")
+def block_scratch():
+    """``(lanes, counts)``: the scratch :func:`block_step` takes, for its caller to make once
+    per kernel call (inlined: no function of its own)."""
+    return np.empty(LANES_SIZE), np.empty((COUNT_ROWS, BLOCK + 1), np.int64)
+
+
 @njit(**FAST, **BORROWED)
 def _sort_by_substeps(nsub_of, nb, lo, order, start):
     """Stable sort of the block's vehicles by their substep count: ``order[rank]`` = vehicle
