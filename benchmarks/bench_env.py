@@ -17,7 +17,12 @@ Measures (pre-sampled actions, the same machine, the same process):
    windows of 1500 steps (the single env: 10 x 1500), ours and the reference alternating,
    3 repeats: the median rate of each and their ratio (short best-of-3 windows flatter a
    threaded kernel on a shared machine);
-7. cold start: a fresh interpreter with ``NUMBA_CACHE_DIR`` an empty folder, ``import
+7. with ``--substep-ceiling``: what the integrator costs. The native vector env at N = 1024 in
+   ``sim`` and ``hils`` with the automatic substeps and with the substeps forced to 1 and 2
+   (accuracy ignored: RK4 at 2 substeps misses the force bound by far in ``hils``), long
+   windows interleaved with CartPole's. Forcing 2 substeps bounds what any cheaper integrator
+   of the stiff damper could reach (docs/model.md 7.4);
+8. cold start: a fresh interpreter with ``NUMBA_CACHE_DIR`` an empty folder, ``import
    capsule_env`` + ``gym.make("CapsuleSuspension-v0")`` + reset + first step (wall and CPU
    seconds: compiling is single-threaded, so the CPU time is what an idle machine's wall time
    would be); with ``--cold-demo`` also ``python evaluate.py`` (the README demo) the same way.
@@ -270,6 +275,27 @@ def long_windows(window_steps: int = 1500, repeats: int = 3, num_envs: int = 102
     return res
 
 
+def substep_ceiling(window_steps: int = 1500, repeats: int = 3, num_envs: int = 1024) -> dict:
+    """Item 7 of the module docstring: each configuration's window rates, median and ratio to
+    CartPole's median, all windows of one repeat run in turn."""
+    runs = {
+        "CartPole-v1": _window(_vector_stepper("CartPole-v1", num_envs), window_steps, num_envs)
+    }
+    for setting in ("sim", "hils"):
+        for substeps in ("auto", 1, 2):
+            kwargs = {"setting": setting} | ({} if substeps == "auto" else {"substeps": substeps})
+            stepper = _vector_stepper("CapsuleSuspension-v0", num_envs, **kwargs)
+            runs[f"{setting}/substeps={substeps}"] = _window(stepper, window_steps, num_envs)
+    res: dict = {"window_steps": window_steps, "repeats": repeats, "num_envs": num_envs,
+                 "load_before": list(os.getloadavg())}  # fmt: skip
+    rates = interleaved(runs, repeats)
+    cart = statistics.median(rates["CartPole-v1"])
+    res["runs"] = {name: {"rates": r, "median": statistics.median(r),
+                          "ratio": statistics.median(r) / cart} for name, r in rates.items()}  # fmt: skip
+    res["load_after"] = list(os.getloadavg())
+    return res
+
+
 def _compare(rates: dict[str, list[float]], ours: str, ref: str) -> dict:
     med = {name: statistics.median(r) for name, r in rates.items()}
     return {"rates": rates, "median": med, "reference": ref, "ratio": med[ours] / med[ref]}
@@ -304,7 +330,19 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also time `python evaluate.py` with an empty numba cache (minutes)",
     )
+    parser.add_argument(
+        "--substep-ceiling",
+        action="store_true",
+        help="also the vector env at N=1024 with the substeps forced to 1 and 2 (minutes)",
+    )
     args = parser.parse_args(argv)
+    if args.json:  # refused now, not after minutes of measuring
+        from capsule_env.safe_io import check_writable_file
+
+        try:
+            check_writable_file(args.json, "--json")
+        except ValueError as exc:
+            parser.exit(2, f"bench_env.py: {exc}\n")
     scale = 0.05 if args.quick else 1.0
     n_single = max(200, int(20_000 * scale))
     import capsule_env  # noqa: F401  (registers the env)
@@ -335,6 +373,9 @@ def main(argv: list[str] | None = None) -> int:
     per_env, bank = memory_per_env(1024, setting="hils")
     res["memory"] = {"bytes_per_env": per_env, "guideway_bank_bytes": bank}
     res["long_window"] = long_windows(max(20, int(1500 * scale)), num_envs=1024)
+    res["substep_ceiling"] = None
+    if args.substep_ceiling:
+        res["substep_ceiling"] = substep_ceiling(max(20, int(1500 * scale)))
     res["cold_start"] = None
     if not args.quick or args.cold:  # the default env (sim), then hils (the other kernels)
         res["cold_start"] = {s: cold_first_step(setting=s) for s in ("sim", "hils")}
@@ -372,6 +413,13 @@ def main(argv: list[str] | None = None) -> int:
             ours, ref = cmp["median"]["capsule"], cmp["median"][cmp["reference"]]
             print(f"  {name:<18}{ours:>14,.0f} vs {cmp['reference']} {ref:>13,.0f}   "
                   f"x{cmp['ratio']:5.2f}")  # fmt: skip
+    if res["substep_ceiling"] is not None:
+        sc = res["substep_ceiling"]
+        print(f"\nsubstep ceiling, N={sc['num_envs']} ({sc['window_steps']} steps, median of "
+              f"{sc['repeats']} interleaved repeats; load {sc['load_before'][0]:.1f} -> "
+              f"{sc['load_after'][0]:.1f})")  # fmt: skip
+        for name, run in sc["runs"].items():
+            print(f"  {name:<20}{run['median']:>14,.0f}   x{run['ratio']:5.2f} CartPole-v1")
     cold = res["cold_start"] or {}
     for setting, c in cold.items():
         print(f"\ncold start, {setting} (empty numba cache; import + make + reset + first step): "
@@ -383,8 +431,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\ncold demo (empty numba cache): python evaluate.py {c['process_wall_s']:.1f} s "
               f"wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(res, fh, indent=2)
+        from capsule_env.safe_io import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps(res, indent=2))
     return 0
 
 

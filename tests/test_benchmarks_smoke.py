@@ -39,7 +39,9 @@ def run_script(*argv: str) -> float:
 def test_bench_env_quick_runs(tmp_path):
     pytest.importorskip("stable_baselines3", reason=NO_SB3)  # its SB3 VecEnv section
     out = tmp_path / "bench.json"
-    process_s = run_script("benchmarks/bench_env.py", "--quick", "--json", str(out))
+    process_s = run_script(
+        "benchmarks/bench_env.py", "--quick", "--substep-ceiling", "--json", str(out)
+    )
     data = json.loads(out.read_text())
     assert {"single", "vector", "sb3", "realtime", "memory", "startup"} <= set(data)
     assert set(data["vector"]) == {f"{env}/N={n}" for n in (1, 64, 1024, 4096)
@@ -69,8 +71,36 @@ def test_bench_env_quick_runs(tmp_path):
             assert cmp["median"][side] == statistics.median(rates)
         ratio = cmp["median"]["capsule"] / cmp["median"][cmp["reference"]]
         assert cmp["ratio"] == pytest.approx(ratio, rel=1e-12)
+    # the substep ceiling: every configuration's windows against CartPole's median
+    ceiling = data["substep_ceiling"]
+    cart = statistics.median(ceiling["runs"]["CartPole-v1"]["rates"])
+    assert set(ceiling["runs"]) == {"CartPole-v1"} | {
+        f"{s}/substeps={n}" for s in ("sim", "hils") for n in ("auto", 1, 2)
+    }
+    for run in ceiling["runs"].values():
+        assert len(run["rates"]) == ceiling["repeats"] and all(
+            0 < r < math.inf for r in run["rates"]
+        )
+        assert run["median"] == statistics.median(run["rates"])
+        assert run["ratio"] == pytest.approx(run["median"] / cart, rel=1e-12)
     # --quick leaves out the cold start (an empty numba cache: compiling takes a while)
     assert data["cold_start"] is None and data["cold_demo"] is None
+
+
+@pytest.mark.parametrize("bad", ["folder", "no-such-parent/out.json"])
+def test_bench_env_refuses_an_unwritable_json_path(tmp_path, bad):
+    target = tmp_path if bad == "folder" else tmp_path / "file" / "out.json"
+    if bad != "folder":
+        (tmp_path / "file").write_text("a file where a folder is needed")
+    result = subprocess.run(
+        [sys.executable, "benchmarks/bench_env.py", "--json", str(target)],
+        cwd=ROOT, capture_output=True, text=True,
+        env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])),
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert "--json" in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert result.stdout == ""  # nothing measured
 
 
 @pytest.mark.rl
