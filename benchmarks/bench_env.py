@@ -4,6 +4,7 @@
     python benchmarks/bench_env.py --json out.json # and writes it as JSON
     python benchmarks/bench_env.py --quick         # fewer steps (smoke test)
     python benchmarks/bench_env.py --cold-demo     # also the README demo with an empty cache
+    python benchmarks/bench_env.py --substep-ceiling  # also the vector env, substeps forced
 
 Measures (pre-sampled actions, the same machine, the same process):
 1. single env through ``gymnasium.make`` vs Pendulum-v1 and CartPole-v1 (steps/s, ratio);
@@ -20,8 +21,10 @@ Measures (pre-sampled actions, the same machine, the same process):
 7. with ``--substep-ceiling``: what the integrator costs. The native vector env at N = 1024 in
    ``sim`` and ``hils`` with the automatic substeps and with the substeps forced to 1 and 2
    (accuracy ignored: RK4 at 2 substeps misses the force bound by far in ``hils``), long
-   windows interleaved with CartPole's. Forcing 2 substeps bounds what any cheaper integrator
-   of the stiff damper could reach (docs/model.md 7.4);
+   windows interleaved with CartPole's, and the mean substeps each configuration took per
+   vehicle-step (counted in a separate, untimed pass by the kernel's rule: the table bin of the
+   interval's highest current). Forcing 2 substeps gives what an integrator of the stiff damper
+   that kept the accuracy bound at 2 substeps could reach at RK4's cost (docs/model.md 7.4);
 8. cold start: a fresh interpreter with ``NUMBA_CACHE_DIR`` an empty folder, ``import
    capsule_env`` + ``gym.make("CapsuleSuspension-v0")`` + reset + first step (wall and CPU
    seconds: compiling is single-threaded, so the CPU time is what an idle machine's wall time
@@ -226,7 +229,12 @@ def _vector_stepper(env_id: str, num_envs: int, **kwargs):
     actions = [env.action_space.sample() for _ in range(200)]
     for k in range(20):  # compiled (or loaded), threads started, caches warm
         env.step(actions[k])
-    return lambda k: env.step(actions[k % 200])
+
+    def step(k):
+        env.step(actions[k % 200])
+
+    step.env, step.actions = env, actions
+    return step
 
 
 def _single_stepper(env_id: str, **kwargs):
@@ -275,23 +283,50 @@ def long_windows(window_steps: int = 1500, repeats: int = 3, num_envs: int = 102
     return res
 
 
+def mean_substeps(env, actions: list, steps: int = 200) -> float:
+    """Mean RK4 substeps per vehicle-step of a native vector env over ``steps`` further steps:
+    each vehicle's substep-table bin of the highest current its interval can see (the command,
+    and with coil lag the current at the start; ``plant/block.py``)."""
+    from capsule_env.layout import COIL_CURRENT, COIL_TAU, I_MAX
+
+    batch = env.unwrapped.batch
+    i_max, tau = batch.damper_params[:, I_MAX], batch.damper_params[:, COIL_TAU]
+    bins = batch.sub_table.shape[1]
+    rows = np.arange(len(i_max))
+    total = 0
+    for k in range(steps):
+        i_start = batch.state[:, COIL_CURRENT].copy()
+        env.step(actions[k % len(actions)])
+        command = np.clip(batch.applied_current, 0.0, i_max)
+        i_high = np.where(tau > 0.0, np.maximum(command, i_start), command)
+        b = np.clip((i_high / np.where(i_max > 0.0, i_max, 1.0) * bins).astype(int), 0, bins - 1)
+        total += int(batch.sub_table[rows, b].sum())
+    return total / (steps * len(rows))
+
+
 def substep_ceiling(window_steps: int = 1500, repeats: int = 3, num_envs: int = 1024) -> dict:
     """Item 7 of the module docstring: each configuration's window rates, median and ratio to
     CartPole's median, all windows of one repeat run in turn."""
     runs = {
         "CartPole-v1": _window(_vector_stepper("CartPole-v1", num_envs), window_steps, num_envs)
     }
+    substeps_taken = {}
     for setting in ("sim", "hils"):
         for substeps in ("auto", 1, 2):
+            name = f"{setting}/substeps={substeps}"
             kwargs = {"setting": setting} | ({} if substeps == "auto" else {"substeps": substeps})
             stepper = _vector_stepper("CapsuleSuspension-v0", num_envs, **kwargs)
-            runs[f"{setting}/substeps={substeps}"] = _window(stepper, window_steps, num_envs)
+            runs[name] = _window(stepper, window_steps, num_envs)
+            env, actions = stepper.env, stepper.actions
+            substeps_taken[name] = mean_substeps(env, actions)
     res: dict = {"window_steps": window_steps, "repeats": repeats, "num_envs": num_envs,
                  "load_before": list(os.getloadavg())}  # fmt: skip
     rates = interleaved(runs, repeats)
     cart = statistics.median(rates["CartPole-v1"])
     res["runs"] = {name: {"rates": r, "median": statistics.median(r),
                           "ratio": statistics.median(r) / cart} for name, r in rates.items()}  # fmt: skip
+    for name, mean in substeps_taken.items():
+        res["runs"][name]["mean_substeps"] = mean
     res["load_after"] = list(os.getloadavg())
     return res
 
@@ -336,7 +371,7 @@ def main(argv: list[str] | None = None) -> int:
         help="also the vector env at N=1024 with the substeps forced to 1 and 2 (minutes)",
     )
     args = parser.parse_args(argv)
-    if args.json:  # refused now, not after minutes of measuring
+    if args.json is not None:  # refused now, not after minutes of measuring
         from capsule_env.safe_io import check_writable_file
 
         try:
@@ -419,7 +454,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{sc['repeats']} interleaved repeats; load {sc['load_before'][0]:.1f} -> "
               f"{sc['load_after'][0]:.1f})")  # fmt: skip
         for name, run in sc["runs"].items():
-            print(f"  {name:<20}{run['median']:>14,.0f}   x{run['ratio']:5.2f} CartPole-v1")
+            taken = f"   {run['mean_substeps']:.2f} substeps" if "mean_substeps" in run else ""
+            print(f"  {name:<20}{run['median']:>14,.0f}   x{run['ratio']:5.2f} CartPole-v1{taken}")
     cold = res["cold_start"] or {}
     for setting, c in cold.items():
         print(f"\ncold start, {setting} (empty numba cache; import + make + reset + first step): "
@@ -430,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
         c = res["cold_demo"]
         print(f"\ncold demo (empty numba cache): python evaluate.py {c['process_wall_s']:.1f} s "
               f"wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
-    if args.json:
+    if args.json is not None:
         from capsule_env.safe_io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(res, indent=2))

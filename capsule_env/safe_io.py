@@ -215,11 +215,17 @@ def check_writable_dir(path: str | Path, what: str) -> Path:
 
 
 def check_writable_file(path: str | Path, what: str) -> Path:
-    """Check that the file ``path`` can be (re)written: not a folder, its folder writable
-    (created if needed). Raises ``ValueError`` naming ``what`` and the path otherwise."""
+    """Check that the file ``path`` can be (re)written: not a folder or another non-regular
+    file (a device, a pipe), its folder writable (created if needed; a symbolic link to a file
+    is replaced by the new file, as every atomic write does). Raises ``ValueError`` naming
+    ``what`` and the path otherwise."""
+    if str(path) == "":
+        raise ValueError(f"{what} is empty: give a file name")
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{what} {str(path)!r} is a folder, not a file")
+    if path.exists() and not path.is_file():  # a device, a pipe: replacing it would lose it
+        raise ValueError(f"{what} {str(path)!r} is not a regular file")
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{what} {str(path)!r} is not writable")
     try:

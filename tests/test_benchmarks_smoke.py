@@ -39,10 +39,12 @@ def run_script(*argv: str) -> float:
 def test_bench_env_quick_runs(tmp_path):
     pytest.importorskip("stable_baselines3", reason=NO_SB3)  # its SB3 VecEnv section
     out = tmp_path / "bench.json"
+    out.write_text("an older report, to be replaced whole")
     process_s = run_script(
         "benchmarks/bench_env.py", "--quick", "--substep-ceiling", "--json", str(out)
     )
     data = json.loads(out.read_text())
+    assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]  # no temporary file left
     assert {"single", "vector", "sb3", "realtime", "memory", "startup"} <= set(data)
     assert set(data["vector"]) == {f"{env}/N={n}" for n in (1, 64, 1024, 4096)
                                    for env in ("CartPole-v1", "capsule-sim", "capsule-hils")}  # fmt: skip
@@ -83,18 +85,29 @@ def test_bench_env_quick_runs(tmp_path):
         )
         assert run["median"] == statistics.median(run["rates"])
         assert run["ratio"] == pytest.approx(run["median"] / cart, rel=1e-12)
+    # the substeps each configuration took: the forced counts exactly; the automatic ones from
+    # the tables (sim: the Bi-exponential plant, 2 at every current; hils: the reference
+    # damper, 3 at 0 A to 8 at 1.5 A, random currents in between)
+    for setting in ("sim", "hils"):
+        for forced in (1, 2):
+            assert ceiling["runs"][f"{setting}/substeps={forced}"]["mean_substeps"] == forced
+    assert ceiling["runs"]["sim/substeps=auto"]["mean_substeps"] == 2.0
+    assert 3.0 < ceiling["runs"]["hils/substeps=auto"]["mean_substeps"] < 8.0
     # --quick leaves out the cold start (an empty numba cache: compiling takes a while)
     assert data["cold_start"] is None and data["cold_demo"] is None
 
 
-@pytest.mark.parametrize("bad", ["folder", "no-such-parent/out.json"])
+@pytest.mark.parametrize("bad", ["a folder", "a path under a file", "a pipe", "empty"])
 def test_bench_env_refuses_an_unwritable_json_path(tmp_path, bad):
-    target = tmp_path if bad == "folder" else tmp_path / "file" / "out.json"
-    if bad != "folder":
+    if bad == "a path under a file":
         (tmp_path / "file").write_text("a file where a folder is needed")
+    elif bad == "a pipe":
+        os.mkfifo(tmp_path / "pipe")
+    target = {"a folder": str(tmp_path), "a path under a file": str(tmp_path / "file" / "out.json"),
+              "a pipe": str(tmp_path / "pipe"), "empty": ""}[bad]  # fmt: skip
     result = subprocess.run(
-        [sys.executable, "benchmarks/bench_env.py", "--json", str(target)],
-        cwd=ROOT, capture_output=True, text=True,
+        [sys.executable, "benchmarks/bench_env.py", "--quick", "--json", target],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
         env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])),
     )  # fmt: skip
     assert result.returncode == 2

@@ -17,7 +17,9 @@ import builtins
 import errno
 import io
 import json
+import os
 import shutil
+import stat
 import subprocess
 import sys
 from collections.abc import Callable
@@ -32,7 +34,7 @@ import evaluate
 from agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy
 from agents.sb3_policy import SB3Policy
 from capsule_env import identify
-from capsule_env.safe_io import StagedFiles, atomic_write_text
+from capsule_env.safe_io import StagedFiles, atomic_write_text, check_writable_file
 
 from conftest import NO_SB3, NO_YAML
 
@@ -168,6 +170,19 @@ def test_atomic_write_on_a_full_disk_keeps_the_old_file(tmp_path, full_disk):
     with pytest.raises(OSError, match="No space"):
         atomic_write_text(target, json.dumps({"new": list(range(1000))}))
     assert files_of(tmp_path) == {"out.json": b'{"previous": true}'}
+
+
+def test_a_pipe_a_folder_or_nothing_is_refused_as_an_output_file(tmp_path):
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    with pytest.raises(ValueError, match="--json .*pipe.* is not a regular file"):
+        check_writable_file(pipe, "--json")
+    assert stat.S_ISFIFO(pipe.stat().st_mode)  # left as it was
+    with pytest.raises(ValueError, match="--out .* is a folder"):
+        check_writable_file(tmp_path, "--out")
+    with pytest.raises(ValueError, match="--json is empty"):
+        check_writable_file("", "--json")
+    assert check_writable_file(tmp_path / "new" / "out.json", "--json").parent.is_dir()
 
 
 @pytest.mark.rl
