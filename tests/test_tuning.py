@@ -81,7 +81,16 @@ def test_shipped_defaults_are_the_tuned_gains_file():
     for name, entry in shipped["controllers"].items():
         ctrl = make_controller(name)
         assert ctrl.gains_tuned
-        assert ctrl.gains() == pytest.approx(entry["gains"], rel=1e-12), name
+        gains = ctrl.gains()
+        assert set(gains) == set(entry["gains"]), name
+        for key, value in entry["gains"].items():
+            # The weights are read from the file: equal. The ``k_*`` gains are recomputed by a
+            # Riccati solve (scipy.linalg.solve_discrete_are, LAPACK), whose last digits differ
+            # between CPUs and BLAS kernels (2e-12 relative seen between an AMD and an Intel
+            # machine): 1e-9 relative is far below any effect on the law (the search's steps
+            # are >= 1e-3 relative) and far above the solver's round-off.
+            rel = 1e-9 if key.startswith("k_") else 1e-15
+            assert gains[key] == pytest.approx(value, rel=rel), (name, key)
         assert entry["training"]["max_stroke_m"] <= settings["stroke_limit_m"]
     # every feedback law is tuned, except the paper-reproduction rows, which say so
     for name, ctrl in classical_controllers().items():
