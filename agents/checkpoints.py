@@ -7,7 +7,7 @@ timesteps, wall time, and the sizes and SHA-256 of the other files). :func:`save
 writes them all under temporary names and renames them into place, the json last
 (:class:`capsule_env.safe_io.StagedFiles`): a full disk or a kill during a save leaves the
 previous files intact, and the loaders (:func:`checkpoint_problem`,
-``agents.sb3_policy.SB3Policy.load``) refuse a set mixed from two saves or truncated later.
+``capsule_env.agents.sb3_policy.SB3Policy.load``) refuse a set mixed from two saves or truncated later.
 
 Checkpoints are ``<output>/checkpoints/ckpt_<timesteps, 12 digits>.*``; only the newest
 ``keep_replay_buffers`` keep their replay buffer (:func:`prune_replay_buffers`).
@@ -47,7 +47,7 @@ def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False)
     disk, a kill) leaves the previous files as they were. The json records the size and
     SHA-256 of the model and statistics (``files``) and of the replay buffer
     (``replay_buffer``), which the loaders check (:func:`checkpoint_problem`,
-    ``agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
+    ``capsule_env.agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
     """
     stem = Path(stem)
     zip_path, pkl_path = _sibling(stem, ".zip"), _sibling(stem, ".vecnormalize.pkl")

@@ -2,7 +2,7 @@
 
 Open loop (read no signal): ``passive`` (the linear damper c_s), ``mr-0A`` and ``mr-imax``
 (the MR damper at constant current). Feedback laws, each on two observation sets (see
-:mod:`agents.law`):
+:mod:`capsule_env.agents.law`):
 
 - ideal sensors (``full_state``; the paper's setting), the bare names: ``skyhook-{biexp,
   csdc,tanh}`` (on-off, the paper's rows), ``skyhook-cont-*`` (continuous), ``hybrid-biexp``,
@@ -11,11 +11,11 @@ Open loop (read no signal): ``passive`` (the linear damper c_s), ``mr-0A`` and `
   ``skyhook-cont-biexp-meas``, ``hybrid-biexp-meas``, ``add-meas``, ``sh-add-meas``,
   ``lqr-clipped-biexp-meas``. A force law keeps its inverse model's tag; a two-state law
   (current mode) has none;
-- with guideway preview (the surveyed elevations ahead, :mod:`agents.preview_lq`):
+- with guideway preview (the surveyed elevations ahead, :mod:`capsule_env.agents.preview_lq`):
   ``preview-lq-biexp-meas`` (measured signals) and ``preview-lq-biexp`` (ideal sensors).
 
 Gains: every feedback law takes its defaults from ``agents/tuned_gains.json`` (the search of
-:mod:`agents.tuning`), except the paper-reproduction on-off Skyhooks (:data:`PAPER_FIXED`).
+:mod:`capsule_env.agents.tuning`), except the paper-reproduction on-off Skyhooks (:data:`PAPER_FIXED`).
 """
 
 from __future__ import annotations
@@ -24,12 +24,15 @@ from collections.abc import Callable
 from functools import partial
 
 import numpy as np
-
-from agents.base import Controller
-from agents.lqr import ClippedOptimalController
-from agents.preview_lq import PreviewLQController
-from agents.skyhook import INVERSE_TAG, HybridController, SkyhookController
-from agents.two_state import ADDController, MixedSkyhookADDController, SkyhookTwoStateController
+from capsule_env.agents.base import Controller
+from capsule_env.agents.lqr import ClippedOptimalController
+from capsule_env.agents.preview_lq import PreviewLQController
+from capsule_env.agents.skyhook import INVERSE_TAG, HybridController, SkyhookController
+from capsule_env.agents.two_state import (
+    ADDController,
+    MixedSkyhookADDController,
+    SkyhookTwoStateController,
+)
 
 #: Laws that keep the paper's reconstructed gain (c_max = 7e4 N s/m, c_min = 0) on purpose: they
 #: reproduce the paper's experiment (one Skyhook law, the inverse model varied), in which the

@@ -8,7 +8,7 @@ sensors and on-board velocity estimates). So one law's code runs on either set, 
 :attr:`ClassicalLaw.signals_read` lists exactly the columns it reads.
 
 Gains are numpy arrays: a scalar, or one value per vehicle of the batch (shape ``(N,)``), so
-that one vector env evaluates many gain candidates at once (:mod:`agents.tuning`).
+that one vector env evaluates many gain candidates at once (:mod:`capsule_env.agents.tuning`).
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from capsule_env.agents.base import Controller
+from capsule_env.agents.tuned import tuned_gains
 
-from agents.base import Controller
-from agents.tuned import tuned_gains
 from capsule_env.config import OBSERVATION_NAMES
 
 #: Each physical signal a law may read, per observation set: one column, or ``(a, b)`` for

@@ -5,15 +5,15 @@ dissipative band).
 State ``x = [z_c - z_b, z_c', z_b - z_g, z_b']``. On ``full_state`` (ideal sensors) each
 component is read from the true states; on ``measured`` (``-meas``) all four are measured:
 the LVDT stroke, the on-board body velocity estimate, the levitation gap sensor and the bogie
-velocity estimate (:mod:`agents.law`). Force mode: the law asks for a continuum of forces.
+velocity estimate (:mod:`capsule_env.agents.law`). Force mode: the law asks for a continuum of forces.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import solve_continuous_are
 
-from agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.vehicle import VehicleParams
 
 #: Names (with units) of the components of the feedback gain ``K``, in state order.

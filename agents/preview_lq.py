@@ -17,7 +17,7 @@ earlier: the requests still in flight are states too. The cost per interval is
     a_c^2 + q_stroke (z_c - z_b)^2 + q_gap (z_b - z_g)^2 + r_force F^2,
 
 ``a_c = (-k_s (z_c - z_b) - F) / m_c`` (the cross term kept), the continuous-time weights of the
-clipped LQR (:mod:`agents.lqr`). The optimal law on the augmented state ``[x; in flight; p]`` is
+clipped LQR (:mod:`capsule_env.agents.lqr`). The optimal law on the augmented state ``[x; in flight; p]`` is
 linear, from the discrete algebraic Riccati equation of the plant and the requests in flight
 (:func:`scipy.linalg.solve_discrete_are`) and, for the preview, a product per point ahead:
 
@@ -35,9 +35,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import expm, solve_discrete_are
 
-from agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [

@@ -9,17 +9,28 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from capsule_env.agents.base import Controller
 
-from agents.base import Controller
+import capsule_env
 from capsule_env.safe_io import digest_mismatch
 
-PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "capsule_env" / "pretrained"
+PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
 ALGORITHMS = ("ppo", "sac", "td3")
 
 
 def shipped_policy_paths() -> list[str]:
     """The pretrained policies shipped with the package (may be empty)."""
     return [str(p) for p in sorted(PRETRAINED_DIR.glob("*.zip"))]
+
+
+def shipped_policies() -> dict[str, SB3Policy]:
+    """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
+    ``ppo-measured``, ``ppo-preview``). Each carries the env arguments it was trained with
+    (:attr:`SB3Policy.env_kwargs`: pass them to ``gymnasium.make``) and acts through
+    :meth:`SB3Policy.predict`. Needs the ``rl`` extra."""
+    use_one_torch_thread()
+    policies = [SB3Policy.load(path) for path in shipped_policy_paths()]
+    return {str(policy.name): policy for policy in policies}
 
 
 def use_one_torch_thread() -> None:

@@ -1,7 +1,7 @@
 """The gains of each tuned classical law and the ranges the search explores.
 
-Every feedback law of :mod:`agents.classical` except the paper-reproduction on-off Skyhooks
-(:data:`agents.classical.PAPER_FIXED`) has a :class:`SearchSpace` here: its free gains (the
+Every feedback law of :mod:`capsule_env.agents.classical` except the paper-reproduction on-off Skyhooks
+(:data:`capsule_env.agents.classical.PAPER_FIXED`) has a :class:`SearchSpace` here: its free gains (the
 constructor's names), each on a log or linear range, the gains tied to another (the hybrid
 law's ``c_ground = c_sky``) and the gain swept for the Pareto figure
 (``experiments/pareto.py``). Ranges are wide on purpose (one to six decades): the search, not

@@ -1,6 +1,6 @@
 """Ship a trained policy with the package: ``capsule_env/pretrained/NAME.{zip,vecnormalize.pkl,json}``.
 
-    python -m agents.ship runs/ppo-measured-seed1/best_model.zip ppo-measured \\
+    python -m capsule_env.agents.ship runs/ppo-measured-seed1/best_model.zip ppo-measured \\
         --note "best of seeds 0, 1, 2 by the validation bank's Wk"
 
 Copies the model and its normalisation statistics under the new name, and writes the json
@@ -18,7 +18,8 @@ import json
 import sys
 from pathlib import Path
 
-from agents.sb3_policy import PRETRAINED_DIR, SB3Policy
+from capsule_env.agents.sb3_policy import PRETRAINED_DIR, SB3Policy
+
 from capsule_env.safe_io import StagedFiles, file_digest
 
 __all__ = ["ship_policy"]
@@ -59,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = ship_policy(args.source, args.name, args.note)
     except (ValueError, OSError) as exc:
-        sys.exit(f"agents.ship: error: {exc}")
+        sys.exit(f"capsule_env.agents.ship: error: {exc}")
     print(f"shipped {path}")
     return 0
 

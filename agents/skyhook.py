@@ -4,18 +4,17 @@ They output ``a = F_d / max_force_n`` (the env's force mode); the env's inverse 
 the request into a coil current and applies the semi-active rule. On ``full_state`` (ideal
 sensors: the paper's Skyhook, fed by the simulated vehicle) they read the true absolute
 velocities; on ``measured`` (name suffix ``-meas``) the on-board velocity estimates and the
-LVDT's stroke rate (:mod:`agents.law`).
+LVDT's stroke rate (:mod:`capsule_env.agents.law`).
 
 Why force mode: continuous Skyhook and the hybrid law ask for a force proportional to a
 velocity, a continuum of damper states that only the inverse model can produce. The two-state
-laws (:mod:`agents.two_state`) command the damper's two states directly.
+laws (:mod:`capsule_env.agents.two_state`) command the damper's two states directly.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-from agents.law import ClassicalLaw, law_name
+from capsule_env.agents.law import ClassicalLaw, law_name
 
 #: The paper-reproduction Skyhook gain (N s/m) [reconstructed, docs/model.md 11: about 0.7 of
 #: critical damping of the body on the series stiffness]; the fallback of untuned Skyhooks.

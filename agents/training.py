@@ -10,12 +10,12 @@ env, and the state shared by the callbacks and the main loop (evaluation, checkp
 - :func:`make_env`: the batched numba kernel as an SB3 ``VecEnv`` + ``VecMonitor`` +
   ``VecNormalize`` (new, or with a checkpoint's statistics).
 - :class:`Run` and :class:`TrainingMonitor`: held-out evaluation through
-  ``agents.sb3_policy.SB3Policy`` (the class ``evaluate.py`` loads saved policies with) on the
+  ``capsule_env.agents.sb3_policy.SB3Policy`` (the class ``evaluate.py`` loads saved policies with) on the
   validation guideway bank ``VALIDATION_GUIDEWAY_SEED`` (7; training uses bank 0, the
   reported evaluation bank 2026 is never used to choose a model), keeping
   ``best_model.*`` by the ISO 2631 Wk-weighted RMS car-body acceleration (an evaluation with a
   bump-stop hit ranks below every one without); checkpoints every ``checkpoint_freq`` env
-  steps and every ``checkpoint_minutes`` of wall time (:mod:`agents.checkpoints`);
+  steps and every ``checkpoint_minutes`` of wall time (:mod:`capsule_env.agents.checkpoints`);
   throughput. The passive damper and ``skyhook-cont-biexp`` run on the same evaluation seeds
   once, as references (printed, and kept in ``best_model.json``).
 
@@ -45,17 +45,15 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
-
-from agents import PassiveController, classical_controllers
-from agents.checkpoints import (
+from capsule_env.agents import PassiveController, classical_controllers
+from capsule_env.agents.checkpoints import (
     best_so_far,
     find_checkpoint,
     save_checkpoint,
     save_policy,
     statistics_path,
 )
-from agents.hyperparams import (
+from capsule_env.agents.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
     normalize_kwargs_from,
@@ -63,7 +61,9 @@ from agents.hyperparams import (
     parse_env_kwargs,
     resolve_env_kwargs,
 )
-from agents.sb3_policy import SB3Policy
+from capsule_env.agents.sb3_policy import SB3Policy
+from stable_baselines3.common.callbacks import BaseCallback
+
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
@@ -74,6 +74,8 @@ from capsule_env.evaluation import (
 )
 from capsule_env.safe_io import check_writable_dir
 
+#: ``hyperparams/`` beside ``agents/`` (a checkout), or ``capsule_env/hyperparams`` beside
+#: ``capsule_env/agents`` (an installed package): the same relative place.
 HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
 #: Env arguments chosen by the evaluation, not by the policy (kept out of the saved metadata
 #: that ``evaluate.py`` merges into its env; ``episode_length_s`` is its ``--episode-length``).
@@ -449,7 +451,7 @@ class Run:
 
     # -- checkpoints
     def checkpoint(self, model: Any) -> Path:
-        """Save a checkpoint of ``model`` now (:func:`agents.checkpoints.save_checkpoint`)."""
+        """Save a checkpoint of ``model`` now (:func:`capsule_env.agents.checkpoints.save_checkpoint`)."""
         path = save_checkpoint(
             model, self.output_dir / "checkpoints", self.meta(model), self.args.keep_replay_buffers
         )

@@ -1,6 +1,6 @@
 """The shipped, tuned gains of the classical controllers (``agents/tuned_gains.json``).
 
-The file is written by the gain search (``python -m agents.tuning``, :mod:`agents.tuning`):
+The file is written by the gain search (``python -m capsule_env.agents.tuning``, :mod:`capsule_env.agents.tuning`):
 for each tuned controller, its gains (keys with units, as :meth:`Controller.gains` gives them),
 the training-bank result of those gains and how many candidates the search evaluated; at the
 top, the search's settings and date. The controllers' constructors take their default gains

@@ -1,10 +1,10 @@
 """Tune the classical controllers' gains on the TRAINING guideway bank and ship them.
 
-    python -m agents.tuning                 # every tuned law; writes agents/tuned_gains.json
-    python -m agents.tuning --controllers sh-add-meas,add-meas
-    python -m agents.tuning --quick --out /tmp/gains.json   # a tiny budget (tests)
+    python -m capsule_env.agents.tuning                 # every tuned law; writes agents/tuned_gains.json
+    python -m capsule_env.agents.tuning --controllers sh-add-meas,add-meas
+    python -m capsule_env.agents.tuning --quick --out /tmp/gains.json   # a tiny budget (tests)
 
-The problem, per controller (its free gains: :mod:`agents.search_space`): minimise the mean
+The problem, per controller (its free gains: :mod:`capsule_env.agents.search_space`): minimise the mean
 ISO 2631-1 Wk-weighted RMS car-body acceleration over the training episodes in ``hils``
 (guideway bank ``guideway_seed=0``, episode seeds 0..9, 10 s each; the evaluation bank 2026
 is never used), subject to a stroke limit: ``max |stroke| <= 15 mm`` on every training episode
@@ -31,10 +31,10 @@ from pathlib import Path
 from typing import Any, NamedTuple, NoReturn
 
 import numpy as np
+from capsule_env.agents.classical import make_controller
+from capsule_env.agents.search_space import SEARCH_SPACES, SearchSpace
+from capsule_env.agents.tuned import TUNED_GAINS_PATH
 
-from agents.classical import make_controller
-from agents.search_space import SEARCH_SPACES, SearchSpace
-from agents.tuned import TUNED_GAINS_PATH
 from capsule_env import metrics
 from capsule_env.evaluation import Rollout, run_episodes
 from capsule_env.safe_io import atomic_write_text, check_writable_file
@@ -118,7 +118,7 @@ def _coarse_points(space: SearchSpace, settings: TuningSettings) -> int:
 
 def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]:
     """Search the gains of controller ``name`` (see the module docstring). Returns the entry
-    of the gains file: the tuned controller's :meth:`~agents.base.Controller.gains`, its
+    of the gains file: the tuned controller's :meth:`~capsule_env.agents.base.Controller.gains`, its
     training Wk and max stroke, and the search's counts. Raises ``RuntimeError`` if no
     candidate meets the stroke limit."""
     space = SEARCH_SPACES[name]
@@ -228,7 +228,7 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status."""
-    p = _Parser(prog="python -m agents.tuning", description=__doc__,
+    p = _Parser(prog="python -m capsule_env.agents.tuning", description=__doc__,
                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     p.add_argument("--controllers", default="all",
                    help="comma-separated names, or 'all': " + ", ".join(SEARCH_SPACES))  # fmt: skip
@@ -255,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, OSError) as exc:
             sys.exit(f"tuning: error: {exc}")
     words = sys.argv[1:] if argv is None else argv
-    command = " ".join(["python -m agents.tuning", *words])
+    command = " ".join(["python -m capsule_env.agents.tuning", *words])
     data = tune_all(names, settings, command, log=sys.stdout)
     passive = data["training_reference"]["passive"]
     print(f"{data['candidates']} candidates in {data['search_s']:.1f} s; passive on the "

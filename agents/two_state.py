@@ -20,8 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from agents.law import ClassicalLaw, law_name
+from capsule_env.agents.law import ClassicalLaw, law_name
 
 #: The damper's maximum coil current (A): the env's ``i_max`` (current mode maps
 #: ``a in [-1, 1]`` onto ``[0, i_max]``).

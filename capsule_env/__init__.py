@@ -11,6 +11,8 @@ Physics (pure functions and frozen parameter dataclasses, no Gym import):
 - :mod:`capsule_env.damper_rig`: a damper alone under a prescribed stroke (test-rig loops).
 """
 
+# First: a writable place for numba's cache before any kernel is defined (capsule_env._jit).
+from capsule_env import _jit  # noqa: F401  (isort: keep first)
 from capsule_env.dampers import (
     DAMPER_NAMES,
     BiExponentialDamper,

@@ -5,8 +5,8 @@ Build (from the repository root, with the ``docs`` extra installed)::
     sphinx-build -W --keep-going -b html docs docs/_build/html
 
 Markdown pages are read by MyST; the API reference is built from the docstrings by autodoc
-(numpy-style sections through napoleon), so the package and the ``agents`` controllers must be
-importable (the ``dev`` extra installs torch and stable-baselines3 for ``agents.sb3_policy``).
+(numpy-style sections through napoleon), so the package and its controllers (``capsule_env.agents``, the checkout's ``agents/``) must be
+importable (the ``dev`` extra installs torch and stable-baselines3 for ``capsule_env.agents.sb3_policy``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # agents/ and evaluate.py live at the root, beside capsule_env/
+sys.path.insert(0, str(ROOT))  # evaluate.py and train.py live at the root, beside capsule_env/
 
 import capsule_env  # noqa: E402
 

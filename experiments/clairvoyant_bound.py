@@ -22,8 +22,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from capsule_env.agents import classical_controllers
 
-from agents import classical_controllers
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import episode_metrics, run_episodes
 from capsule_env.oracle import DEFAULT_STARTS, applied_currents, clairvoyant_bound

@@ -4,11 +4,11 @@
     python experiments/pareto.py --policy runs/ppo/best_model.zip     # add any SB3 policy
 
 For each tuned classical law (default: those of ``evaluate.py``'s default run) one gain is
-swept over its whole search range (:mod:`agents.search_space`: Skyhook's and the hybrid's
+swept over its whole search range (:mod:`capsule_env.agents.search_space`: Skyhook's and the hybrid's
 ``c_sky``, the two-state laws' ``i_on``, the LQR's ``r_force``), the other gains held at their
 tuned values, and every sweep point runs on the EVALUATION bank (``guideway_seed`` 2026,
 episode seeds 1000..1009, ``hils``): for this figure only. The shipped gains were tuned on the
-TRAINING bank (``guideway_seed`` 0, :mod:`agents.tuning`) and are starred on each curve. The
+TRAINING bank (``guideway_seed`` 0, :mod:`capsule_env.agents.tuning`) and are starred on each curve. The
 passive damper (the VRE's reference), the constant currents and the learned policies (the
 shipped ones unless ``--no-shipped-policy``, and each ``--policy``) are points.
 
@@ -30,9 +30,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from agents.classical import make_controller  # noqa: E402
-from agents.search_space import SEARCH_SPACES  # noqa: E402
-from agents.tuning import TuningSettings  # noqa: E402
+from capsule_env.agents.classical import make_controller  # noqa: E402
+from capsule_env.agents.search_space import SEARCH_SPACES  # noqa: E402
+from capsule_env.agents.tuning import TuningSettings  # noqa: E402
+
+from capsule_env.evaluate import DEFAULT_CONTROLLERS  # noqa: E402
 from capsule_env.evaluation import (  # noqa: E402
     EVALUATION_GUIDEWAY_SEED,
     Rollout,
@@ -40,7 +42,6 @@ from capsule_env.evaluation import (  # noqa: E402
     run_episodes,
 )
 from capsule_env.safe_io import atomic_write_text, check_writable_file  # noqa: E402
-from evaluate import DEFAULT_CONTROLLERS  # noqa: E402
 
 SETTING = "hils"
 #: The laws drawn by default: the tuned ones of evaluate.py's default run.
@@ -150,12 +151,12 @@ def main(argv: list[str] | None = None) -> int:
                 check_writable_file(path, option)
         paths = list(args.policy)
         if not args.no_shipped_policy:
-            from agents.sb3_policy import shipped_policy_paths
+            from capsule_env.agents.sb3_policy import shipped_policy_paths
 
             paths = shipped_policy_paths() + paths
         policies = []
         if paths:
-            from agents.sb3_policy import SB3Policy, use_one_torch_thread
+            from capsule_env.agents.sb3_policy import SB3Policy, use_one_torch_thread
 
             use_one_torch_thread()
             policies = [SB3Policy.load(p) for p in paths]

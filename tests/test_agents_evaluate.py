@@ -6,9 +6,7 @@ import json
 
 import numpy as np
 import pytest
-
-import evaluate
-from agents import (
+from capsule_env.agents import (
     ClippedOptimalController,
     ConstantCurrentController,
     HybridController,
@@ -16,8 +14,9 @@ from agents import (
     SkyhookController,
     classical_controllers,
 )
-from agents.base import FULL
-from capsule_env import metrics
+from capsule_env.agents.base import FULL
+
+from capsule_env import evaluate, metrics
 from capsule_env.evaluation import (
     METRIC_UNITS,
     RECORDED,

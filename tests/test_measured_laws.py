@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from agents import (
+from capsule_env.agents import (
     ADDController,
     ClippedOptimalController,
     MixedSkyhookADDController,
@@ -15,9 +14,10 @@ from agents import (
     classical_controllers,
     make_controller,
 )
-from agents.base import MEAS
-from agents.lqr import lqr_gain
-from agents.search_space import SEARCH_SPACES
+from capsule_env.agents.base import MEAS
+from capsule_env.agents.lqr import lqr_gain
+from capsule_env.agents.search_space import SEARCH_SPACES
+
 from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 from capsule_env.vehicle import VehicleParams

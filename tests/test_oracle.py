@@ -57,7 +57,7 @@ def test_adjoint_gradient_matches_central_differences_of_the_simulation(setting,
 def test_open_loop_replay_of_a_controllers_currents_is_the_env():
     # Skyhook's commands, delayed by the env's control delay, replayed open loop with the
     # env's substeps: the env's recorded body acceleration, to rounding.
-    from agents.classical import classical_controllers
+    from capsule_env.agents.classical import classical_controllers
 
     ctrl = classical_controllers()["skyhook-cont-biexp"]
     roll = run_episodes(ctrl, {**ctrl.env_kwargs, **HILS}, seeds=[1000, 1001],
@@ -72,7 +72,7 @@ def test_open_loop_replay_of_a_controllers_currents_is_the_env():
 
 
 def test_search_improves_on_every_start_and_on_skyhook():
-    from agents.classical import classical_controllers
+    from capsule_env.agents.classical import classical_controllers
 
     ctrl = classical_controllers()["skyhook-cont-biexp"]
     seeds = [1000, 1001]

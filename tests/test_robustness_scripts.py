@@ -28,12 +28,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from capsule_env.agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy
+from capsule_env.agents.sb3_policy import SB3Policy
 from scipy import io as sio
 
-import evaluate
-from agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy
-from agents.sb3_policy import SB3Policy
-from capsule_env import identify
+from capsule_env import evaluate, identify
 from capsule_env.safe_io import StagedFiles, atomic_write_text, check_writable_file
 
 from conftest import NO_SB3, NO_YAML
@@ -51,7 +50,7 @@ def train():
     """The train.py module (it imports torch and stable-baselines3, and reads PyYAML files)."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
     pytest.importorskip("yaml", reason=NO_YAML)
-    import train as module
+    from capsule_env import train as module
 
     return module
 
@@ -84,10 +83,9 @@ def make_policy(stem: Path, name: str | None = "tiny", env: str = "capsule") -> 
     ``.json``); ``env="pendulum"``: one trained on 3-dimensional observations. Returns the
     model. Skips the calling test without stable-baselines3."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
+    from capsule_env.agents.training import make_env
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from agents.training import make_env
 
     if env == "pendulum":
         import gymnasium as gym

@@ -147,7 +147,8 @@ def test_replicates_get_distinct_independent_seeds(tmp_path):
 
 # ----------------------------------------------------------------------------- serial runs
 def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
-    from agents.classical import PassiveController, make_controller
+    from capsule_env.agents.classical import PassiveController, make_controller
+
     from capsule_env.evaluation import episode_metrics, run_episodes
 
     out = tmp_path / "out"

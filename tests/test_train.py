@@ -19,10 +19,13 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
-import evaluate  # noqa: E402
-import train  # noqa: E402
-from agents import hyperparams  # noqa: E402
-from agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
+from capsule_env.agents import hyperparams  # noqa: E402
+from capsule_env.agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
+
+from capsule_env import (
+    evaluate,  # noqa: E402
+    train,  # noqa: E402
+)
 
 pytestmark = pytest.mark.rl
 

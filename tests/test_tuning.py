@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from capsule_env.agents import classical_controllers, make_controller
+from capsule_env.agents.classical import PAPER_FIXED
+from capsule_env.agents.search_space import SEARCH_SPACES
+from capsule_env.agents.tuned import TUNED_GAINS_PATH
+from capsule_env.agents.tuning import TuningSettings, evaluate_gains, main, tune
 
-from agents import classical_controllers, make_controller
-from agents.classical import PAPER_FIXED
-from agents.search_space import SEARCH_SPACES
-from agents.tuned import TUNED_GAINS_PATH
-from agents.tuning import TuningSettings, evaluate_gains, main, tune
 from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
 
 ROOT = Path(__file__).resolve().parents[1]

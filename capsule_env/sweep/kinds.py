@@ -13,9 +13,9 @@ study starts. The functions run the same with or without Ray.
   (``hyperparams.yml``) and train.py's output folder (``run/``: ``best_model.*``, ...) into its
   folder; a trial started again continues from train.py's newest checkpoint there. Metrics:
   the best held-out evaluation (validation bank 7) and the timesteps.
-- ``gains``: a classical controller (``agents.classical``) with the given gains
+- ``gains``: a classical controller (``capsule_env.agents.classical``) with the given gains
   (``gain.<name>``) on ``episodes`` episodes (seeds ``episode_seed ..``) of the guideway bank
-  ``guideway_seed`` (default 0, the training bank, as ``python -m agents.tuning``), through
+  ``guideway_seed`` (default 0, the training bank, as ``python -m capsule_env.agents.tuning``), through
   :func:`capsule_env.evaluation.run_episodes` and :func:`~capsule_env.evaluation.
   episode_metrics` (the passive damper on the same episodes is the VRE reference). Every grid
   point runs the same episodes (common random numbers: the grid compares gains, not noise).
@@ -37,7 +37,6 @@ import importlib
 import importlib.util
 import inspect
 import json
-import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -156,41 +155,20 @@ _TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env
 
 
 def train_module() -> ModuleType:
-    """``train.py`` of the checkout this package is installed from (an editable install: the
-    folder above ``capsule_env``), imported once. ``RuntimeError`` when there is none."""
-    import capsule_env
-
-    path = Path(capsule_env.__file__).resolve().parent.parent / "train.py"
-    for name in ("train", "_capsule_env_train"):
-        module = sys.modules.get(name)
-        if module is not None and Path(getattr(module, "__file__", "") or "").resolve() == path:
-            return module
-    if not path.is_file():
-        raise RuntimeError(
-            f"the train kind needs train.py of a capsule-env checkout, not found at {path} "
-            "(install the package from a checkout: pip install -e '<checkout>[rl,scale]')"
-        )
-    spec = importlib.util.spec_from_file_location("_capsule_env_train", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["_capsule_env_train"] = module
-    spec.loader.exec_module(module)
-    return module
+    """:mod:`capsule_env.train` (what ``train.py`` and ``capsule-train`` run), imported on
+    first use (it needs the ``rl`` extra)."""
+    return importlib.import_module("capsule_env.train")
 
 
 def _train_unavailable() -> str | None:
     for module in ("stable_baselines3", "yaml"):
         if importlib.util.find_spec(module) is None:
             return f"{module} is not installed (pip install 'capsule-env[rl,scale]')"
-    try:
-        train_module()
-    except RuntimeError as exc:
-        return str(exc)
     return None
 
 
 def _train_keys() -> dict[str, str]:
-    from agents.training import field_docs
+    from capsule_env.agents.training import field_docs
 
     docs = field_docs(train_module().Args)
     return {k: " ".join(v.split()) for k, v in docs.items() if k not in _TRAIN_CHOSEN}
@@ -198,8 +176,8 @@ def _train_keys() -> dict[str, str]:
 
 def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
     """The base hyperparameter file of a train trial and its entry."""
-    from agents.hyperparams import load_hyperparams
-    from agents.training import HYPERPARAMS_DIR
+    from capsule_env.agents.hyperparams import load_hyperparams
+    from capsule_env.agents.training import HYPERPARAMS_DIR
 
     algo = plain.get("algo", "ppo")
     path = Path(plain.get("hyperparams") or HYPERPARAMS_DIR / f"{algo}.yml").resolve()
@@ -209,7 +187,7 @@ def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
 def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
     import stable_baselines3 as sb3
 
-    from agents.hyperparams import NOT_ALGORITHM_ARGUMENTS
+    from capsule_env.agents.hyperparams import NOT_ALGORITHM_ARGUMENTS
 
     signature = inspect.signature(getattr(sb3, algo.upper()).__init__)
     taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
@@ -219,9 +197,9 @@ def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
 def check_train(params: dict[str, Any]) -> None:
     """A train trial's arguments: train.Args' values and ranges, the env arguments, the
     evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
-    from agents.hyperparams import resolve_env_kwargs
-    from agents.sb3_policy import ALGORITHMS
-    from agents.training import check_args, policy_env_kwargs
+    from capsule_env.agents.hyperparams import resolve_env_kwargs
+    from capsule_env.agents.sb3_policy import ALGORITHMS
+    from capsule_env.agents.training import check_args, policy_env_kwargs
     from capsule_env.evaluation import check_episode_length
 
     plain, groups = split_params(params)
@@ -264,7 +242,7 @@ def run_train(trial: Trial) -> dict[str, Any]:
     docstring); returns the best evaluation, the timesteps and the output folder."""
     import yaml
 
-    from agents.hyperparams import ENV_ID
+    from capsule_env.agents.hyperparams import ENV_ID
     from capsule_env.safe_io import atomic_write_text
 
     train = train_module()
@@ -300,7 +278,7 @@ def run_train(trial: Trial) -> dict[str, Any]:
 #: Constructor arguments of the classical laws that are not gains.
 _NOT_GAINS = ("observation", "vehicle", "extra_units", "extra_given", "extra_fallback")
 _GAINS_KEYS = {
-    "controller": "a classical controller of agents.classical (required)",
+    "controller": "a classical controller of capsule_env.agents.classical (required)",
     "setting": "sim or hils (default hils)",
     "guideway_seed": "the guideway bank (default 0, the training bank)",
     "episodes": "episodes per trial (default 10)",
@@ -318,7 +296,7 @@ def _gains_settings(params: dict[str, Any]) -> tuple[dict, dict, dict]:
 
 def gain_names(controller: str) -> list[str]:
     """The gains the classical controller ``controller`` takes (its constructor's names)."""
-    from agents.classical import FACTORIES
+    from capsule_env.agents.classical import FACTORIES
 
     signature = inspect.signature(FACTORIES[controller])
     return [p for p in signature.parameters if p not in _NOT_GAINS]
@@ -327,7 +305,7 @@ def gain_names(controller: str) -> list[str]:
 def check_gains(params: dict[str, Any]) -> None:
     """A gains trial: a known controller, its gain names, numbers, a valid env and an episode
     long enough for the metrics."""
-    from agents.classical import FACTORIES, make_controller
+    from capsule_env.agents.classical import FACTORIES, make_controller
     from capsule_env.evaluation import check_episode_length
 
     settings, gains, env = _gains_settings(params)
@@ -353,7 +331,7 @@ def run_gains(trial: Trial) -> dict[str, Any]:
     """The controller with the trial's gains and the passive damper on the same episodes;
     returns :func:`~capsule_env.evaluation.episode_metrics` flattened (``vre_body_mode1_pct``,
     ... and the spread of the Wk-weighted RMS acceleration over the episodes)."""
-    from agents.classical import PassiveController, make_controller
+    from capsule_env.agents.classical import PassiveController, make_controller
     from capsule_env.evaluation import episode_metrics, run_episodes
 
     settings, gains, env = _gains_settings(trial.params)

@@ -1,0 +1,428 @@
+"""Reproduce the paper's vibration-reduction comparison and compare any controller with it.
+
+    python evaluate.py                          # both settings, the default controllers
+    python evaluate.py --setting hils --episodes 20 --json out/eval.json --plots out/plots
+    python evaluate.py --policy runs/ppo/best_model.zip   # add a trained SB3 policy
+
+Read top to bottom: arguments; controllers; the checks made before anything runs; for each
+setting the passive run and every controller on the same guideway seeds; metrics; the tables
+(Tables 5 and 6 analogues) with the paper's published figures beside ours; optional JSON and
+figures.
+
+Policy rows are named by the policy's metadata ``name`` (its file stem without a ``.json``);
+when that name is taken (by a classical controller or an earlier ``--policy``), ``#2``, ``#3``
+... is appended in command-line order, and the table's footer lists each policy row's file.
+Bad arguments or files (a missing, empty, corrupt or mismatched policy, a policy without its
+``.vecnormalize.pkl`` unless ``--allow-unnormalized``, an episode too short for the spectra,
+an unwritable ``--json``/``--plots`` path) stop the script before the run with one line on
+stderr and exit status 1 (2 for argument syntax).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+
+from capsule_env.agents import classical_controllers
+from capsule_env.agents.base import OBSERVATION_GROUPS
+from capsule_env.agents.classical import PAPER_FIXED
+from capsule_env.config import EnvConfig
+from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
+from capsule_env.metrics import DEFAULT_BANDS_HZ
+from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
+from capsule_env.vehicle import natural_frequencies_hz
+
+#: The paper's published vibration-reduction effects (per cent) that survived extraction
+#: (docs/model.md 12): the rest of Tables 5 and 6 was lost. Text-only statements are in ``PAPER_TEXT``.
+PAPER_VRE = {
+    ("sim", "skyhook-biexp", "body_mode1"): 72.33,
+    ("sim", "skyhook-csdc", "body_mode1"): 41.66,
+}
+PAPER_TEXT = {
+    "sim": "paper: Bi-exponential 72.33 % vs Bouc-Wen 41.66 % at the body's first mode; "
+    "Bi-exponential also far better at the second mode.",
+    "hils": "paper: Bi-exponential about 10 points better than Bouc-Wen at the body's first "
+    "mode; neither effective at the second mode (Bouc-Wen no reduction of the bogie's).",
+}
+PAPER_CONTROLLERS = ["passive", "skyhook-csdc", "skyhook-biexp"]
+#: The default run: the paper's rows, the open-loop references, the classical laws on ideal
+#: sensors (``full_state``) and the same laws on measured signals (``-meas``).
+DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
+    "mr-0A",
+    "mr-imax",
+    "skyhook-tanh",
+    "skyhook-cont-biexp",
+    "hybrid-biexp",
+    "lqr-clipped-biexp",
+    "skyhook-meas",
+    "skyhook-cont-biexp-meas",
+    "hybrid-biexp-meas",
+    "add-meas",
+    "sh-add-meas",
+    "lqr-clipped-biexp-meas",
+    "preview-lq-biexp-meas",
+    "preview-lq-biexp",
+]
+#: The tables' groups, in order: the observation set a controller reads (its header says
+#: what the group may read: ``capsule_env.agents.base.OBSERVATION_GROUPS``).
+GROUP_ORDER = ("none", "measured", "measured+preview", "sensors", "full_state",
+               "full_state+preview", "oracle+preview")  # fmt: skip
+NAME_WIDTH = 24
+
+#: The tables' columns after the controller's name: (header with the unit, width), and the
+#: number format of each. The json (``--json``) holds the same figures in SI units.
+COLUMNS = [
+    ("body m1 %", 11), ("paper %", 9), ("body m2 %", 11), ("bogie m1 %", 12), ("bogie m2 %", 12),
+    ("Wk m/s^2", 10), ("rms m/s^2", 11), ("stroke mm", 11), ("I A", 8), ("trk rel", 9),
+    ("Wz", 6), ("N_v", 6), ("headroom", 10),
+]  # fmt: skip
+FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f", ".2f", ".2f", ".0%"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line (syntax only; :func:`check_args` checks the values)."""
+    p = _Parser(
+        prog="evaluate.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    p.add_argument("--setting", choices=["sim", "hils", "both"], default="both",
+                   help="sim: plant damper = inverted model; hils: reference damper with coil "
+                   "lag, noise, delay (default: both)")  # fmt: skip
+    p.add_argument("--controllers", default=",".join(DEFAULT_CONTROLLERS),
+                   help="comma-separated controller names, or 'all' (classical: "
+                   + ", ".join(classical_controllers()) + ")")  # fmt: skip
+    p.add_argument("--policy", action="append", default=[], metavar="PATH",
+                   help="a saved SB3 model (.zip; its .vecnormalize.pkl statistics next to it "
+                   "are required and loaded); repeatable")  # fmt: skip
+    p.add_argument("--allow-unnormalized", action="store_true",
+                   help="run a --policy without its .vecnormalize.pkl on raw observations "
+                   "(usually far worse than it was in training)")  # fmt: skip
+    p.add_argument(
+        "--no-shipped-policy",
+        action="store_true",
+        help="do not add the pretrained policy shipped with the package",
+    )
+    p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
+    p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
+    p.add_argument("--episode-length", type=float, default=10.0,
+                   help="seconds per episode (at least 0.335 s at the default 200 Hz control "
+                   "rate: the spectra need a line in each mode band)")  # fmt: skip
+    p.add_argument("--oracle", action="store_true",
+                   help="also search the clairvoyant bound (capsule_env.oracle) on the same "
+                   "episodes: an 'oracle' row per setting and each controller's share of the "
+                   "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
+    p.add_argument("--json", type=Path, help="write all results to this JSON file")
+    p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder")
+    return p.parse_args(argv)
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Check the values, and that the ``--json``/``--plots`` paths can be written, before
+    anything runs; raises ``ValueError`` naming the option."""
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0 (episode k uses seed + k), got {args.seed}")
+    if args.json is not None:
+        check_writable_file(args.json, "--json")
+    if args.plots is not None:
+        check_writable_dir(args.plots, "--plots")
+
+
+def unique_name(name: str, taken: dict | set) -> str:
+    """``name``, or ``name#2``, ``name#3`` ... the first one not in ``taken``."""
+    if name not in taken:
+        return name
+    k = 2
+    while f"{name}#{k}" in taken:
+        k += 1
+    return f"{name}#{k}"
+
+
+def build_controllers(
+    names: list[str], policies: list[str], shipped: bool, allow_unnormalized: bool = False
+) -> dict:
+    """The named classical controllers (passive always first) and the policies loaded from
+    ``policies`` (after the shipped one when ``shipped``), each under a unique name
+    (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
+    available = classical_controllers()
+    if names == ["all"]:
+        names = list(available)
+    unknown = [n for n in names if n not in available]
+    if unknown:
+        raise ValueError(
+            f"unknown controller(s) {unknown}; accepted: {', '.join(available)} or 'all'"
+        )
+    ctrls = {n: available[n] for n in names}
+    if "passive" not in ctrls:
+        ctrls = {"passive": available["passive"], **ctrls}  # VRE needs the passive run
+    paths = list(policies)
+    if shipped:
+        from capsule_env.agents.sb3_policy import shipped_policy_paths
+
+        paths = shipped_policy_paths() + paths
+    if paths:
+        from capsule_env.agents.sb3_policy import use_one_torch_thread
+
+        use_one_torch_thread()
+    for path in paths:
+        from capsule_env.agents.sb3_policy import SB3Policy
+
+        policy = SB3Policy.load(path, require_normalization=not allow_unnormalized)
+        if policy.obs_rms is None:
+            print(f"evaluate.py: warning: {path} runs on raw observations (no normalisation "
+                  "statistics)", file=sys.stderr)  # fmt: skip
+        policy.name = unique_name(str(policy.name), ctrls)
+        ctrls[policy.name] = policy
+    return ctrls
+
+
+def check_controllers(ctrls: dict, settings: list[str], episode_length_s: float) -> None:
+    """Before the run: each controller's env arguments are valid in each setting, the episode
+    is long enough for the metrics at its control rate, and each policy's observation and
+    action sizes are the env's. Raises ``ValueError`` naming the controller (and file)."""
+    for name, ctrl in ctrls.items():
+        where = f"{name} ({ctrl.path})" if getattr(ctrl, "path", None) else name
+        for setting in settings:
+            try:
+                config = EnvConfig.from_kwargs(**{**ctrl.env_kwargs, "setting": setting})
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"{where}: bad env arguments {ctrl.env_kwargs}: {exc}") from None
+            check_episode_length(episode_length_s, config.dt_s, "--episode-length")
+            model = getattr(ctrl, "model", None)
+            if model is None:
+                continue
+            obs_size = (len(config.observation_names),)
+            if tuple(model.observation_space.shape) != obs_size:
+                raise ValueError(
+                    f"{where} takes observations of shape {tuple(model.observation_space.shape)}"
+                    f", but its env ({config.observation!r} observation) gives {obs_size}: the "
+                    "policy was trained on another observation set"
+                )
+            if tuple(model.action_space.shape) != (1,):
+                raise ValueError(
+                    f"{where} gives actions of shape {tuple(model.action_space.shape)}, the "
+                    "env takes (1,)"
+                )
+
+
+def prepare(args: argparse.Namespace) -> dict:
+    """Every check made before the run (:func:`check_args`, :func:`build_controllers`,
+    :func:`check_controllers`); returns the controllers."""
+    check_args(args)
+    names = [n.strip() for n in args.controllers.split(",") if n.strip()]
+    ctrls = build_controllers(
+        names, args.policy, shipped=not args.no_shipped_policy,
+        allow_unnormalized=args.allow_unnormalized,
+    )  # fmt: skip
+    check_controllers(ctrls, _settings(args), args.episode_length)
+    return ctrls
+
+
+def _settings(args: argparse.Namespace) -> list[str]:
+    return ["sim", "hils"] if args.setting == "both" else [args.setting]
+
+
+def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
+    """Run every controller (``ctrls``, default :func:`prepare`'s) in each setting; returns
+    the results (metrics per setting and controller, the policies' files)."""
+    settings = _settings(args)
+    if ctrls is None:
+        ctrls = prepare(args)
+    results: dict = {
+        "natural_frequencies_hz": [float(f) for f in natural_frequencies_hz()],
+        "bands_hz": {k: list(v) for k, v in DEFAULT_BANDS_HZ.items()},
+        "episodes": args.episodes,
+        "seeds": [args.seed, args.seed + args.episodes - 1],
+        "policies": {n: str(c.path) for n, c in ctrls.items() if getattr(c, "path", None)},
+        "settings": {},
+    }
+    rollouts: dict = {}
+    total = len(settings) * len(ctrls)
+    done, t0 = 0, time.perf_counter()
+    for setting in settings:
+        results["settings"][setting] = {"controllers": {}}
+        passive = None
+        for name, ctrl in ctrls.items():
+            env_kwargs = {**ctrl.env_kwargs, "setting": setting}
+            roll = run_episodes(ctrl, env_kwargs, args.episodes, args.seed, args.episode_length)
+            if name == "passive":
+                passive = roll
+            rollouts[(setting, name)] = roll
+            entry = episode_metrics(roll, passive if name != "passive" else None)
+            entry.update(describe(ctrl))
+            results["settings"][setting]["controllers"][name] = entry
+            done += 1
+            _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
+        if getattr(args, "oracle", False):
+            _progress(done, total, f"{setting}/oracle (search)", time.perf_counter() - t0)
+            add_oracle(results["settings"][setting], setting, args, passive, ctrls)
+    print(file=sys.stderr)
+    if args.plots:
+        from capsule_env.plots import evaluation_figures
+
+        evaluation_figures(rollouts, args.plots)
+    return results
+
+
+def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any,
+               ctrls: dict) -> None:  # fmt: skip
+    """Add the clairvoyant bound's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
+    on the same episodes) to a setting's results, and to every controller on the same plant
+    its share of the headroom, ``oracle_headroom_captured_rel = (Wk_passive - Wk) /
+    (Wk_passive - Wk_oracle)`` (0: passive, 1: the clairvoyant optimum). In ``sim`` the plant
+    is the damper model a controller inverts: the oracle's is the Bi-exponential model, and
+    controllers on another plant get no share (passive, the reference, has 0 by definition)."""
+    from capsule_env.oracle import clairvoyant_bound
+
+    seeds = range(args.seed, args.seed + args.episodes)
+    oracle_kwargs = {"setting": setting}
+    result = clairvoyant_bound(oracle_kwargs, seeds, args.episode_length)
+    entry = episode_metrics(result.rollout, passive)
+    summary = result.summary()
+    entry.update({
+        "observation": "oracle", "uses_unmeasured_signals": True, "preview": True,
+        "gains": {}, "gains_tuned": False,
+        "search": {k: v for k, v in summary.items() if k != "env_kwargs"},
+    })  # fmt: skip
+    controllers = block["controllers"]
+    controllers["oracle"] = entry
+    plant = EnvConfig.from_kwargs(**oracle_kwargs).plant_damper_name
+    wk_passive = controllers["passive"]["wk_rms_body_acc_m_s2"]
+    headroom = wk_passive - entry["wk_rms_body_acc_m_s2"]
+    for name, m in controllers.items():
+        ctrl = ctrls.get(name)
+        env = {**(ctrl.env_kwargs if ctrl is not None else {}), "setting": setting}
+        same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant
+        if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
+            m["oracle_headroom_captured_rel"] = (
+                (wk_passive - m["wk_rms_body_acc_m_s2"]) / headroom if headroom > 0 else None
+            )
+
+
+def describe(ctrl: Any) -> dict[str, Any]:
+    """What the JSON says about a controller besides its metrics: the observation set it
+    reads, whether that includes unmeasured signals, whether it previews the guideway, its
+    gains and whether they are the tuned ones (``agents/tuned_gains.json``)."""
+    return {
+        "observation": ctrl.observation,
+        "uses_unmeasured_signals": bool(ctrl.uses_unmeasured_signals),
+        "preview": bool(ctrl.preview),
+        "gains": ctrl.gains(),
+        "gains_tuned": bool(getattr(ctrl, "gains_tuned", False)),
+    }
+
+
+def _progress(done: int, total: int, label: str, elapsed: float) -> None:
+    width = 30
+    filled = int(width * done / total)
+    bar = "#" * filled + "-" * (width - filled)
+    sys.stderr.write(f"\r[{bar}] {done}/{total} {label:<28} {elapsed:6.1f} s")
+    sys.stderr.flush()
+
+
+def _row(setting: str, name: str, m: dict) -> str:
+    vre = m.get("vre_pct", {})  # absent for passive, the reference
+    paper = PAPER_VRE.get((setting, name, "body_mode1"))
+    values = [
+        vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
+        vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
+        1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
+        m.get("sperling_ride_index"), m.get("en12299_comfort_index"),
+        m.get("oracle_headroom_captured_rel"),
+    ]  # fmt: skip
+    cells = [f"{name:<{NAME_WIDTH}}"]
+    for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
+        blank = "" if title == "paper %" else "-"
+        cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
+    return "".join(cells)
+
+
+def group_of(entry: dict) -> str:
+    """A controller's table group: its observation set, ``+preview`` if it reads the guideway
+    ahead."""
+    return entry.get("observation", "unknown") + ("+preview" if entry.get("preview") else "")
+
+
+def format_tables(results: dict) -> str:
+    """The tables, one per setting, rows grouped by the observation set each controller reads
+    (a header line per group says what the group may read)."""
+    lines = []
+    f1, f2 = results["natural_frequencies_hz"]
+    lines.append(f"Undamped modes of the plant: {f1:.2f} Hz (body), {f2:.2f} Hz (bogie)")
+    lines.append(
+        f"{results['episodes']} guideway seeds per controller "
+        f"({results['seeds'][0]}..{results['seeds'][1]}), bands {results['bands_hz']}"
+    )
+    for setting, block in results["settings"].items():
+        table = "5" if setting == "sim" else "6"
+        lines.append("")
+        lines.append(
+            f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) =="
+        )
+        header = "".join(f"{title:>{width}}" for title, width in COLUMNS)
+        lines.append(f"{'controller':<{NAME_WIDTH}}{header}")
+        lines.append("-" * (NAME_WIDTH + len(header)))
+        controllers = block["controllers"]
+        seen = [group_of(m) for m in controllers.values()]
+        for group in [*GROUP_ORDER, *sorted(set(seen) - set(GROUP_ORDER))]:
+            names = [n for n, g in zip(controllers, seen) if g == group]
+            if names:
+                lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
+                lines.extend(_row(setting, n, controllers[n]) for n in names)
+        lines.append(PAPER_TEXT[setting])
+    if results.get("policies"):
+        lines.append("")
+        lines.append("policies: " + "; ".join(f"{n} = {p}" for n, p in results["policies"].items()))
+    lines.append("")
+    lines.append(
+        "VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
+        "band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS car-body "
+        "acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
+        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio); Wz: Sperling ride index (RMS "
+        "form); N_v: EN 12299 mean comfort, vertical term 6 a_ZP95 (Wb). Gains: tuned on the "
+        "training guideway bank (agents/tuned_gains.json, python -m capsule_env.agents.tuning), except "
+        + ", ".join(PAPER_FIXED)
+        + " (the paper's reconstructed c_max = 7e4 N s/m). '+preview' groups read the surveyed "
+        "guideway ahead (env option preview_points). headroom (with --oracle): the share of the "
+        "Wk gap passive -> oracle a controller closes (the oracle: capsule_env.oracle, the "
+        "applied current searched knowing the whole guideway, no noise or delay)."
+    )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status. Bad arguments or files: ``SystemExit`` with one
+    line (``evaluate.py: error: ...``) before anything runs."""
+    args = parse_args(argv)
+    try:
+        ctrls = prepare(args)
+    except (ValueError, OSError, TypeError) as exc:
+        sys.exit(f"evaluate.py: error: {exc}")
+    results = evaluate(args, ctrls)
+    print(format_tables(results))
+    if args.json:
+        try:
+            atomic_write_text(args.json, json.dumps(results, indent=2))
+        except OSError as exc:
+            sys.exit(f"evaluate.py: error: cannot write --json {args.json} ({exc}); any "
+                     "previous file there is unchanged")  # fmt: skip
+        print(f"\nwrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    np.set_printoptions(precision=4)
+    sys.exit(main())

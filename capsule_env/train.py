@@ -1,0 +1,161 @@
+"""Train a stable-baselines3 agent (PPO, SAC or TD3) on ``CapsuleSuspension-v0``.
+
+    python train.py                                   # PPO, defaults from hyperparams/ppo.yml
+    python train.py --algo sac --total-timesteps 300000
+    python train.py --env setting=sim --env reward_stroke_weight=0.2
+    python train.py --resume auto                     # continue runs/ppo-seed0 after a Ctrl-C
+    python evaluate.py --policy runs/ppo-seed0/best_model.zip --setting hils
+
+Hyperparameters: ``hyperparams/<algo>.yml`` (RL-Zoo format). Env: ``hils``, force mode, unless
+the file's ``env_kwargs`` (the shipped ones: ``observation: full_state``), ``--env-kwargs`` or
+``--env`` say otherwise; training on guideway bank 0, evaluation every ``--eval-freq`` steps on
+the validation bank 7 (the evaluation bank 2026 that evaluate.py reports on is never
+used to choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<seed>``):
+``best_model.*`` (the best evaluation by the Wk-weighted RMS car-body acceleration;
+``evaluate.py --policy`` loads it), ``final_model.*``, ``checkpoints/`` (every
+``--checkpoint-freq`` steps and ``--checkpoint-minutes``, on Ctrl-C or SIGTERM and at the end;
+``--resume``) and ``evaluations.jsonl``. Saves are atomic; bad arguments stop the script before
+training with one line on stderr. Details: agents/training.py, agents/checkpoints.py,
+agents/hyperparams.py.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import torch
+from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.utils import set_random_seed
+
+from capsule_env.agents.checkpoints import resume_model, save_policy
+from capsule_env.agents.training import Run, TrainingMonitor, make_env, prepare, run_seed_for
+from capsule_env.agents.training import parse_args as parse_dataclass_args
+
+
+@dataclass
+class Args:
+    algo: Literal["ppo", "sac", "td3"] = "ppo"
+    """the algorithm"""
+    total_timesteps: int | None = None
+    """env steps, all vehicles together (default: the file's n_timesteps), rounded up to whole
+    PPO rollouts (n_steps * num_envs) or vector steps"""
+    num_envs: int | None = None
+    """vehicles simulated in parallel (default: the file's n_envs, or the checkpoint's)"""
+    seed: int = 0
+    """random seed of torch, numpy and the vehicles (runs with different seeds share no stream)"""
+    env_kwargs: dict = field(default_factory=dict)
+    """env arguments, a JSON object or Python dict literal such as '{"speed_kmh": 600}', over
+    the file's env_kwargs and the defaults (setting hils, action_mode force, observation sensors)"""
+    env: list[str] = field(default_factory=list)
+    """one env argument KEY=VALUE (VALUE JSON or a Python literal, a bare word a string),
+    repeatable, merged over --env-kwargs: --env setting=sim --env speed_kmh=600"""
+    output_dir: str | None = None
+    """output folder (default: runs/<algo>-seed<seed>)"""
+    name: str | None = None
+    """the policy's name in evaluate.py's tables (default: <algo>-seed<seed>)"""
+    eval_freq: int = 200_000
+    """evaluate on the validation guideway bank every this many env steps (0: only at the end)"""
+    eval_episodes: int = 10
+    """episodes per evaluation"""
+    eval_seed: int = 5000
+    """first evaluation episode seed (evaluate.py reports on 1000..)"""
+    eval_episode_length: float = 10.0
+    """seconds per evaluation episode"""
+    checkpoint_freq: int = 500_000
+    """save a checkpoint every this many env steps (0: off)"""
+    checkpoint_minutes: float = 5.0
+    """also save one when this many minutes of wall time have passed since the last (0: off)"""
+    keep_replay_buffers: int = 2
+    """SAC/TD3: keep the replay buffers of only the newest this many checkpoints"""
+    resume: str | None = None
+    """continue from a checkpoint .zip, or 'auto' for the newest intact one in output_dir"""
+    tensorboard: str | None = None
+    """tensorboard log folder (needs the tensorboard package)"""
+    threads: int = 1
+    """torch CPU threads (1 is fastest here)"""
+    progress: bool = True
+    """show a progress bar"""
+    hyperparams: str | None = None
+    """RL-Zoo yml file (default: hyperparams/<algo>.yml)"""
+    device: str = "cpu"
+    """torch device"""
+    verbose: int = 0
+    """SB3 verbosity (1: SB3's log tables)"""
+
+
+def train(args: Args, extra_callbacks: list | None = None) -> dict:
+    """Train as ``args`` says; returns a summary (paths, timesteps, best evaluation, model).
+    Bad arguments or files raise ``SystemExit`` with one line before training starts."""
+    try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
+        plan = prepare(args)
+    except (ValueError, OSError, TypeError) as exc:
+        raise SystemExit(f"train.py: error: {exc}") from None
+    torch.set_num_threads(args.threads)
+
+    # Seeds, in one place: torch, numpy, random and the vehicles' streams. A resumed run gets
+    # a seed derived from the seed and the timesteps done, so it does not replay the start.
+    run_seed = run_seed_for(args.seed, plan.start_timesteps)
+    set_random_seed(run_seed)
+    env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs, plan.statistics)
+
+    if plan.ckpt is None:
+        model = plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
+                              tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
+    else:  # Algo.load(env=env): learn() first resets the env, which adds that one batch of
+        # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
+        model = resume_model(plan.algo_cls, plan.ckpt, env, device=args.device,
+                             verbose=args.verbose,
+                             tensorboard_log=plan.tensorboard_log)  # fmt: skip
+
+    run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
+    callbacks = CallbackList([TrainingMonitor(run), *(extra_callbacks or [])])
+    print(f"{args.algo.upper()} on CapsuleSuspension-v0 {plan.env_kwargs}: {plan.num_envs} "
+          f"vehicles, {plan.total} timesteps, torch threads {args.threads}; output "
+          f"{plan.output_dir}", flush=True)  # fmt: skip
+    interrupted = False
+    try:
+        if plan.total > model.num_timesteps:
+            model.learn(plan.total - model.num_timesteps, callback=callbacks,
+                        reset_num_timesteps=plan.ckpt is None, progress_bar=args.progress,
+                        tb_log_name=run.name)  # fmt: skip
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (see main): a checkpoint to resume from
+        interrupted = True
+        if args.algo == "ppo":  # a rollout cut short was not learned from: count it out
+            model.num_timesteps = run.rollout_end_timesteps
+        path = run.checkpoint(model)
+        print(f"\ninterrupted at {model.num_timesteps} timesteps: checkpoint {path}\n"
+              f"continue with: python train.py ... --output-dir {plan.output_dir} "
+              "--resume auto")  # fmt: skip
+    if not interrupted:
+        run.evaluate(model)  # the final policy is a candidate for the best one too
+        final_meta = run.meta(model, name=f"{run.name}-final")  # its own row in evaluate.py
+        save_policy(model, plan.output_dir / "final_model", final_meta)
+    if model.num_timesteps != run.last_checkpoint_timesteps:  # always resumable at the end
+        run.checkpoint(model)
+    run.report(model)  # throughput and the best evaluation
+    env.close()
+    return {"output_dir": str(plan.output_dir), "num_timesteps": int(model.num_timesteps),
+            "interrupted": interrupted, "best": run.best, "wall_time_s": run.wall_time(),
+            "model": model}  # fmt: skip
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    """The command line as :class:`Args`; a bad value exits with one line on stderr."""
+    return parse_dataclass_args(Args, argv, __doc__)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    signal.signal(signal.SIGTERM, _interrupt)  # a job scheduler's SIGTERM checkpoints too
+    return 130 if train(args)["interrupted"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
