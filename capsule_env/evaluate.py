@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import textwrap
 import time
 from pathlib import Path
 from typing import Any, NoReturn
@@ -36,6 +37,7 @@ from capsule_env.config import EnvConfig
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
+from capsule_env.table_key import key_lines, on_off_note
 from capsule_env.vehicle import natural_frequencies_hz
 
 #: The paper's published vibration-reduction effects (per cent) that survived extraction
@@ -112,7 +114,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--no-shipped-policy",
         action="store_true",
-        help="do not add the pretrained policy shipped with the package",
+        help="do not add the pretrained policies shipped with the package (all three)",
     )
     p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
@@ -333,21 +335,39 @@ def _progress(done: int, total: int, label: str, elapsed: float) -> None:
     sys.stderr.flush()
 
 
-def _row(setting: str, name: str, m: dict) -> str:
+def _values(setting: str, name: str, m: dict) -> list:
+    """A row's figures in :data:`COLUMNS` order (None where a figure does not apply)."""
     vre = m.get("vre_pct", {})  # absent for passive, the reference
-    paper = PAPER_VRE.get((setting, name, "body_mode1"))
-    values = [
-        vre.get("body_mode1"), paper, vre.get("body_mode2"), vre.get("bogie_mode1"),
-        vre.get("bogie_mode2"), m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"],
-        1000.0 * m["max_stroke_m"], m["mean_current_a"], m.get("force_tracking_error_rel"),
-        m.get("sperling_ride_index"), m.get("en12299_comfort_index"),
-        m.get("oracle_headroom_captured_rel"),
+    return [
+        vre.get("body_mode1"), PAPER_VRE.get((setting, name, "body_mode1")),
+        vre.get("body_mode2"), vre.get("bogie_mode1"), vre.get("bogie_mode2"),
+        m["wk_rms_body_acc_m_s2"], m["rms_body_acc_m_s2"], 1000.0 * m["max_stroke_m"],
+        m["mean_current_a"], m.get("force_tracking_error_rel"), m.get("sperling_ride_index"),
+        m.get("en12299_comfort_index"), m.get("oracle_headroom_captured_rel"),
     ]  # fmt: skip
-    cells = [f"{name:<{NAME_WIDTH}}"]
-    for value, (title, width), fmt in zip(values, COLUMNS, FORMATS):
-        blank = "" if title == "paper %" else "-"
-        cells.append(f"{blank:>{width}}" if value is None else f"{value:{width}{fmt}}")
-    return "".join(cells)
+
+
+def _columns(results: dict) -> list[int]:
+    """The indices of :data:`COLUMNS` to print: all, except ``headroom`` when no row has one
+    (a run without ``--oracle``)."""
+    has_headroom = any(
+        "oracle_headroom_captured_rel" in m
+        for block in results["settings"].values()
+        for m in block["controllers"].values()
+    )
+    return [k for k, (title, _) in enumerate(COLUMNS) if has_headroom or title != "headroom"]
+
+
+def _cell(value: Any, k: int, width: int = 0) -> str:
+    """One figure of column ``k``: its format, or a dash (blank for ``paper %``)."""
+    if value is None:
+        return f"{'' if COLUMNS[k][0] == 'paper %' else '-':>{width}}"
+    return f"{value:{width}{FORMATS[k]}}"
+
+
+def _row(setting: str, name: str, m: dict, columns: list[int]) -> str:
+    values = _values(setting, name, m)
+    return f"{name:<{NAME_WIDTH}}" + "".join(_cell(values[k], k, COLUMNS[k][1]) for k in columns)
 
 
 def group_of(entry: dict) -> str:
@@ -356,50 +376,120 @@ def group_of(entry: dict) -> str:
     return entry.get("observation", "unknown") + ("+preview" if entry.get("preview") else "")
 
 
+def _grouped(controllers: dict) -> list[tuple[str, list[str]]]:
+    """The rows in table order: ``(group, names)`` in :data:`GROUP_ORDER`, then any other."""
+    seen = [group_of(m) for m in controllers.values()]
+    groups = [*GROUP_ORDER, *sorted(set(seen) - set(GROUP_ORDER))]
+    rows = [(g, [n for n, s in zip(controllers, seen) if s == g]) for g in groups]
+    return [(g, names) for g, names in rows if names]
+
+
+def _bands(results: dict) -> str:
+    """The mode bands with their unit: ``mode1 1.0-3.0 Hz, mode2 4.5-7.0 Hz``."""
+    return ", ".join(f"{k} {lo:g}-{hi:g} Hz" for k, (lo, hi) in results["bands_hz"].items())
+
+
 def format_tables(results: dict) -> str:
     """The tables, one per setting, rows grouped by the observation set each controller reads
-    (a header line per group says what the group may read)."""
-    lines = []
+    (a header line per group says what the group may read), each followed by the on-off
+    Skyhook note when its figures show it (:func:`capsule_env.table_key.on_off_note`); then
+    the key to the controller names and the columns. The ``headroom`` column only with
+    ``--oracle``."""
+    columns = _columns(results)
     f1, f2 = results["natural_frequencies_hz"]
-    lines.append(f"Undamped modes of the plant: {f1:.2f} Hz (body), {f2:.2f} Hz (bogie)")
-    lines.append(
-        f"{results['episodes']} guideway seeds per controller "
-        f"({results['seeds'][0]}..{results['seeds'][1]}), bands {results['bands_hz']}"
-    )
+    lines = [
+        f"Undamped modes of the plant: {f1:.2f} Hz (body), {f2:.2f} Hz (bogie)",
+        f"{results['episodes']} guideway seeds per controller ({results['seeds'][0]}.."
+        f"{results['seeds'][1]}); mode bands of the VRE: {_bands(results)}",
+    ]
     for setting, block in results["settings"].items():
         table = "5" if setting == "sim" else "6"
-        lines.append("")
-        lines.append(
-            f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) =="
-        )
-        header = "".join(f"{title:>{width}}" for title, width in COLUMNS)
-        lines.append(f"{'controller':<{NAME_WIDTH}}{header}")
-        lines.append("-" * (NAME_WIDTH + len(header)))
+        lines += [
+            "",
+            f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) ==",
+        ]
+        header = "".join(f"{COLUMNS[k][0]:>{COLUMNS[k][1]}}" for k in columns)
+        lines += [f"{'controller':<{NAME_WIDTH}}{header}", "-" * (NAME_WIDTH + len(header))]
         controllers = block["controllers"]
-        seen = [group_of(m) for m in controllers.values()]
-        for group in [*GROUP_ORDER, *sorted(set(seen) - set(GROUP_ORDER))]:
-            names = [n for n, g in zip(controllers, seen) if g == group]
-            if names:
-                lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
-                lines.extend(_row(setting, n, controllers[n]) for n in names)
+        for group, names in _grouped(controllers):
+            lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
+            lines.extend(_row(setting, n, controllers[n], columns) for n in names)
         lines.append(PAPER_TEXT[setting])
+        note = on_off_note(controllers)
+        if note:
+            lines += _wrap(note, NAME_WIDTH + len(header), "  ")
     if results.get("policies"):
-        lines.append("")
-        lines.append("policies: " + "; ".join(f"{n} = {p}" for n, p in results["policies"].items()))
-    lines.append("")
-    lines.append(
-        "VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum peak in the "
-        "band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS car-body "
-        "acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
+        lines += [
+            "",
+            "policies: " + "; ".join(f"{n} = {p}" for n, p in results["policies"].items()),
+        ]
+    every = {  # every row once, in table order
+        n: block["controllers"][n]
+        for block in results["settings"].values()
+        for _, names in _grouped(block["controllers"])
+        for n in names
+    }
+    title, *key = key_lines(every, results.get("policies", {}), NAME_WIDTH)
+    lines += ["", *_wrap(title, 100), *key, ""]
+    lines += _wrap(_footer("headroom" in [COLUMNS[k][0] for k in columns]), 100)
+    return "\n".join(lines)
+
+
+def _wrap(text: str, width: int, indent: str = "") -> list[str]:
+    """``text`` in lines of at most ``width`` characters, broken at spaces only (names such
+    as ``skyhook-biexp`` stay whole), continuation lines indented by ``indent``."""
+    return textwrap.wrap(text, width, subsequent_indent=indent, break_on_hyphens=False)
+
+
+def _footer(headroom: bool) -> str:
+    """The columns' meanings below the tables (``headroom``'s only when it is printed)."""
+    text = (
+        "Columns: VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum "
+        "peak in the band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS "
+        "car-body acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
         "force-tracking error rms(F - F_d)/rms(F_d) (a ratio); Wz: Sperling ride index (RMS "
         "form); N_v: EN 12299 mean comfort, vertical term 6 a_ZP95 (Wb). Gains: tuned on the "
-        "training guideway bank (agents/tuned_gains.json, python -m capsule_env.agents.tuning), except "
-        + ", ".join(PAPER_FIXED)
-        + " (the paper's reconstructed c_max = 7e4 N s/m). '+preview' groups read the surveyed "
-        "guideway ahead (env option preview_points). headroom (with --oracle): the share of the "
-        "Wk gap passive -> oracle a controller closes (the oracle: capsule_env.oracle, the "
-        "applied current searched knowing the whole guideway, no noise or delay)."
+        "training guideway bank (agents/tuned_gains.json, python -m capsule_env.agents.tuning), "
+        "except " + ", ".join(PAPER_FIXED) + " (the paper's reconstructed c_max = 7e4 N s/m). "
+        "'+preview' groups read the surveyed guideway ahead (env option preview_points)."
     )
+    if headroom:
+        text += (
+            " headroom: the share of the Wk gap passive -> oracle a controller closes (the "
+            "oracle: capsule_env.oracle, the applied current searched knowing the whole "
+            "guideway, no noise or delay)."
+        )
+    return text
+
+
+#: The Markdown tables' short group names (what the rows read).
+MARKDOWN_GROUPS = {
+    "none": "open loop", "measured": "measured", "measured+preview": "measured + preview",
+    "sensors": "sensors", "full_state": "ideal sensors", "full_state+preview":
+    "ideal sensors + preview", "oracle+preview": "oracle",
+}  # fmt: skip
+
+
+def format_markdown(results: dict) -> str:
+    """The tables as Markdown (the results page's), two per setting: the VRE columns, and the
+    comfort, stroke and effort columns; rows in the printed tables' order."""
+    columns = _columns(results)
+    parts = [[k for k in columns if k < 5], [k for k in columns if k >= 5]]
+    titles = ("vibration reduction effect (%)", "comfort, stroke and effort")
+    lines: list[str] = []
+    for setting, block in results["settings"].items():
+        controllers = block["controllers"]
+        for title, part in zip(titles, parts):
+            heads = ["controller", "reads", *(COLUMNS[k][0] for k in part)]
+            lines += [f"**`{setting}`: {title}**", "", "| " + " | ".join(heads) + " |"]
+            lines.append("| --- | --- |" + " ---: |" * len(part))
+            for group, names in _grouped(controllers):
+                for n in names:
+                    values = _values(setting, n, controllers[n])
+                    cells = [f"`{n}`", MARKDOWN_GROUPS.get(group, group)]
+                    cells += [_cell(values[k], k).replace("%", " %") for k in part]
+                    lines.append("| " + " | ".join(cells) + " |")
+            lines.append("")
     return "\n".join(lines)
 
 
