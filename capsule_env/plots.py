@@ -3,7 +3,6 @@ control) and the damper-model identification (the paper's Figures 4 to 7 analogu
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -252,11 +251,26 @@ def _law_label(p: str, row: dict[str, float]) -> str:
 
 
 # ----------------------------------------------------------------------------- Pareto fronts
-#: Colour of each law family (the ideal-sensor and measured versions share it).
-_FAMILY_COLOURS = {
-    "skyhook": "tab:blue", "skyhook-cont": "tab:orange", "hybrid": "tab:green",
-    "add": "tab:red", "sh-add": "tab:purple", "lqr-clipped": "tab:brown",
-}  # fmt: skip
+#: Each law family's name in words and colour (the ideal-sensor and measured versions share it).
+_FAMILIES = {
+    "skyhook": ("on-off Skyhook", "tab:blue"),
+    "skyhook-cont": ("continuous Skyhook", "tab:orange"),
+    "hybrid": ("hybrid Skyhook-groundhook", "tab:green"),
+    "add": ("acceleration-driven damper (ADD)", "tab:red"),
+    "sh-add": ("mixed Skyhook-ADD", "tab:purple"),
+    "lqr-clipped": ("clipped-optimal LQR", "tab:brown"),
+    "preview-lq": ("LQ optimal preview", "tab:pink"),
+}
+#: The swept gains in words, with the unit of their range in the legend.
+_GAIN_WORDS = {
+    "c_sky_n_s_m": ("Skyhook gain c_sky", "N s/m"),
+    "i_on_a": ("on-current i_on", "A"),
+    "r_force_1_kg2": ("force weight r", "1/kg²"),
+    "alpha_s": ("crossover alpha", "s"),
+    "alpha_rel": ("Skyhook share alpha", ""),
+}
+#: Markers of the single points: open-loop references, then learned policies.
+_POINT_MARKERS = {"open loop": "osv^", "policy": "DPXh"}
 
 
 def _family(name: str) -> str:
@@ -266,58 +280,125 @@ def _family(name: str) -> str:
     return base
 
 
+def _sweep_label(name: str, law: dict[str, Any]) -> str:
+    """A sweep's legend entry: the law and its signals in words, the gain swept and its range."""
+    words, _ = _FAMILIES.get(_family(name), (name, "tab:gray"))
+    signals = "measured" if law["observation"] == "measured" else "ideal sensors"
+    gain, unit = _GAIN_WORDS.get(law["swept_gain"], (law["swept_gain"], ""))
+    lo, hi = min(law["values"]), max(law["values"])
+    return f"{words}, {signals} ({name}):\n  {gain} {lo:.3g} to {hi:.3g} {unit}".rstrip()
+
+
 def pareto_figure(data: dict[str, Any], path: Path) -> Path:
     """The comfort trade-offs of ``experiments/pareto.py``'s ``data``: Wk-weighted RMS body
-    acceleration against the body's first-mode VRE (left) and against the worst ``max |stroke|``
-    (right). Each law's gain sweep is a curve (measured: solid, ideal sensors: dashed) with its
-    tuned gains starred; open-loop references and learned policies are points."""
+    acceleration against the body's first-mode VRE (left, with a zoom on the tuned laws and
+    the policies) and against the worst ``max |stroke|`` (right). Each law's gain sweep is a
+    curve (measured: solid, ideal sensors: dashed; a circle at the swept gain's lowest value)
+    with its tuned gains starred; open-loop references and learned policies are points, each
+    with its own marker in the legend (no text on the axes, so nothing overlaps)."""
     plt = _pyplot()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.6), constrained_layout=True)
-    panels = (("vre_body_mode1_pct", 1.0, "VRE body first mode (%)  (higher: better)"),
+    fig, axes = plt.subplots(1, 2, figsize=(15, 6.4), constrained_layout=True)
+    panels = (("vre_body_mode1_pct", 1.0, "body first-mode VRE (%)   (higher: smaller peak)"),
               ("max_stroke_m", 1e3, "worst max |stroke| over the episodes (mm)"))  # fmt: skip
-    for ax, (key, scale, label) in zip(axes, panels):
-        for name, law in data["laws"].items():
-            measured = law["observation"] == "measured"
-            colour = _FAMILY_COLOURS.get(_family(name), "tab:gray")
-            x = scale * np.asarray(law[key], dtype=float)
-            y = np.asarray(law["wk_rms_body_acc_m_s2"])
-            ax.plot(x, y, "-" if measured else "--", color=colour, lw=1.4, marker=".", ms=4,
-                    label=f"{name} (sweep {law['swept_gain']})")  # fmt: skip
-            k = law["tuned_index"]
-            ax.plot(x[k], y[k], "*", color=colour, ms=14, mec="black", mew=0.8)
-        top = 1.03 * max(max(law["wk_rms_body_acc_m_s2"]) for law in data["laws"].values())
-        off_scale = []
-        for (name, point), marker in zip(data["points"].items(), itertools.cycle("osv^<>")):
-            x = scale * (point.get(key) or 0.0)  # passive: no VRE against itself
-            y = point["wk_rms_body_acc_m_s2"]
-            if y > top:
-                off_scale.append(f"{name}: Wk {y:.3f}")
-                continue
-            policy = point["kind"] == "policy"
-            ax.plot(x, y, "D" if policy else marker, color="black" if policy else "0.5", ms=8,
-                    label=f"{name} ({point['kind']}, {point['observation']})")  # fmt: skip
-            ax.annotate(name, (x, y), textcoords="offset points", xytext=(6, -10), fontsize=7)
+    top = 1.03 * max(max(law["wk_rms_body_acc_m_s2"]) for law in data["laws"].values())
+    handles: dict[str, Any] = {}
+    for ax, (key, scale, label) in zip(axes, panels, strict=True):
+        _draw_sweeps(ax, data["laws"], key, scale, handles)
+        _draw_points(ax, data["points"], key, scale, top, handles)
         ax.set_ylim(top=top)
-        if off_scale:
-            ax.text(0.02, 0.98, "off scale: " + "; ".join(off_scale), transform=ax.transAxes,
-                    va="top", fontsize=7, color="0.3")  # fmt: skip
-        if key == "max_stroke_m" and data.get("stroke_limit_m"):
-            ax.axvline(1e3 * data["stroke_limit_m"], color="0.3", ls=":", lw=1)
-            ax.text(1e3 * data["stroke_limit_m"], 0.5 * sum(ax.get_ylim()), "tuning's stroke "
-                    "limit (training bank) ", rotation=90, va="center", ha="right", fontsize=7,
-                    color="0.3")  # fmt: skip
         ax.set_xlabel(label)
-        ax.set_ylabel("ISO 2631-1 Wk-weighted RMS body acceleration (m/s^2)")
+        ax.set_ylabel("ISO 2631-1 Wk-weighted RMS body acceleration (m/s²)   (lower: better)")
         ax.grid(alpha=0.3)
-    axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    if data.get("stroke_limit_m"):
+        x_mm = 1e3 * data["stroke_limit_m"]
+        axes[1].axvline(x_mm, color="0.3", ls=":", lw=1)
+        axes[1].text(x_mm, axes[1].get_ylim()[0], "tuning's stroke limit (training bank) ",
+                     rotation=90, va="bottom", ha="right", fontsize=8, color="0.3")  # fmt: skip
+    _zoom(axes[0], data, handles)
+    _pareto_legend(axes[1], handles)
     seeds = data["seeds"]
     fig.suptitle(
-        f"{data['setting']}: gain sweeps on the EVALUATION bank (guideway_seed "
-        f"{data['guideway_seed']}, seeds {seeds[0]}..{seeds[-1]}; for this figure only).\n"
-        "Stars: the gains tuned on the TRAINING bank (guideway_seed 0). Solid: measured "
-        "signals; dashed: ideal sensors.",
-        fontsize=9,
+        f"{data['setting']}: each tuned law with one gain swept over its search range, the others "
+        f"at their tuned values; EVALUATION bank (guideway_seed {data['guideway_seed']}, seeds "
+        f"{seeds[0]}..{seeds[-1]}), for this figure only.\nStars: the gains tuned on the TRAINING "
+        "bank (guideway_seed 0). Solid: measured signals; dashed: ideal sensors; open circle: "
+        "the swept gain's lowest value.",
+        fontsize=10,
     )
     return _save(fig, path, plt)
+
+
+def _draw_sweeps(ax: Any, laws: dict[str, dict], key: str, scale: float,
+                 handles: dict[str, Any]) -> None:  # fmt: skip
+    """Each law's sweep (its tuned point starred, its lowest gain circled) against ``key``."""
+    for name, law in laws.items():
+        _, colour = _FAMILIES.get(_family(name), (name, "tab:gray"))
+        x = scale * np.asarray(law[key], dtype=float)
+        y = np.asarray(law["wk_rms_body_acc_m_s2"])
+        style = "-" if law["observation"] == "measured" else "--"
+        (line,) = ax.plot(x, y, style, color=colour, lw=1.5, marker=".", ms=4)
+        handles.setdefault(_sweep_label(name, law), line)
+        low = int(np.argmin(law["values"]))
+        ax.plot(x[low], y[low], "o", color=colour, mfc="white", ms=6)
+        k = law["tuned_index"]
+        ax.plot(x[k], y[k], "*", color=colour, ms=15, mec="black", mew=0.8)
+
+
+def _zoom(ax: Any, data: dict[str, Any], handles: dict[str, Any]) -> None:
+    """An inset (upper left of the VRE panel, where no curve runs) magnifying the tuned gains
+    and the learned policies: every star and policy below the passive damper's Wk."""
+    wk_passive = data["points"].get("passive", {}).get("wk_rms_body_acc_m_s2", np.inf)
+    xy = [
+        (
+            law["vre_body_mode1_pct"][law["tuned_index"]],
+            law["wk_rms_body_acc_m_s2"][law["tuned_index"]],
+        )
+        for law in data["laws"].values()
+    ]
+    xy += [(p["vre_body_mode1_pct"], p["wk_rms_body_acc_m_s2"])
+           for p in data["points"].values() if p["kind"] == "policy"]  # fmt: skip
+    xy = np.array([(x, y) for x, y in xy if x is not None and y < wk_passive - 0.005])
+    if len(xy) < 2:
+        return
+    inset = ax.inset_axes([0.13, 0.53, 0.44, 0.42])
+    _draw_sweeps(inset, data["laws"], "vre_body_mode1_pct", 1.0, {})
+    _draw_points(inset, data["points"], "vre_body_mode1_pct", 1.0, np.inf, {})
+    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    inset.set_xlim(x0 - 0.08 * (x1 - x0), x1 + 0.08 * (x1 - x0))
+    inset.set_ylim(y0 - 0.1 * (y1 - y0), y1 + 0.1 * (y1 - y0))
+    inset.tick_params(labelsize=7)
+    inset.grid(alpha=0.3)
+    inset.set_title("zoom: tuned gains and learned policies", fontsize=8)
+    ax.indicate_inset_zoom(inset, edgecolor="0.4")
+
+
+def _draw_points(ax: Any, points: dict[str, dict], key: str, scale: float, top: float,
+                 handles: dict[str, Any]) -> None:  # fmt: skip
+    """The open-loop references and the learned policies, each with its own marker; a point
+    above ``top`` (Wk) is left off the axes and its legend entry says so."""
+    used = {"open loop": 0, "policy": 0}
+    for name, point in points.items():
+        kind = "policy" if point["kind"] == "policy" else "open loop"
+        marker = _POINT_MARKERS[kind][used[kind] % len(_POINT_MARKERS[kind])]
+        used[kind] += 1
+        y = point["wk_rms_body_acc_m_s2"]
+        x = scale * (point.get(key) or 0.0)  # passive: no VRE against itself
+        colour = "black" if kind == "policy" else "0.45"
+        (dot,) = ax.plot(x if y <= top else [], y if y <= top else [], marker, color=colour,
+                         mfc="none" if kind == "policy" else colour, mew=1.6, ms=10, ls="none")  # fmt: skip
+        reads = point["observation"].replace("full_state", "ideal sensors").replace("+", " + ")
+        label = f"{name}: {'learned policy' if kind == 'policy' else 'open loop'}, reads {reads}"
+        handles.setdefault(label + (f" (off scale: Wk {y:.3f})" if y > top else ""), dot)
+
+
+def _pareto_legend(ax: Any, handles: dict[str, Any]) -> None:
+    """One legend right of the panels: the sweeps, then the points, then the markers' key."""
+    from matplotlib.lines import Line2D
+
+    star = Line2D([], [], ls="none", marker="*", color="0.5", mec="black", ms=14)
+    low = Line2D([], [], ls="none", marker="o", color="0.5", mfc="white", ms=6)
+    entries = {**handles, "tuned gains (training bank)": star, "swept gain's lowest value": low}
+    ax.legend(entries.values(), entries.keys(), fontsize=8, loc="upper left",
+              bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, labelspacing=0.6)  # fmt: skip
