@@ -6,6 +6,10 @@ that compares the code with them checks the code against the document, not again
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
 ENV_ID = "CapsuleSuspension-v0"
 
 DT = 0.005  # s: the control interval (200 Hz), also the sample interval of recorded signals
@@ -53,3 +57,13 @@ ENV_COMBOS = [
 RL_EXTRA = "optional, in the rl extra: pip install 'capsule-env[rl]'"
 NO_SB3 = f"stable-baselines3 is not installed ({RL_EXTRA})"
 NO_YAML = f"PyYAML is not installed ({RL_EXTRA})"
+
+
+def load_script(relative_path: str) -> ModuleType:
+    """A script of the repository (``experiments/...py``) imported as a module, to call its
+    functions."""
+    path = Path(__file__).resolve().parents[1] / relative_path
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
