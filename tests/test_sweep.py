@@ -59,7 +59,7 @@ BAD = [
     ({"trials": [{**GAINS, "params": {"controller": "skyhok"}}]}, "controller: unknown controller 'skyhok'; accepted: passive,"),
     ({"trials": [{**GAINS, "grid": {"gain.c_skyy": [1.0]}}]}, "gain.c_skyy: skyhook-cont-biexp has no such gain; accepted: c_max, c_min, c_sky"),
     ({"trials": [{**GAINS, "grid": {"gain.c_sky": 3000}}]}, "grid.gain.c_sky: expected a non-empty list of values"),
-    ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number, got 'big'"),
+    ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number >= 0, got 'big'"),
     ({"trials": [{**GAINS, "replicates": 3}]}, "trials[0].replicates: kind 'gains' is deterministic"),
     ({"trials": [{**GAINS, "grid": {"env.sped_kmh": [600]}}]}, "unexpected keyword argument 'sped_kmh'; accepted:"),
     ({"trials": [{**GAINS, "params": {**GAINS["params"], "episode_length_s": 0.1}}]}, "episode_length_s 0.1 s (20 control steps) is too short"),
@@ -79,6 +79,90 @@ def test_bad_study_file_is_one_line_naming_the_key(tmp_path, capsys, content, ex
     assert err.count("\n") == 1 and err.startswith("sweep: error: "), err
     assert expected in err, err
     assert not (tmp_path / "out").exists()  # nothing ran, nothing written
+
+
+# Study files that passed --check and failed only at run time, or ran the wrong thing
+# (issue 25): each is refused before anything runs, in one line naming the key.
+SKY = {"controller": "skyhook-cont-biexp", "episodes": 1, "episode_length_s": 1.0}
+SKY_MEAS = {**SKY, "controller": "skyhook-cont-biexp-meas"}
+REFUSED = [
+    # a key the controller fixes (its env_kwargs): the trial would run another law by its name
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.action_mode": "current"}}]},
+     "env.action_mode: skyhook-cont-biexp fixes action_mode='force'; accepted: env arguments other than those it fixes"),
+    ({"trials": [{"kind": "gains", "params": {**SKY_MEAS, "env.observation": "full_state"}}]},
+     "env.observation: skyhook-cont-biexp-meas fixes observation='measured'"),
+    ({"trials": [{"kind": "gains", "params": SKY, "grid": {"env.max_force_n": [4000.0]}}]},
+     "env.max_force_n: skyhook-cont-biexp fixes max_force_n=8000.0 (a gain of skyhook-cont-biexp: give gain.max_force_n)"),
+    # keys the trial sets itself
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.episode_length_s": 2.0}}]},
+     "env.episode_length_s: the gains trial sets it; give it as the trial's 'episode_length_s'"),
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.setting": "sim"}}]},
+     "env.setting: the gains trial sets it; give it as the trial's 'setting'"),
+    ({"trials": [{"kind": "oracle", "params": {"env.episode_length_s": 2.0}}]},
+     "env.episode_length_s: the oracle trial sets it"),
+    # values
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": 0}}]},
+     "episode_length_s must be a positive number of seconds, got 0"),
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": 0.05}}]},
+     "episode_length_s 0.05 s (10 control steps) is too short"),
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": True}}]},
+     "episode_length_s: expected a number, got True"),
+    ({"trials": [{"kind": "gains", "params": SKY, "grid": {"gain.c_sky": [3000.0, -3000.0]}}]},
+     "gain.c_sky: expected a number >= 0, got -3000.0"),
+    ({"trials": [{"kind": "gains", "params": {**SKY, "controller": "preview-lq-biexp", "gain.delay_steps": 1.5}}]},
+     "gain.delay_steps: expected an integer >= 0, got 1.5"),
+    # a key given twice: JSON and YAML keep the last one silently
+    ('{"trials": [{"kind": "gains", "params": {"controller": "skyhook-cont-biexp", "episodes": 1, "episodes": 2}}]}',
+     "study.json: duplicate key 'episodes': each key may appear once in a mapping"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", ["--check", "--no-ray"])
+@pytest.mark.parametrize("content, expected", REFUSED)
+def test_study_files_that_failed_at_run_time_are_refused(tmp_path, capsys, mode, content, expected):
+    study = write_study(tmp_path, content)
+    assert main([str(study), "--out", str(tmp_path / "out"), mode]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("sweep: error: "), err
+    assert expected in err, err
+    assert not (tmp_path / "out").exists()  # nothing ran, nothing written
+
+
+def test_a_yaml_key_given_twice_is_refused_with_its_line(tmp_path, capsys):
+    pytest.importorskip("yaml", reason="PyYAML is not installed (in the scale and rl extras)")
+    text = ("trials:\n  - kind: gains\n    params:\n      controller: skyhook-cont-biexp\n"
+            "      episodes: 1\n      episodes: 2\n")  # fmt: skip
+    study = write_study(tmp_path, text, "study.yml")
+    for mode in ("--check", "--no-ray"):
+        assert main([str(study), "--out", str(tmp_path / "out"), mode]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        assert "study.yml: duplicate key 'episodes' (line 6): each key may appear once" in err
+    # a YAML merge ('<<') that a key then overrides is not a duplicate
+    merged = write_study(tmp_path, "trials:\n  - kind: gains\n    params: &p {controller: "
+                         "skyhook-cont-biexp, episodes: 1, episode_length_s: 1.0}\n  - kind: gains"
+                         "\n    params: {<<: *p, episodes: 2}\n", "merged.yml")  # fmt: skip
+    assert main([str(merged), "--check", "--out", str(tmp_path / "out")]) == 0
+    assert "'episodes': 2" in capsys.readouterr().out
+
+
+def test_the_controllers_env_arguments_are_what_a_gains_trial_runs(tmp_path):
+    """The accepted env arguments change the env, not the law: a gains trial's rollout is the
+    controller on its own env_kwargs plus the env.<key> overrides that are not among them."""
+    from capsule_env.agents.classical import make_controller
+
+    from capsule_env.evaluation import episode_metrics, run_episodes
+
+    study = load_study(write_study(tmp_path, {"trials": [{"kind": "gains", "params": {
+        **SKY, "env.speed_kmh": 600.0}}]}), tmp_path)  # fmt: skip
+    ctrl = make_controller("skyhook-cont-biexp")
+    env = {**ctrl.env_kwargs, "setting": "hils", "guideway_seed": 0, "speed_kmh": 600.0}
+    roll = run_episodes(ctrl, env, episode_length_s=1.0, seeds=[0])
+    result = run_trial(study.trials[0])
+    assert (
+        result["metrics"]["wk_rms_body_acc_m_s2"]
+        == episode_metrics(roll, None)["wk_rms_body_acc_m_s2"]
+    )
 
 
 def test_bad_study_files_other_ways(tmp_path, capsys):
@@ -113,12 +197,27 @@ def test_train_parameters_are_checked(tmp_path, capsys):
         ({"env.guideway_seed": 2026}, "guideway_seed=2026 is a held-out bank"),
         ({"seed": 3}, "unknown parameter 'seed' for kind 'train'; accepted: algo, total_timesteps"),
         ({"eval_episode_length": 0.1}, "eval_episode_length 0.1 s (20 control steps) is too short"),
-    ]
+        # values that failed only at run time, in SB3, naming no key (issue 25)
+        ({"hp.n_steps": "abc"}, "hp.n_steps: expected an integer >= 1, got 'abc'"),
+        ({"hp.batch_size": 64.0}, "hp.batch_size: expected an integer >= 1, got 64.0"),
+        ({"hp.gamma": 1.5}, "hp.gamma: expected a number in [0, 1], got 1.5"),
+        ({"hp.learning_rate": "lin_fast"}, "hp.learning_rate: expected a number > 0 or a 'lin_<value>' schedule, got 'lin_fast'"),
+        ({"hp.normalize_advantage": 1}, "hp.normalize_advantage: expected true or false, got 1"),
+        ({"hp.ent_coef": "x"}, "hp.ent_coef: expected a number, got 'x'"),
+        ({"hp.policy_kwargs": "dict(net_arch=big)"}, "hp.policy_kwargs.net_arch: 'big' is not a literal"),
+    ]  # fmt: skip
     for params, expected in cases:
         study = write_study(tmp_path, {"trials": [{"kind": "train", "params": params}]})
-        assert main([str(study), "--check"]) == 2
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and expected in err, err
+        for mode in ("--check", "--no-ray"):
+            assert main([str(study), mode, "--out", str(tmp_path / "out")]) == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and expected in err, err
+            assert not (tmp_path / "out").exists()
+    # what the hyperparameter file accepts passes: schedules, numbers, null, dict(...) strings
+    good = {"hp.learning_rate": "lin_3e-4", "hp.clip_range": 0.1, "hp.clip_range_vf": None,
+            "hp.n_steps": 64, "hp.policy_kwargs": "dict(net_arch=[32, 32])", "hp.gamma": 1}  # fmt: skip
+    study = write_study(tmp_path, {"trials": [{"kind": "train", "params": good}]})
+    assert main([str(study), "--check", "--out", str(tmp_path / "out")]) == 0
 
 
 # ----------------------------------------------------------------------------- seeds
