@@ -393,6 +393,100 @@ def test_two_trial_ray_sweep_resume_and_no_ray(local_ray, tmp_path, capsys):
     ]
 
 
+# A driver of the sweep whose kind counts its runs (one file per run) and, while the file
+# hold_if exists, holds at its trials from hold_from on: the test interrupts the driver there.
+# The kind reaches Ray's workers through worker_process_setup_hook.
+COUNTING_DRIVER = """
+import os, sys, time
+from pathlib import Path
+from capsule_env.sweep import Kind, register_kind
+from capsule_env.sweep.__main__ import main
+
+def run_counted(trial):
+    p = trial.params
+    (Path(p["runs"]) / f"{trial.name}.{os.getpid()}.{time.monotonic_ns()}").write_text("")
+    if p["value"] >= p["hold_from"] and Path(p["hold_if"]).exists():
+        (Path(p["runs"]) / f"holding.{trial.name}").write_text("")
+        time.sleep(300)
+    return {"wk_rms_body_acc_m_s2": float(p["value"])}
+
+def register():
+    register_kind(Kind("counted", run_counted, dict.fromkeys(["runs", "hold_if", "hold_from", "value"], "")))
+
+if __name__ == "__main__":
+    register()
+    if "--no-ray" not in sys.argv:
+        import ray
+        ray.init(num_cpus=1, include_dashboard=False,
+                 runtime_env={"worker_process_setup_hook": register})
+    sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _interrupt_then_continue(tmp_path: Path, signal_to: str, mode: list[str]) -> None:
+    """Run a 6-trial counting study, interrupt the driver (``signal_to``: ``"kill -9 driver"``
+    or ``"ctrl-c"``, SIGINT to its process group as a terminal sends it) while trial 3 runs,
+    then run it again: every trial finishes, and none that had finished runs again."""
+    import os
+    import signal
+    import time
+
+    driver, runs, hold = tmp_path / "driver.py", tmp_path / "runs", tmp_path / "hold"
+    driver.write_text(COUNTING_DRIVER)
+    runs.mkdir()
+    hold.write_text("")
+    params = {"runs": str(runs), "hold_if": str(hold), "hold_from": 3}
+    study = write_study(tmp_path, {"name": "counted", "trials": [{"kind": "counted",
+                        "params": params, "grid": {"value": [0, 1, 2, 3, 4, 5]}}]})  # fmt: skip
+    out = tmp_path / "out"
+    command = [sys.executable, str(driver), str(study), "--out", str(out), "--quiet", *mode]
+    # Tune saves its experiment state at the start, then every 10 s or more: a long period
+    # makes "the state was saved before these trials finished" certain, not a matter of timing
+    env = {**os.environ, "TUNE_GLOBAL_CHECKPOINT_S": "3600"}
+    first = subprocess.Popen(command, cwd=tmp_path, env=env, start_new_session=True,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 240
+        while not list(runs.glob("holding.*")):
+            assert first.poll() is None and time.monotonic() < deadline, "never reached trial 3"
+            time.sleep(0.1)
+        finished = sorted(p.parent.name for p in (out / "trials").glob("*/result.json"))
+        assert finished == ["counted0-000", "counted0-001", "counted0-002"]
+        if signal_to == "ctrl-c":
+            os.killpg(first.pid, signal.SIGINT)
+        else:
+            os.kill(first.pid, signal.SIGKILL)
+        try:
+            first.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            pass
+    finally:  # what the driver left (Ray's processes, a held trial)
+        try:
+            os.killpg(first.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        first.wait()
+    hold.unlink()
+    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    counts = {f"counted0-{k:03d}": len(list(runs.glob(f"counted0-{k:03d}.*"))) for k in range(6)}
+    assert all(counts[name] == 1 for name in finished), counts  # finished: never again
+    assert counts["counted0-003"] == 2  # interrupted while running: ran again
+    assert [r["wk_rms_body_acc_m_s2"] for r in rows(out)] == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    assert [r["status"] for r in rows(out)] == ["finished"] * 6
+
+
+@pytest.mark.scale
+@pytest.mark.parametrize("signal_to", ["kill -9 driver", "ctrl-c"])
+def test_finished_trials_never_run_again_on_ray_after_an_interruption(tmp_path, signal_to):
+    pytest.importorskip("ray.tune", reason=NO_RAY)
+    _interrupt_then_continue(tmp_path, signal_to, [])
+
+
+def test_finished_trials_never_run_again_without_ray_after_an_interruption(tmp_path):
+    _interrupt_then_continue(tmp_path, "ctrl-c", ["--no-ray"])
+
+
 @pytest.mark.parametrize("path", sorted((ROOT / "experiments" / "studies").glob("*.yml")))
 def test_shipped_studies_are_valid(path, tmp_path, capsys):
     pytest.importorskip("stable_baselines3", reason=NO_RL)
