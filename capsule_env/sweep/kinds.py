@@ -8,22 +8,30 @@ study starts. The functions run the same with or without Ray.
 
 - ``train``: ``train.py``'s ``train(Args)`` with the trial's seed; parameters: the fields of
   ``train.Args`` (``total_timesteps``, ``num_envs``, ``algo``, ``eval_freq``, ...),
-  ``hp.<key>`` (an entry of the hyperparameter file, e.g. ``hp.learning_rate``) and
-  ``env.<key>`` (an env argument). The trial writes its hyperparameter file
+  ``hp.<key>`` (an entry of the hyperparameter file, e.g. ``hp.learning_rate``; its value
+  checked as :mod:`capsule_env.sweep.hyperparameters` says) and ``env.<key>`` (an env
+  argument). The trial writes its hyperparameter file
   (``hyperparams.yml``) and train.py's output folder (``run/``: ``best_model.*``, ...) into its
   folder; a trial started again continues from train.py's newest checkpoint there. Metrics:
   the best held-out evaluation (validation bank 7) and the timesteps.
 - ``gains``: a classical controller (``capsule_env.agents.classical``) with the given gains
-  (``gain.<name>``) on ``episodes`` episodes (seeds ``episode_seed ..``) of the guideway bank
-  ``guideway_seed`` (default 0, the training bank, as ``python -m capsule_env.agents.tuning``), through
+  (``gain.<name>``, numbers >= 0) on ``episodes`` episodes (seeds ``episode_seed ..``) of the
+  guideway bank ``guideway_seed`` (default 0, the training bank, as
+  ``python -m capsule_env.agents.tuning``), through
   :func:`capsule_env.evaluation.run_episodes` and :func:`~capsule_env.evaluation.
   episode_metrics` (the passive damper on the same episodes is the VRE reference). Every grid
   point runs the same episodes (common random numbers: the grid compares gains, not noise).
+  ``env.<key>`` changes the env, never the law: the keys the controller fixes (its
+  ``env_kwargs``, as evaluate.py runs it: action mode, observation, inverse model, ...) and
+  the trial's own (``setting``, ``guideway_seed``, ``episode_length_s``, ``num_envs``) are
+  refused.
 - ``oracle``: ``capsule_env.oracle.clairvoyant_bound(env_kwargs, seeds, episode_length_s)``
-  when that library is installed (the kind is refused, with the reason, otherwise).
+  when that library is installed (the kind is refused, with the reason, otherwise);
+  ``env.episode_length_s`` and ``env.num_envs`` are refused (the trial sets them).
 
-Adding a kind is one function and one :func:`register_kind` call, in a module the Ray
-workers import as well (the trials look their kind up by name)::
+Adding a kind is one function and one :func:`register_kind` call; on Ray, the workers must
+register it too (the trials look their kind up by name), e.g. with
+``ray.init(runtime_env={"worker_process_setup_hook": register})`` before the sweep runs::
 
     def run_mine(trial):
         return {"wk_rms_body_acc_m_s2": ...}
