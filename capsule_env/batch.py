@@ -43,6 +43,8 @@ from capsule_env.env_kernel import (
     noise_pairs,
 )
 from capsule_env.guideway import make_profile, random_profile
+from capsule_env.guideway.params import profile_length_m
+from capsule_env.guideway.sampling import n_samples
 from capsule_env.kernels import ENV, BatchedKernel, env_args
 from capsule_env.layout import (
     BODY_DISP,
@@ -291,8 +293,27 @@ class CapsuleBatch:
                 for s in seeds
             ]
             return np.ascontiguousarray(np.stack(bank))
+        # a finite profile: the preview looks past its end, where the guideway continues
         duration = cfg.window_m / (cfg.speed_kmh / 3.6)
-        return np.ascontiguousarray(make_profile(gw, duration)[None, :])
+        profile = make_profile(gw, duration, extend_m=self._preview_reach_m())
+        return np.ascontiguousarray(profile[None, :])
+
+    def _preview_reach_m(self) -> float:
+        """How far past the end of a run the preview looks (m): 0 without preview, else the
+        horizon at the highest speed plus 6 standard deviations of the position error."""
+        cfg = self.config
+        if cfg.preview_points == 0:
+            return 0.0
+        return cfg.speed_range_mps[1] * cfg.preview_horizon_s + 6.0 * cfg.position_error_m
+
+    def _run_samples(self) -> int:
+        """Samples of a bank profile that runs drive over (all but a deterministic profile's
+        continuation for the preview, :meth:`_preview_reach_m`)."""
+        cfg, gw = self.config, self.guideway
+        if gw.kind == "random":
+            return self.profiles.shape[1]
+        duration = cfg.window_m / (cfg.speed_kmh / 3.6)
+        return n_samples(profile_length_m(gw, duration), gw.spacing_m)
 
     def _build_survey_error(self) -> np.ndarray:
         """The survey map's error on the bank's grid, one row per profile (a (1, 1) zero array
@@ -303,7 +324,9 @@ class CapsuleBatch:
         cfg = self.config
         if cfg.preview_points == 0:
             return np.zeros((1, 1))
-        length = (self.profiles.shape[1] - 1) * self.spacing
+        run = self._run_samples()  # the map's error over them; continued beyond (periodic)
+        length = (run - 1) * self.spacing
+        extend_m = (self.profiles.shape[1] - run) * self.spacing
         seeds = np.random.SeedSequence([cfg.guideway_seed, 1]).generate_state(
             2 * self.profiles.shape[0]
         )
@@ -317,9 +340,9 @@ class CapsuleBatch:
                 if std > 0.0:
                     part = random_profile(
                         length, self.spacing, int(seed), peak_m=None, min_wavelength_m=band[0],
-                        max_wavelength_m=band[1],
+                        max_wavelength_m=band[1], extend_m=extend_m,
                     )[: error.size]  # fmt: skip
-                    error[: part.size] += std * part / np.std(part)
+                    error[: part.size] += std * part / np.std(part[:run])
             rows.append(error)
         return np.ascontiguousarray(np.stack(rows))
 

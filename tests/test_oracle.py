@@ -112,3 +112,39 @@ def test_bad_arguments_are_named(kwargs, match):
     args = {"env_kwargs": {"setting": "hils"}, "episode_length_s": 0.5, "max_iter": 2, **kwargs}
     with pytest.raises(ValueError, match=match):
         clairvoyant_bound(**args)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"episode_length_s": "1"}, "episode_length_s"),
+        ({"episode_length_s": True}, "episode_length_s"),  # a bool is not a number here
+        ({"episode_length_s": None}, "episode_length_s"),
+        ({"max_iter": "3"}, "max_iter"),
+        ({"max_iter": 2.0}, "max_iter"),
+        ({"restarts": True}, "restarts"),
+        ({"tol": "small"}, "tol"),
+        ({"stroke_penalty": False}, "stroke_penalty"),
+        ({"seeds": 1000}, "seeds"),
+        ({"seeds": [1000.0]}, "seeds\\[0\\]"),
+        ({"env_kwargs": [("setting", "sim")]}, "env_kwargs"),
+        ({"starts": "zero"}, "starts"),
+        ({"starts": [True]}, "starts\\[0\\]"),
+    ],
+)
+def test_a_wrong_type_is_a_type_error_naming_the_argument(kwargs, name):
+    """The docstring's promise (the project's rule): a wrong type is a ``TypeError``, never a
+    ``ValueError``, and names the argument; checked before any episode is built."""
+    args = {"env_kwargs": {"setting": "sim"}, "seeds": [1000], "episode_length_s": 0.5,
+            "max_iter": 2, **kwargs}  # fmt: skip
+    with pytest.raises(TypeError, match=name) as info:
+        clairvoyant_bound(**args)
+    assert not isinstance(info.value, ValueError)
+    assert "TypeError" in clairvoyant_bound.__doc__ and "ValueError" in clairvoyant_bound.__doc__
+
+
+@pytest.mark.parametrize("length", [0, -1.0, float("nan"), 0.05])
+def test_a_bad_episode_length_value_is_a_value_error(length):
+    with pytest.raises(ValueError, match="episode_length_s") as info:
+        clairvoyant_bound({"setting": "sim"}, [1000], length, max_iter=2)
+    assert not isinstance(info.value, TypeError)

@@ -129,3 +129,114 @@ def test_single_vector_and_sb3_agree_with_preview():
 def test_bad_preview_arguments_name_the_argument(kwargs, name):
     with pytest.raises((TypeError, ValueError), match=name):
         EnvConfig(**kwargs)
+
+
+# ----------------------------------------------------------------------------- finite guideways
+def _perfect_preview_run(guideway: str, points: int, horizon_s: float, length_s: float, **kw):
+    """One vehicle over a deterministic guideway with a perfect survey and position: the
+    preview columns and the vehicle's position at every step."""
+    config = EnvConfig(setting="sim", guideway=guideway, preview_points=points,
+                       preview_horizon_s=horizon_s, episode_length_s=length_s, **PERFECT, **kw)  # fmt: skip
+    batch = CapsuleBatch(config, 1)
+    batch.seed(0)
+    batch.reset()
+    preview, position = [], []
+    for _ in range(batch.max_steps):
+        batch.step(np.zeros(1))
+        preview.append(batch.obs[0, -points:].astype(np.float64))
+        position.append(batch.start_position[0] + batch.speed[0] * batch.state[0, -1])
+    return np.array(preview), np.array(position), batch
+
+
+def test_the_preview_of_a_sine_continues_its_period_to_the_end_of_the_episode():
+    """A sine guideway is z(x) = A sin(2 pi f x / V) everywhere (docs: the profile kinds): the
+    preview of every step, the last preview horizon of the episode included (past the profile
+    the run needs), is that formula ahead minus under the bogie; it used to hold the profile's
+    last sample there, every preview column the same value at the last step."""
+    points, horizon_s = 8, 0.5
+    preview, x, batch = _perfect_preview_run("sine", points, horizon_s, 2.0)
+    gw = batch.config.guideway_spec
+    speed = gw.speed_kmh / 3.6
+
+    def z(position):
+        return gw.peak_m * np.sin(2.0 * np.pi * gw.frequency_hz * position / speed)
+
+    ahead = x[:, None] + speed * horizon_s / points * np.arange(1, points + 1)
+    # float32 observations (~1e-9 m at 16 mm) and the linear interpolation between the
+    # 0.25 m samples of a 173 m wavelength (A (2 pi dx / L)^2 / 8 ~ 8e-8 m): 1e-6 m bounds both
+    np.testing.assert_allclose(preview, z(ahead) - z(x)[:, None], rtol=0, atol=1e-6)
+    assert np.ptp(preview[-1]) > 1e-3  # the last step's columns are not one held value
+
+
+@pytest.mark.parametrize("guideway", ["sine", "swept_sine", "bump", "step"])
+def test_the_continuation_changes_nothing_a_run_drives_over(guideway):
+    """What the vehicle drives over is the same with or without preview (the plant's
+    trajectory bit for bit: a continued profile's first samples are the ones without the
+    continuation), and the survey map over it does not depend on how far the preview looks."""
+    kwargs = {"setting": "hils", "observation": "measured", "guideway": guideway,
+              "episode_length_s": 2.0}  # fmt: skip
+    plain = CapsuleSuspensionVectorEnv(num_envs=2, **kwargs)
+    ahead = CapsuleSuspensionVectorEnv(
+        num_envs=2, preview_points=4, preview_horizon_s=1.0, **kwargs
+    )
+    a, _ = plain.reset(seed=5)
+    b, _ = ahead.reset(seed=5)
+    rng = np.random.default_rng(3)
+    for _ in range(plain.batch.max_steps):
+        act = rng.uniform(-1, 1, (2, 1))
+        a, ra, *_, info_a = plain.step(act)
+        b, rb, *_, info_b = ahead.step(act)
+        np.testing.assert_array_equal(a, b[:, :-4])
+        np.testing.assert_array_equal(ra, rb)
+        np.testing.assert_array_equal(
+            info_a["guideway_elevation_m"], info_b["guideway_elevation_m"]
+        )
+    run = plain.batch.profiles.shape[1]
+    np.testing.assert_array_equal(ahead.batch.profiles[:, :run], plain.batch.profiles)
+    near = CapsuleBatch(EnvConfig(**kwargs, preview_points=4, preview_horizon_s=0.01), 1)
+    far = ahead.batch.params.survey_error
+    assert far.shape[1] > near.params.survey_error.shape[1] > run
+    np.testing.assert_array_equal(far[:, :run], near.params.survey_error[:, :run])
+
+
+@pytest.mark.parametrize("kind", ["sine", "swept_sine", "bump", "step"])
+def test_a_continued_profile_is_the_guideway_beyond_its_length(kind):
+    from capsule_env.guideway import GuidewayParams, make_profile
+
+    gw = GuidewayParams(kind=kind, speed_kmh=810.0)
+    base = make_profile(gw, 1.0)
+    longer = make_profile(gw, 1.0, extend_m=100.0)
+    assert longer.size == base.size + 400  # 100 m of 0.25 m samples
+    np.testing.assert_array_equal(longer[: base.size], base)
+    x = np.arange(longer.size) * gw.spacing_m
+    t = x / gw.speed_mps
+    if kind == "sine":  # its period, from the formula
+        expected = gw.peak_m * np.sin(2 * np.pi * gw.frequency_hz * t)
+    elif kind == "swept_sine":  # the chirp at the same rate past its sweep time (1 s here)
+        f0, f1 = gw.start_hz, gw.stop_hz
+        expected = gw.peak_m * np.sin(2 * np.pi * (f0 * t + (f1 - f0) * t * t / 2.0))
+    elif kind == "bump":  # flat (0) past the bump at 50-60 m
+        inside = np.abs(x - 55.0) <= 5.0
+        expected = np.where(inside, gw.peak_m / 2 * (1 - np.cos(2 * np.pi * (x - 50) / 10)), 0)
+    else:  # the height past the ramp at 50-51 m
+        ramp = 0.5 * gw.peak_m * (1 - np.cos(np.pi * np.clip(x - 50.0, 0.0, 1.0)))
+        expected = np.where(x >= 51.0, gw.peak_m, ramp)
+    # sin of arguments up to ~1e3 rad: a few ulps of the argument; 1e-12 m is far above that
+    np.testing.assert_allclose(longer, expected, rtol=0, atol=1e-12)
+
+
+def test_a_continued_random_profile_repeats_its_synthesis_period():
+    """The spectral synthesis is periodic (its FFT period, here 100 m: 20 longest wavelengths
+    of 5 m); continued past it, a random profile repeats it, with the peak scale of the
+    samples asked for, which stay those without the continuation."""
+    from capsule_env.guideway import random_profile
+
+    band = {"min_wavelength_m": 1.0, "max_wavelength_m": 5.0}
+    base = random_profile(30.0, 0.25, 3, **band)
+    longer = random_profile(30.0, 0.25, 3, extend_m=200.0, **band)
+    assert (base.size, longer.size) == (121, 921)
+    np.testing.assert_array_equal(longer[:121], base)
+    np.testing.assert_array_equal(longer[400:800], longer[:400])  # the period, repeated
+    period = random_profile(99.75, 0.25, 3, peak_m=None, **band)  # 400 samples: one period
+    scale = 0.008 / np.max(np.abs(period[:121]))
+    np.testing.assert_allclose(longer[:400], scale * period, rtol=1e-12, atol=0)

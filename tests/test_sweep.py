@@ -59,7 +59,7 @@ BAD = [
     ({"trials": [{**GAINS, "params": {"controller": "skyhok"}}]}, "controller: unknown controller 'skyhok'; accepted: passive,"),
     ({"trials": [{**GAINS, "grid": {"gain.c_skyy": [1.0]}}]}, "gain.c_skyy: skyhook-cont-biexp has no such gain; accepted: c_max, c_min, c_sky"),
     ({"trials": [{**GAINS, "grid": {"gain.c_sky": 3000}}]}, "grid.gain.c_sky: expected a non-empty list of values"),
-    ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number, got 'big'"),
+    ({"trials": [{**GAINS, "grid": {"gain.c_sky": ["big"]}}]}, "gain.c_sky: expected a number >= 0, got 'big'"),
     ({"trials": [{**GAINS, "replicates": 3}]}, "trials[0].replicates: kind 'gains' is deterministic"),
     ({"trials": [{**GAINS, "grid": {"env.sped_kmh": [600]}}]}, "unexpected keyword argument 'sped_kmh'; accepted:"),
     ({"trials": [{**GAINS, "params": {**GAINS["params"], "episode_length_s": 0.1}}]}, "episode_length_s 0.1 s (20 control steps) is too short"),
@@ -79,6 +79,90 @@ def test_bad_study_file_is_one_line_naming_the_key(tmp_path, capsys, content, ex
     assert err.count("\n") == 1 and err.startswith("sweep: error: "), err
     assert expected in err, err
     assert not (tmp_path / "out").exists()  # nothing ran, nothing written
+
+
+# Study files that passed --check and failed only at run time, or ran the wrong thing
+# (issue 25): each is refused before anything runs, in one line naming the key.
+SKY = {"controller": "skyhook-cont-biexp", "episodes": 1, "episode_length_s": 1.0}
+SKY_MEAS = {**SKY, "controller": "skyhook-cont-biexp-meas"}
+REFUSED = [
+    # a key the controller fixes (its env_kwargs): the trial would run another law by its name
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.action_mode": "current"}}]},
+     "env.action_mode: skyhook-cont-biexp fixes action_mode='force'; accepted: env arguments other than those it fixes"),
+    ({"trials": [{"kind": "gains", "params": {**SKY_MEAS, "env.observation": "full_state"}}]},
+     "env.observation: skyhook-cont-biexp-meas fixes observation='measured'"),
+    ({"trials": [{"kind": "gains", "params": SKY, "grid": {"env.max_force_n": [4000.0]}}]},
+     "env.max_force_n: skyhook-cont-biexp fixes max_force_n=8000.0 (a gain of skyhook-cont-biexp: give gain.max_force_n)"),
+    # keys the trial sets itself
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.episode_length_s": 2.0}}]},
+     "env.episode_length_s: the gains trial sets it; give it as the trial's 'episode_length_s'"),
+    ({"trials": [{"kind": "gains", "params": {**SKY, "env.setting": "sim"}}]},
+     "env.setting: the gains trial sets it; give it as the trial's 'setting'"),
+    ({"trials": [{"kind": "oracle", "params": {"env.episode_length_s": 2.0}}]},
+     "env.episode_length_s: the oracle trial sets it"),
+    # values
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": 0}}]},
+     "episode_length_s must be a positive number of seconds, got 0"),
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": 0.05}}]},
+     "episode_length_s 0.05 s (10 control steps) is too short"),
+    ({"trials": [{"kind": "oracle", "params": {"episode_length_s": True}}]},
+     "episode_length_s: expected a number, got True"),
+    ({"trials": [{"kind": "gains", "params": SKY, "grid": {"gain.c_sky": [3000.0, -3000.0]}}]},
+     "gain.c_sky: expected a number >= 0, got -3000.0"),
+    ({"trials": [{"kind": "gains", "params": {**SKY, "controller": "preview-lq-biexp", "gain.delay_steps": 1.5}}]},
+     "gain.delay_steps: expected an integer >= 0, got 1.5"),
+    # a key given twice: JSON and YAML keep the last one silently
+    ('{"trials": [{"kind": "gains", "params": {"controller": "skyhook-cont-biexp", "episodes": 1, "episodes": 2}}]}',
+     "study.json: duplicate key 'episodes': each key may appear once in a mapping"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", ["--check", "--no-ray"])
+@pytest.mark.parametrize("content, expected", REFUSED)
+def test_study_files_that_failed_at_run_time_are_refused(tmp_path, capsys, mode, content, expected):
+    study = write_study(tmp_path, content)
+    assert main([str(study), "--out", str(tmp_path / "out"), mode]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("sweep: error: "), err
+    assert expected in err, err
+    assert not (tmp_path / "out").exists()  # nothing ran, nothing written
+
+
+def test_a_yaml_key_given_twice_is_refused_with_its_line(tmp_path, capsys):
+    pytest.importorskip("yaml", reason="PyYAML is not installed (in the scale and rl extras)")
+    text = ("trials:\n  - kind: gains\n    params:\n      controller: skyhook-cont-biexp\n"
+            "      episodes: 1\n      episodes: 2\n")  # fmt: skip
+    study = write_study(tmp_path, text, "study.yml")
+    for mode in ("--check", "--no-ray"):
+        assert main([str(study), "--out", str(tmp_path / "out"), mode]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        assert "study.yml: duplicate key 'episodes' (line 6): each key may appear once" in err
+    # a YAML merge ('<<') that a key then overrides is not a duplicate
+    merged = write_study(tmp_path, "trials:\n  - kind: gains\n    params: &p {controller: "
+                         "skyhook-cont-biexp, episodes: 1, episode_length_s: 1.0}\n  - kind: gains"
+                         "\n    params: {<<: *p, episodes: 2}\n", "merged.yml")  # fmt: skip
+    assert main([str(merged), "--check", "--out", str(tmp_path / "out")]) == 0
+    assert "'episodes': 2" in capsys.readouterr().out
+
+
+def test_the_controllers_env_arguments_are_what_a_gains_trial_runs(tmp_path):
+    """The accepted env arguments change the env, not the law: a gains trial's rollout is the
+    controller on its own env_kwargs plus the env.<key> overrides that are not among them."""
+    from capsule_env.agents.classical import make_controller
+
+    from capsule_env.evaluation import episode_metrics, run_episodes
+
+    study = load_study(write_study(tmp_path, {"trials": [{"kind": "gains", "params": {
+        **SKY, "env.speed_kmh": 600.0}}]}), tmp_path)  # fmt: skip
+    ctrl = make_controller("skyhook-cont-biexp")
+    env = {**ctrl.env_kwargs, "setting": "hils", "guideway_seed": 0, "speed_kmh": 600.0}
+    roll = run_episodes(ctrl, env, episode_length_s=1.0, seeds=[0])
+    result = run_trial(study.trials[0])
+    assert (
+        result["metrics"]["wk_rms_body_acc_m_s2"]
+        == episode_metrics(roll, None)["wk_rms_body_acc_m_s2"]
+    )
 
 
 def test_bad_study_files_other_ways(tmp_path, capsys):
@@ -113,12 +197,27 @@ def test_train_parameters_are_checked(tmp_path, capsys):
         ({"env.guideway_seed": 2026}, "guideway_seed=2026 is a held-out bank"),
         ({"seed": 3}, "unknown parameter 'seed' for kind 'train'; accepted: algo, total_timesteps"),
         ({"eval_episode_length": 0.1}, "eval_episode_length 0.1 s (20 control steps) is too short"),
-    ]
+        # values that failed only at run time, in SB3, naming no key (issue 25)
+        ({"hp.n_steps": "abc"}, "hp.n_steps: expected an integer >= 1, got 'abc'"),
+        ({"hp.batch_size": 64.0}, "hp.batch_size: expected an integer >= 1, got 64.0"),
+        ({"hp.gamma": 1.5}, "hp.gamma: expected a number in [0, 1], got 1.5"),
+        ({"hp.learning_rate": "lin_fast"}, "hp.learning_rate: expected a number > 0 or a 'lin_<value>' schedule, got 'lin_fast'"),
+        ({"hp.normalize_advantage": 1}, "hp.normalize_advantage: expected true or false, got 1"),
+        ({"hp.ent_coef": "x"}, "hp.ent_coef: expected a number, got 'x'"),
+        ({"hp.policy_kwargs": "dict(net_arch=big)"}, "hp.policy_kwargs.net_arch: 'big' is not a literal"),
+    ]  # fmt: skip
     for params, expected in cases:
         study = write_study(tmp_path, {"trials": [{"kind": "train", "params": params}]})
-        assert main([str(study), "--check"]) == 2
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and expected in err, err
+        for mode in ("--check", "--no-ray"):
+            assert main([str(study), mode, "--out", str(tmp_path / "out")]) == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and expected in err, err
+            assert not (tmp_path / "out").exists()
+    # what the hyperparameter file accepts passes: schedules, numbers, null, dict(...) strings
+    good = {"hp.learning_rate": "lin_3e-4", "hp.clip_range": 0.1, "hp.clip_range_vf": None,
+            "hp.n_steps": 64, "hp.policy_kwargs": "dict(net_arch=[32, 32])", "hp.gamma": 1}  # fmt: skip
+    study = write_study(tmp_path, {"trials": [{"kind": "train", "params": good}]})
+    assert main([str(study), "--check", "--out", str(tmp_path / "out")]) == 0
 
 
 # ----------------------------------------------------------------------------- seeds
@@ -292,6 +391,100 @@ def test_two_trial_ray_sweep_resume_and_no_ray(local_ray, tmp_path, capsys):
     assert [{k: r[k] for k in keys} for r in rows(serial)] == [
         {k: r[k] for k in keys} for r in on_ray
     ]
+
+
+# A driver of the sweep whose kind counts its runs (one file per run) and, while the file
+# hold_if exists, holds at its trials from hold_from on: the test interrupts the driver there.
+# The kind reaches Ray's workers through worker_process_setup_hook.
+COUNTING_DRIVER = """
+import os, sys, time
+from pathlib import Path
+from capsule_env.sweep import Kind, register_kind
+from capsule_env.sweep.__main__ import main
+
+def run_counted(trial):
+    p = trial.params
+    (Path(p["runs"]) / f"{trial.name}.{os.getpid()}.{time.monotonic_ns()}").write_text("")
+    if p["value"] >= p["hold_from"] and Path(p["hold_if"]).exists():
+        (Path(p["runs"]) / f"holding.{trial.name}").write_text("")
+        time.sleep(300)
+    return {"wk_rms_body_acc_m_s2": float(p["value"])}
+
+def register():
+    register_kind(Kind("counted", run_counted, dict.fromkeys(["runs", "hold_if", "hold_from", "value"], "")))
+
+if __name__ == "__main__":
+    register()
+    if "--no-ray" not in sys.argv:
+        import ray
+        ray.init(num_cpus=1, include_dashboard=False,
+                 runtime_env={"worker_process_setup_hook": register})
+    sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _interrupt_then_continue(tmp_path: Path, signal_to: str, mode: list[str]) -> None:
+    """Run a 6-trial counting study, interrupt the driver (``signal_to``: ``"kill -9 driver"``
+    or ``"ctrl-c"``, SIGINT to its process group as a terminal sends it) while trial 3 runs,
+    then run it again: every trial finishes, and none that had finished runs again."""
+    import os
+    import signal
+    import time
+
+    driver, runs, hold = tmp_path / "driver.py", tmp_path / "runs", tmp_path / "hold"
+    driver.write_text(COUNTING_DRIVER)
+    runs.mkdir()
+    hold.write_text("")
+    params = {"runs": str(runs), "hold_if": str(hold), "hold_from": 3}
+    study = write_study(tmp_path, {"name": "counted", "trials": [{"kind": "counted",
+                        "params": params, "grid": {"value": [0, 1, 2, 3, 4, 5]}}]})  # fmt: skip
+    out = tmp_path / "out"
+    command = [sys.executable, str(driver), str(study), "--out", str(out), "--quiet", *mode]
+    # Tune saves its experiment state at the start, then every 10 s or more: a long period
+    # makes "the state was saved before these trials finished" certain, not a matter of timing
+    env = {**os.environ, "TUNE_GLOBAL_CHECKPOINT_S": "3600"}
+    first = subprocess.Popen(command, cwd=tmp_path, env=env, start_new_session=True,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 240
+        while not list(runs.glob("holding.*")):
+            assert first.poll() is None and time.monotonic() < deadline, "never reached trial 3"
+            time.sleep(0.1)
+        finished = sorted(p.parent.name for p in (out / "trials").glob("*/result.json"))
+        assert finished == ["counted0-000", "counted0-001", "counted0-002"]
+        if signal_to == "ctrl-c":
+            os.killpg(first.pid, signal.SIGINT)
+        else:
+            os.kill(first.pid, signal.SIGKILL)
+        try:
+            first.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            pass
+    finally:  # what the driver left (Ray's processes, a held trial)
+        try:
+            os.killpg(first.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        first.wait()
+    hold.unlink()
+    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    counts = {f"counted0-{k:03d}": len(list(runs.glob(f"counted0-{k:03d}.*"))) for k in range(6)}
+    assert all(counts[name] == 1 for name in finished), counts  # finished: never again
+    assert counts["counted0-003"] == 2  # interrupted while running: ran again
+    assert [r["wk_rms_body_acc_m_s2"] for r in rows(out)] == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    assert [r["status"] for r in rows(out)] == ["finished"] * 6
+
+
+@pytest.mark.scale
+@pytest.mark.parametrize("signal_to", ["kill -9 driver", "ctrl-c"])
+def test_finished_trials_never_run_again_on_ray_after_an_interruption(tmp_path, signal_to):
+    pytest.importorskip("ray.tune", reason=NO_RAY)
+    _interrupt_then_continue(tmp_path, signal_to, [])
+
+
+def test_finished_trials_never_run_again_without_ray_after_an_interruption(tmp_path):
+    _interrupt_then_continue(tmp_path, "ctrl-c", ["--no-ray"])
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "experiments" / "studies").glob("*.yml")))

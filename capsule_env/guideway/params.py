@@ -22,6 +22,7 @@ __all__ = [
     "elevation_at",
     "kmh_to_mps",
     "make_profile",
+    "profile_length_m",
     "time_signal",
 ]
 
@@ -195,13 +196,23 @@ class GuidewayParams:
         return kmh_to_mps(self.speed_kmh)
 
 
-def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0) -> np.ndarray:
+def profile_length_m(params: GuidewayParams, duration_s: float) -> float:
+    """The length (m) :func:`make_profile` samples for ``duration_s``: ``speed_mps *
+    duration_s`` plus a margin of ``_MARGIN_SAMPLES`` samples."""
+    return params.speed_mps * check_positive("duration_s", duration_s) + (
+        _MARGIN_SAMPLES * params.spacing_m
+    )
+
+
+def make_profile(
+    params: GuidewayParams, duration_s: float, seed: int | None = 0, *, extend_m: float = 0.0
+) -> np.ndarray:
     """Sampled profile (m, spacing ``params.spacing_m``) long enough for ``duration_s``.
 
-    The length is ``speed_mps * duration_s`` plus a few samples of margin, so
-    :func:`elevation_at` / :func:`time_signal` never run off the end for ``0 <= t <=
-    duration_s``.  A swept sine sweeps from ``start_hz`` at t = 0 to ``stop_hz`` at
-    ``t = duration_s``.
+    The length is ``speed_mps * duration_s`` plus a few samples of margin
+    (:func:`profile_length_m`), so :func:`elevation_at` / :func:`time_signal` never run off
+    the end for ``0 <= t <= duration_s``.  A swept sine sweeps from ``start_hz`` at t = 0 to
+    ``stop_hz`` at ``t = duration_s``.
 
     Parameters
     ----------
@@ -211,6 +222,12 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
         Run duration in s, > 0.
     seed : int or None, optional
         Seed for the ``random`` kind (ignored otherwise).  Default 0.
+    extend_m : float, optional
+        The profile continued this far beyond that length (m, >= 0; default 0), as the
+        guideway itself continues: a sine its period, a swept sine its chirp at the same rate,
+        a bump or a step its flat end, a random profile its periodic synthesis (what a guideway
+        preview looks at past the end of a run).  The samples before are those without it,
+        bit for bit.
 
     Returns
     -------
@@ -220,14 +237,15 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
     Raises
     ------
     ValueError
-        If ``duration_s`` is not > 0, or if a bump / step position lies beyond the profile.
+        If ``duration_s`` is not > 0, ``extend_m`` < 0, or if a bump / step position lies
+        beyond the profile.
     """
     if not isinstance(params, GuidewayParams):
         raise ValueError(f"params must be a GuidewayParams, got {type(params).__name__}")
     duration_s = check_positive("duration_s", duration_s)
     speed = params.speed_mps
     spacing = params.spacing_m
-    length = speed * duration_s + _MARGIN_SAMPLES * spacing
+    length = profile_length_m(params, duration_s)
     kind = params.kind
     if kind == "random":
         return random_profile(
@@ -238,6 +256,7 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
             min_wavelength_m=params.min_wavelength_m,
             max_wavelength_m=params.max_wavelength_m,
             psd=params.psd,
+            extend_m=extend_m,
         )
     if kind == "sine":
         return sine_profile(
@@ -246,6 +265,7 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
             frequency_hz=params.frequency_hz,
             speed_mps=speed,
             amplitude_m=params.peak_m,
+            extend_m=extend_m,
         )
     if kind == "swept_sine":
         return swept_sine_profile(
@@ -256,6 +276,7 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
             speed_mps=speed,
             amplitude_m=params.peak_m,
             sweep_duration_s=duration_s,
+            extend_m=extend_m,
         )
     if kind == "bump":
         return bump_profile(
@@ -264,6 +285,7 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
             height_m=params.peak_m,
             bump_length_m=params.bump_length_m,
             position_m=params.position_m,
+            extend_m=extend_m,
         )
     # kind == "step" (validated in GuidewayParams)
     return step_profile(
@@ -272,4 +294,5 @@ def make_profile(params: GuidewayParams, duration_s: float, seed: int | None = 0
         height_m=params.peak_m,
         position_m=params.position_m,
         ramp_length_m=params.ramp_length_m,
+        extend_m=extend_m,
     )

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_positive
+from capsule_env._validation import check_nonnegative, check_positive
 from capsule_env.guideway.sampling import n_samples
 
 __all__ = ["FRA_CLASS6", "FraPsdParams", "fft_length", "fra_psd", "random_profile"]
@@ -121,6 +121,7 @@ def random_profile(
     min_wavelength_m: float = 2.0,
     max_wavelength_m: float = 500.0,
     psd: FraPsdParams = FRA_CLASS6,
+    extend_m: float = 0.0,
 ) -> np.ndarray:
     """Random vertical guideway profile with the FRA PSD (spectral / random-phase method).
 
@@ -153,12 +154,16 @@ def random_profile(
         Wavelength band in m, ``0 < min < max``; default 2 m and 500 m.
     psd : FraPsdParams, optional
         PSD coefficients, default :data:`FRA_CLASS6`.
+    extend_m : float, optional
+        The profile continued this far beyond ``length_m`` (m, >= 0; default 0): the same
+        synthesis, periodic with the FFT period ``L``, with the ``peak_m`` scale of the first
+        ``n`` samples; those ``n`` samples are the ones without it, bit for bit.
 
     Returns
     -------
     numpy.ndarray
         Elevation ``z[j]`` in m at ``x_j = j * spacing_m``, ``j = 0..n-1``,
-        ``n = int(round(length_m / spacing_m)) + 1``.
+        ``n = int(round(length_m / spacing_m)) + 1`` (more with ``extend_m``).
 
     Raises
     ------
@@ -183,6 +188,7 @@ def random_profile(
         peak_m = check_positive("peak_m", peak_m)
     if not isinstance(psd, FraPsdParams):
         raise ValueError(f"psd must be a FraPsdParams, got {type(psd).__name__}")
+    extend_m = check_nonnegative("extend_m", extend_m)
 
     n_fft = fft_length(length_m, spacing_m, max_wavelength_m)
     period = n_fft * spacing_m
@@ -205,8 +211,12 @@ def random_profile(
     # X_k = (N / 2) a_k exp(i phi_k) gives sum_k a_k cos(W_k x_j + phi_k).
     spectrum = np.zeros(n_fft // 2 + 1, dtype=np.complex128)
     spectrum[k] = (0.5 * n_fft) * amplitude * np.exp(1j * phase)
-    z = np.fft.irfft(spectrum, n=n_fft)[:n]
+    z = np.fft.irfft(spectrum, n=n_fft)
+    if extend_m > 0.0:  # the periodic synthesis continued (np.resize repeats the period)
+        z = np.resize(z, n_samples(float(length_m) + extend_m, spacing_m))
+    else:
+        z = z[:n]
 
     if peak_m is not None:
-        z *= peak_m / np.max(np.abs(z))
+        z *= peak_m / np.max(np.abs(z[:n]))
     return np.ascontiguousarray(z)

@@ -279,7 +279,8 @@ def _starts(
 ) -> tuple[list[str], np.ndarray]:
     """The named or given starts as an (S, E, T) array of currents, and their names."""
     if isinstance(starts, (str, np.ndarray)) or not isinstance(starts, Sequence) or not starts:
-        raise ValueError(
+        kind = ValueError if isinstance(starts, Sequence) and not starts else TypeError
+        raise kind(
             f"starts must be a non-empty sequence of start names {START_NAMES}, numbers "
             f"(constant currents, A) or current arrays, got {starts!r}"
         )
@@ -308,7 +309,15 @@ def _starts(
             names.append(f"constant:{level:g}")
             arrays.append(np.full((e, t), level))
             continue
-        a = np.asarray(start, dtype=np.float64)
+        if isinstance(start, (bool, np.bool_)) or not isinstance(start, (Sequence, np.ndarray)):
+            raise TypeError(
+                f"starts[{j}] must be a start name, a number (a constant current, A) or a "
+                f"current array, got {start!r} ({type(start).__name__})"
+            )
+        try:
+            a = np.asarray(start, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise TypeError(f"starts[{j}]: a current array must hold numbers (A)") from None
         if a.shape not in ((t,), (e, t)):
             raise ValueError(
                 f"starts[{j}]: a current array must have shape ({t},) or ({e}, {t}) "
@@ -325,31 +334,30 @@ def _starts(
 def _check_arguments(
     env_kwargs: Any, seeds: Any, options: dict[str, Any]
 ) -> tuple[dict[str, Any], tuple[int, ...]]:
-    """The env arguments (with the evaluation's guideway seed by default) and the seeds;
-    ``ValueError`` naming any bad argument."""
+    """The env arguments (with the evaluation's guideway seed by default) and the seeds.
+    ``TypeError`` for an argument of the wrong type (a bool is not a number here),
+    ``ValueError`` for a value out of range; both name the argument."""
     if env_kwargs is None:
         env_kwargs = {}
     if not isinstance(env_kwargs, Mapping):
-        raise ValueError(f"env_kwargs must be a mapping of env arguments, got {env_kwargs!r}")
+        raise TypeError(f"env_kwargs must be a mapping of env arguments, got {env_kwargs!r}")
     for name in _OWN_ARGUMENTS:
         if name in env_kwargs:
             raise ValueError(f"env_kwargs must not set {name!r}: clairvoyant_bound sets it")
     if isinstance(seeds, (str, bytes)) or not isinstance(seeds, (Sequence, np.ndarray)):
-        raise ValueError(f"seeds must be a non-empty sequence of integers, got {seeds!r}")
+        raise TypeError(f"seeds must be a non-empty sequence of integers, got {seeds!r}")
     if len(seeds) == 0:
         raise ValueError("seeds must be a non-empty sequence of integers, got an empty one")
-    try:
-        checked = tuple(check_seed(f"seeds[{k}]", s) for k, s in enumerate(seeds))
-        check_integer("max_iter", options["max_iter"], 1, 1_000_000)
-        check_integer("restarts", options["restarts"], 0, 100)
-        check_integer("smooth_steps", options["smooth_steps"], 1, 1_000_000)
-        check_integer("random_seed", options["random_seed"], 0, 2**63 - 1)
-        check_positive("tol", options["tol"])
-        if options["max_stroke_m"] is not None:
-            check_positive("max_stroke_m", options["max_stroke_m"])
-        check_nonnegative("stroke_penalty", options["stroke_penalty"])
-    except TypeError as exc:  # a wrong type is a bad value here: one exception to catch
-        raise ValueError(str(exc)) from None
+    checked = tuple(check_seed(f"seeds[{k}]", s) for k, s in enumerate(seeds))
+    check_positive("episode_length_s", options["episode_length_s"])
+    check_integer("max_iter", options["max_iter"], 1, 1_000_000)
+    check_integer("restarts", options["restarts"], 0, 100)
+    check_integer("smooth_steps", options["smooth_steps"], 1, 1_000_000)
+    check_integer("random_seed", options["random_seed"], 0, 2**63 - 1)
+    check_positive("tol", options["tol"])
+    if options["max_stroke_m"] is not None:
+        check_positive("max_stroke_m", options["max_stroke_m"])
+    check_nonnegative("stroke_penalty", options["stroke_penalty"])
     return {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}, checked
 
 
@@ -444,7 +452,8 @@ def clairvoyant_bound(
         Episode ``k`` is the single env seeded ``seeds[k]`` (as
         :func:`capsule_env.evaluation.run_episodes` runs ``seed + k``); default 1000..1009.
     episode_length_s
-        Episode length (s).
+        Episode length (s): a number > 0, long enough for the metrics' spectra
+        (:func:`capsule_env.evaluation.check_episode_length`).
     starts
         The search's starts: names of :data:`START_NAMES`, constant currents (A), or
         current arrays, (T,) or (E, T) (e.g. :func:`applied_currents` of a controller's
@@ -473,9 +482,22 @@ def clairvoyant_bound(
     Returns
     -------
     OracleResult
-        Every figure measured on the env's own plant. Raises
-        ``ValueError`` naming a bad argument. How far from the global optimum: see
+        Every figure measured on the env's own plant. How far from the global optimum: see
         :mod:`capsule_env.oracle`.
+
+    Raises
+    ------
+    TypeError
+        An argument of the wrong type, e.g. ``episode_length_s="1"`` or ``True`` (a bool is not
+        a number here), ``max_iter=2.0``, ``seeds=5``, ``env_kwargs=[...]``; the message names
+        the argument and what it accepts.
+    ValueError
+        A value out of range (``episode_length_s=0`` or too short for the metrics'
+        spectra, ``max_iter=0``, an empty ``seeds``, an unknown start, an env argument the
+        env refuses, ``env_kwargs`` setting ``episode_length_s`` or ``num_envs``); the message
+        names the argument and its accepted range. An unknown env argument raises
+        :class:`~capsule_env._validation.UnexpectedArgumentError`, both a ``TypeError`` and a
+        ``ValueError``.
     """
     options = {
         "episode_length_s": episode_length_s, "max_iter": max_iter, "tol": tol,

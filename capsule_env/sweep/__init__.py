@@ -22,11 +22,12 @@ The kinds and their parameters: :mod:`capsule_env.sweep.kinds`. Output (``--out`
 ``runs/sweep/<name>``): ``results.csv`` and ``results.json`` (one row per trial: status, seed,
 parameters, metrics, attempts, error), ``summary.png``, ``trials/<trial>/`` (each trial's
 files and ``output.log``), ``tune/`` (the Ray Tune experiment) and ``study.json``. Running the
-same command again continues the study: finished trials are never run again (Tune's
-``Tuner.restore``; without Ray, their ``result.json``), failed ones are run again unless
-``--no-retry-failed``. Exit status 0 when every trial finished, 1 when some did not (each
-failed trial is listed with its error), 2 for a bad study file (one line naming the key and
-what it accepts).
+same command again continues the study: finished trials are never run again (a trial's
+``result.json`` is the source of truth, with Ray too, whatever Tune's ``Tuner.restore``
+restores), failed ones are run again unless ``--no-retry-failed``. The whole study file is
+checked before any trial starts (``--check`` runs only that). Exit status 0 when every trial
+finished, 1 when some did not (each failed trial is listed with its error), 2 for a bad
+study file (one line naming the key and what it accepts).
 """
 
 from __future__ import annotations

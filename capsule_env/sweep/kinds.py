@@ -8,22 +8,30 @@ study starts. The functions run the same with or without Ray.
 
 - ``train``: ``train.py``'s ``train(Args)`` with the trial's seed; parameters: the fields of
   ``train.Args`` (``total_timesteps``, ``num_envs``, ``algo``, ``eval_freq``, ...),
-  ``hp.<key>`` (an entry of the hyperparameter file, e.g. ``hp.learning_rate``) and
-  ``env.<key>`` (an env argument). The trial writes its hyperparameter file
+  ``hp.<key>`` (an entry of the hyperparameter file, e.g. ``hp.learning_rate``; its value
+  checked as :mod:`capsule_env.sweep.hyperparameters` says) and ``env.<key>`` (an env
+  argument). The trial writes its hyperparameter file
   (``hyperparams.yml``) and train.py's output folder (``run/``: ``best_model.*``, ...) into its
   folder; a trial started again continues from train.py's newest checkpoint there. Metrics:
   the best held-out evaluation (validation bank 7) and the timesteps.
 - ``gains``: a classical controller (``capsule_env.agents.classical``) with the given gains
-  (``gain.<name>``) on ``episodes`` episodes (seeds ``episode_seed ..``) of the guideway bank
-  ``guideway_seed`` (default 0, the training bank, as ``python -m capsule_env.agents.tuning``), through
+  (``gain.<name>``, numbers >= 0) on ``episodes`` episodes (seeds ``episode_seed ..``) of the
+  guideway bank ``guideway_seed`` (default 0, the training bank, as
+  ``python -m capsule_env.agents.tuning``), through
   :func:`capsule_env.evaluation.run_episodes` and :func:`~capsule_env.evaluation.
   episode_metrics` (the passive damper on the same episodes is the VRE reference). Every grid
   point runs the same episodes (common random numbers: the grid compares gains, not noise).
+  ``env.<key>`` changes the env, never the law: the keys the controller fixes (its
+  ``env_kwargs``, as evaluate.py runs it: action mode, observation, inverse model, ...) and
+  the trial's own (``setting``, ``guideway_seed``, ``episode_length_s``, ``num_envs``) are
+  refused.
 - ``oracle``: ``capsule_env.oracle.clairvoyant_bound(env_kwargs, seeds, episode_length_s)``
-  when that library is installed (the kind is refused, with the reason, otherwise).
+  when that library is installed (the kind is refused, with the reason, otherwise);
+  ``env.episode_length_s`` and ``env.num_envs`` are refused (the trial sets them).
 
-Adding a kind is one function and one :func:`register_kind` call, in a module the Ray
-workers import as well (the trials look their kind up by name)::
+Adding a kind is one function and one :func:`register_kind` call; on Ray, the workers must
+register it too (the trials look their kind up by name), e.g. with
+``ray.init(runtime_env={"worker_process_setup_hook": register})`` before the sweep runs::
 
     def run_mine(trial):
         return {"wk_rms_body_acc_m_s2": ...}
@@ -201,6 +209,7 @@ def check_train(params: dict[str, Any]) -> None:
     from capsule_env.agents.sb3_policy import ALGORITHMS
     from capsule_env.agents.training import check_args, policy_env_kwargs
     from capsule_env.evaluation import check_episode_length
+    from capsule_env.sweep.hyperparameters import check_hp_values
 
     plain, groups = split_params(params)
     algo = plain.get("algo", "ppo")
@@ -223,6 +232,7 @@ def check_train(params: dict[str, Any]) -> None:
     if unknown:
         raise ValueError(f"hp.{unknown[0]}: not a hyperparameter of {algo} (the keys of {path} "
                          f"and {algo.upper()}'s arguments)")  # fmt: skip
+    check_hp_values(algo, base, groups.get("hp", {}))
     env_kwargs = resolve_env_kwargs(base.get("env_kwargs", {}), groups.get("env", {}))
     dt_s = _env_config(policy_env_kwargs(env_kwargs)).dt_s
     check_episode_length(args.eval_episode_length, dt_s, "eval_episode_length")
@@ -302,26 +312,64 @@ def gain_names(controller: str) -> list[str]:
     return [p for p in signature.parameters if p not in _NOT_GAINS]
 
 
-def check_gains(params: dict[str, Any]) -> None:
-    """A gains trial: a known controller, its gain names, numbers, a valid env and an episode
-    long enough for the metrics."""
-    from capsule_env.agents.classical import FACTORIES, make_controller
-    from capsule_env.evaluation import check_episode_length
+#: Env arguments a gains trial sets itself (its own keys; one vehicle per episode).
+_GAINS_OWN_ENV = {
+    "setting": "give it as the trial's 'setting'",
+    "guideway_seed": "give it as the trial's 'guideway_seed'",
+    "episode_length_s": "give it as the trial's 'episode_length_s'",
+    "num_envs": "one vehicle runs each episode: give 'episodes'",
+}
 
-    settings, gains, env = _gains_settings(params)
-    name = settings.get("controller")
-    if name not in FACTORIES:
-        raise ValueError(f"controller: unknown controller {name!r}; accepted: "
-                         f"{', '.join(FACTORIES)}")  # fmt: skip
+
+def _check_gain_values(name: str, gains: dict[str, Any]) -> None:
+    """Every gain is one of the controller's, a number >= 0 (an integer where its default
+    is one): damping coefficients, forces, currents, weights and counts are never negative."""
+    from capsule_env.agents.classical import FACTORIES
+
+    parameters = inspect.signature(FACTORIES[name]).parameters
     accepted = gain_names(name)
     for gain, value in gains.items():
         if gain not in accepted:
             raise ValueError(f"gain.{gain}: {name} has no such gain; accepted: "
                              f"{', '.join(accepted) or 'none'}")  # fmt: skip
-        _number(value, f"gain.{gain}")
+        default = parameters[gain].default
+        integer = isinstance(default, int) and not isinstance(default, bool)
+        _number(value, f"gain.{gain}", 0, integer=integer)
+
+
+def _check_gains_env(name: str, fixed: Mapping[str, Any], env: dict[str, Any]) -> None:
+    """``env.<key>`` may not change what the trial or the controller sets: the controller's
+    ``env_kwargs`` (what it needs, as evaluate.py runs it) and the trial's own keys."""
+    for key in env:
+        if key in _GAINS_OWN_ENV:
+            raise ValueError(f"env.{key}: the gains trial sets it; {_GAINS_OWN_ENV[key]}")
+        if key in fixed:
+            hint = f" (a gain of {name}: give gain.{key})" if key in gain_names(name) else ""
+            raise ValueError(
+                f"env.{key}: {name} fixes {key}={fixed[key]!r}{hint}; accepted: env arguments "
+                f"other than those it fixes ({', '.join(fixed)}) and the trial's own "
+                f"({', '.join(_GAINS_OWN_ENV)})"
+            )
+
+
+def check_gains(params: dict[str, Any]) -> None:
+    """A gains trial: a known controller, its gain names, numbers >= 0, env arguments that
+    leave the controller's and the trial's own alone, a valid env and an episode long enough
+    for the metrics."""
+    from capsule_env.agents.classical import FACTORIES, make_controller
+    from capsule_env.evaluation import check_episode_length
+
+    settings, gains, env = _gains_settings(params)
+    name = settings.get("controller")
+    if not isinstance(name, str) or name not in FACTORIES:
+        raise ValueError(f"controller: unknown controller {name!r}; accepted: "
+                         f"{', '.join(FACTORIES)}")  # fmt: skip
+    _check_gain_values(name, gains)
     _number(settings["episodes"], "episodes", 1, integer=True)
     _number(settings["episode_seed"], "episode_seed", 0, integer=True)
+    _number(settings["episode_length_s"], "episode_length_s")  # > 0: below
     ctrl = make_controller(name, **gains)
+    _check_gains_env(name, ctrl.env_kwargs, env)
     config = _env_config({**ctrl.env_kwargs, "setting": settings["setting"],
                           "guideway_seed": settings["guideway_seed"], **env})  # fmt: skip
     check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
@@ -378,14 +426,28 @@ def _oracle_settings(params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, 
     return {**defaults, **plain}, groups.get("env", {})
 
 
+#: Env arguments an oracle trial sets itself.
+_ORACLE_OWN_ENV = {
+    "episode_length_s": "give it as the trial's 'episode_length_s'",
+    "num_envs": "one vehicle runs each episode: give 'episodes'",
+}
+
+
 def check_oracle(params: dict[str, Any]) -> None:
-    """An oracle trial: episode counts and a valid env."""
+    """An oracle trial: episode counts, search iterations, a valid env that leaves the trial's
+    own arguments alone, and an episode long enough for the metrics."""
+    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, check_episode_length
+
     settings, env = _oracle_settings(params)
+    for key in env:
+        if key in _ORACLE_OWN_ENV:
+            raise ValueError(f"env.{key}: the oracle trial sets it; {_ORACLE_OWN_ENV[key]}")
     _number(settings["episodes"], "episodes", 1, integer=True)
     _number(settings["episode_seed"], "episode_seed", 0, integer=True)
-    _number(settings["episode_length_s"], "episode_length_s", 0)
+    _number(settings["episode_length_s"], "episode_length_s")  # > 0: below
     _number(settings["max_iter"], "max_iter", 1, integer=True)
-    _env_config(env)
+    config = _env_config({"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env})
+    check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
 
 
 def run_oracle(trial: Trial) -> dict[str, Any]:

@@ -6,10 +6,12 @@
 - :func:`run_serial`: every trial in this process, in order; a trial with a ``result.json``
   is finished and not run again; a failed one is run again unless ``retry_failed`` is off.
 - :func:`run_ray`: the trials as Ray Tune trials (one CPU each by default) in the experiment
-  ``<out>/tune``; when that experiment exists, ``tune.Tuner.restore`` continues it: finished
-  trials are never run again, unfinished ones run, errored ones run again when
-  ``retry_failed`` (``restart_errored``). Trials already finished by :func:`run_serial` are
-  left out of a new experiment.
+  ``<out>/tune``; when that experiment exists, ``tune.Tuner.restore`` continues it:
+  unfinished trials run, errored ones run again when ``retry_failed`` (``restart_errored``).
+  A trial's ``result.json`` is the source of truth, not Tune's state: a finished trial never
+  runs again, even where the restored state (saved before it finished: a Ctrl-C, a killed
+  driver) lists it as unfinished (:func:`tune_trainable` returns the stored result), and
+  trials already finished by :func:`run_serial` are left out of a new experiment.
 - :func:`write_results`: ``results.csv``, ``results.json`` and ``summary.png`` (the
   Wk-weighted RMS body acceleration of every finished trial, one panel per block).
 """
@@ -165,13 +167,28 @@ def run_serial(
 # ----------------------------------------------------------------------------- Ray Tune
 def tune_trainable(config: dict[str, Any]) -> dict[str, Any]:
     """The Ray Tune function trainable: :func:`run_trial` of ``config["trial"]``, with
-    numba's threads limited to the trial's CPUs (``config["threads"]``)."""
+    numba's threads limited to the trial's CPUs (``config["threads"]``). A trial whose folder
+    holds its ``result.json`` is not run again: that result is returned as it is, whatever Tune
+    restored (an experiment state saved before the trial finished, after a Ctrl-C or a killed
+    driver, lists it as unfinished)."""
+    trial = Trial.from_dict(config["trial"])
+    done = _stored_result(trial)
+    if done is not None:
+        return done
     import numba
 
     numba.set_num_threads(
         max(1, min(int(config.get("threads", 1)), numba.config.NUMBA_NUM_THREADS))
     )
-    return run_trial(config["trial"])
+    return run_trial(trial)
+
+
+def _stored_result(trial: Trial) -> dict[str, Any] | None:
+    """The trial's ``result.json`` as :func:`run_trial` wrote it, if it finished."""
+    done = finished_on_disk(trial)
+    if done is None:
+        return None
+    return {"trial": trial.name, "metrics": done.metrics, "attempts": done.attempts}
 
 
 def _trial_name(trial: Any) -> str:
@@ -221,13 +238,13 @@ def _tune(
     path = f"{storage_path.rstrip('/')}/{EXPERIMENT}"
     cpus = study.cpus_per_trial
     trainable = tune.with_resources(tune_trainable, {"cpu": cpus})
+    todo = [t for t in study.trials if finished_on_disk(t) is None]
+    if not todo:  # every trial finished: nothing for Tune to do
+        return [finished_on_disk(t) for t in study.trials]  # type: ignore[misc]
     if tune.Tuner.can_restore(path):
         tuner = tune.Tuner.restore(path, trainable, resume_unfinished=True,
                                    resume_errored=False, restart_errored=retry_failed)  # fmt: skip
     else:
-        todo = [t for t in study.trials if finished_on_disk(t) is None]
-        if not todo:
-            return [finished_on_disk(t) for t in study.trials]  # type: ignore[misc]
         space = {"trial": tune.grid_search([t.to_dict() for t in todo]),
                  "threads": max(1, int(cpus))}  # fmt: skip
         tuner = tune.Tuner(
@@ -258,11 +275,9 @@ def _tune(
         elif "metrics" in metrics:
             by_name[trial.name] = Outcome(trial, "finished", dict(metrics["metrics"]), None,
                                           metrics.get("attempts"))  # fmt: skip
-    outcomes = []
-    for trial in study.trials:
-        outcome = by_name.get(trial.name) or finished_on_disk(trial)
-        outcomes.append(outcome or Outcome(trial, "not run"))
-    return outcomes
+    # the trial's result.json is the source of truth: Tune's state may be older than it
+    return [finished_on_disk(t) or by_name.get(t.name) or Outcome(t, "not run")
+            for t in study.trials]  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- results

@@ -111,9 +111,46 @@ def derived_seed(root: int, block: int, point: int, replicate: int) -> int:
     return int(state) & 0x7FFFFFFF
 
 
+def _unique_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's pairs as a dict; a key given twice is refused (JSON keeps the last)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise StudyError(f"duplicate key {key!r}: each key may appear once in a mapping")
+        out[key] = value
+    return out
+
+
+def _yaml_loader() -> type:
+    """PyYAML's safe loader, refusing a key given twice in one mapping (PyYAML keeps the
+    last one silently); ``<<`` merges still override as YAML specifies."""
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        def construct_mapping(self, node: Any, deep: bool = False) -> dict:
+            seen: set[Any] = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    duplicate = key in seen
+                    seen.add(key)
+                except TypeError:  # an unhashable key: the mapping's own error
+                    continue
+                if duplicate:
+                    raise StudyError(
+                        f"duplicate key {key!r} (line {key_node.start_mark.line + 1}): each key "
+                        "may appear once in a mapping"
+                    )
+            return super().construct_mapping(node, deep)
+
+    return UniqueKeyLoader
+
+
 def read_study_file(path: str | Path) -> Any:
     """The content of a YAML or JSON study file; :class:`StudyError` for a missing, unreadable
-    or malformed file."""
+    or malformed file, or one that gives a key twice in a mapping."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".yml", ".yaml", ".json"):
@@ -122,11 +159,20 @@ def read_study_file(path: str | Path) -> Any:
         text = path.read_text()
     except OSError as exc:
         raise StudyError(f"{path}: cannot read the study file ({exc.strerror})") from None
-    if suffix == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise StudyError(f"{path}: not valid JSON: {exc}") from None
+    try:
+        if suffix == ".json":
+            try:
+                return json.loads(text, object_pairs_hook=_unique_pairs)
+            except json.JSONDecodeError as exc:
+                raise StudyError(f"{path}: not valid JSON: {exc}") from None
+        return _read_yaml(text, path)
+    except StudyError as exc:
+        message = str(exc)
+        where = message if message.startswith(str(path)) else f"{path}: {message}"
+        raise StudyError(where) from None
+
+
+def _read_yaml(text: str, path: Path) -> Any:
     try:
         import yaml
     except ImportError:
@@ -135,7 +181,7 @@ def read_study_file(path: str | Path) -> Any:
             "write the study as JSON"
         ) from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_yaml_loader())  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
         raise StudyError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
 
