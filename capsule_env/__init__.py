@@ -59,6 +59,9 @@ def _register() -> None:
             # no max_episode_steps: the env ends its episodes itself after episode_length_s *
             # control_rate_hz steps, an argument (a fixed number here would override it)
         )
+    from capsule_env.tasks import register_tasks
+
+    register_tasks()
 
 
 _register()

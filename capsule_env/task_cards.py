@@ -1,0 +1,71 @@
+"""The task cards of docs/tasks.md, generated from an evaluation's JSON file.
+
+``python -m capsule_env.task_cards docs/tasks.md`` rewrites the block between the page's
+``<!-- generated: task cards -->`` markers from ``docs/figures/evaluation.json`` (written by
+``evaluate.py --oracle --json``): per task, the Wk-weighted RMS car-body acceleration and the
+normalised score of the passive damper, the task's best tuned classical law, its shipped policy
+and the oracle, with what each reads.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from capsule_env.tasks import TASKS, Task, normalised_score
+
+__all__ = ["task_cards", "sync_page"]
+
+
+def _card(task: Task, results: dict) -> list[str]:
+    controllers = results["settings"][task.setting]["controllers"]
+    wk = {name: controllers[name]["wk_rms_body_acc_m_s2"] for name in controllers}
+    rows = [("passive", "passive damper")]
+    rows += [(task.best_classical, "best tuned classical law")]
+    if task.shipped_policy:
+        rows += [(task.shipped_policy, "shipped PPO policy")]
+    rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
+    lines = [f"### `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
+             f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
+             "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
+             "acceleration on guideway seeds "
+             f"{results['seeds'][0]}..{results['seeds'][1]}.", "",
+             "| controller | what it is | reads | Wk (m/s²) | normalised score |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for name, what in rows:
+        score = normalised_score(wk[name], wk["passive"], wk["oracle"])
+        reads = controllers[name]["observation"] + (" + preview" if
+                                                    controllers[name]["preview"] else "")  # fmt: skip
+        lines.append(f"| `{name}` | {what} | {reads} | {wk[name]:.4f} | {score:.3f} |")
+    return lines + [""]
+
+
+def task_cards(results: dict) -> str:
+    """The task cards as Markdown, reference scores from an ``evaluate.py --json`` file's
+    contents (run with ``--oracle``)."""
+    lines: list[str] = []
+    for task in TASKS:
+        lines += _card(task, results)
+    return "\n".join(lines)
+
+
+BEGIN, END = "<!-- generated: task cards -->", "<!-- end generated: task cards -->"
+
+
+def sync_page(page: Path, results_json: Path) -> bool:
+    """Rewrite the generated block of ``page``; True when it changed."""
+    text = page.read_text()
+    head, _, rest = text.partition(BEGIN)
+    _, _, tail = rest.partition(END)
+    cards = task_cards(json.loads(results_json.read_text()))
+    new = f"{head}{BEGIN}\n\n{cards}\n{END}{tail}"
+    if new != text:
+        page.write_text(new)
+    return new != text
+
+
+if __name__ == "__main__":  # python -m capsule_env.task_cards docs/tasks.md
+    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/tasks.md")
+    source = target.parent / "figures" / "evaluation.json"
+    print(("updated " if sync_page(target, source) else "unchanged ") + str(target))

@@ -1,0 +1,100 @@
+"""Registered tasks: env ids a benchmark can name, each with its card.
+
+``CapsuleSuspension-v0`` is the env with every option open (its defaults are the paper's
+``sim`` setting). The tasks below fix the options a result depends on, so that a score quoted
+for ``CapsuleRide-v0`` means one thing:
+
+============================  =============================================================
+``CapsuleSuspension-v0``      the paper's setting: ``sim`` plant (ideal sensors, no delay),
+                              three accelerometer/stroke sensors as the observation
+``CapsuleRide-v0``            the realistic ride task: ``hils`` plant (coil lag, sensor noise,
+                              one-step delay) and the ``measured`` signals a capsule has
+``CapsuleRidePreview-v0``     the same with the surveyed guideway ahead (32 points, 0.5 s)
+============================  =============================================================
+
+Every task keeps the env's reward (docs/env.md) and is reported with the ISO 2631-1
+Wk-weighted RMS car-body acceleration (m/s^2), mean over the evaluation bank's guideway seeds
+1000..1009 (``evaluate.py``'s default), and the normalised score ``(passive - x) / (passive -
+oracle)``: 0 is the passive damper, 1 the clairvoyant oracle's bound on the same episodes.
+The reference scores of each card (passive, the best tuned classical law, the shipped policy,
+the oracle) are read from ``docs/figures/evaluation.json``, the file the results page is built
+from, by :mod:`capsule_env.task_cards` (``python -m capsule_env.task_cards docs/tasks.md``; a
+test checks the page is in sync).
+
+Names and versions follow Gymnasium's conventions: a change of a task's options or of the
+physics under it gets a new version; the old id keeps its meaning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Task", "TASKS", "register_tasks", "task_named", "normalised_score"]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One registered task: its id, what it models, what the agent reads, its env options and
+    the evaluation's names of its reference controllers."""
+
+    env_id: str
+    summary: str
+    reads: str
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    setting: str = "sim"
+    best_classical: str = ""
+    shipped_policy: str = ""
+
+
+TASKS: tuple[Task, ...] = (
+    Task("CapsuleSuspension-v0",
+         "The paper's setting: the sim plant (ideal sensors, no delay, no coil lag), 810 km/h, "
+         "the random guideway; every option of the env open.",
+         "car-body and bogie accelerations and the stroke (observation='sensors')",
+         {}, "sim", "lqr-clipped-biexp-meas", ""),
+    Task("CapsuleRide-v0",
+         "The realistic ride task: the hils plant (coil lag, sensor noise, one control step of "
+         "delay) with the signals a capsule measures.",
+         "the measured signals: accelerations, stroke, gap, their on-board velocity estimates "
+         "and the applied current (observation='measured')",
+         {"setting": "hils", "observation": "measured"}, "hils",
+         "lqr-clipped-biexp-meas", "ppo-measured"),
+    Task("CapsuleRidePreview-v0",
+         "The ride task with the surveyed guideway ahead (32 points over 0.5 s, survey offset "
+         "and noise as the env's defaults).",
+         "the measured signals and the preview of the surveyed guideway",
+         {"setting": "hils", "observation": "measured", "preview_points": 32,
+          "preview_horizon_s": 0.5}, "hils", "preview-lq-biexp-meas", "ppo-preview"),
+)  # fmt: skip
+
+ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"
+VECTOR_ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionVectorEnv"
+
+
+def task_named(env_id: str) -> Task:
+    """The task registered as ``env_id`` (``ValueError`` naming the ids otherwise)."""
+    for task in TASKS:
+        if task.env_id == env_id:
+            return task
+    names = ", ".join(t.env_id for t in TASKS)
+    raise ValueError(f"task must be one of {names}, got {env_id!r}")
+
+
+def register_tasks() -> None:
+    """Register every task with Gymnasium (idempotent); its options are the registered
+    kwargs, which ``gymnasium.make(id, **overrides)`` may still override."""
+    from gymnasium.envs.registration import register, registry
+
+    for task in TASKS:
+        if task.env_id not in registry:
+            register(id=task.env_id, entry_point=ENTRY_POINT,
+                     vector_entry_point=VECTOR_ENTRY_POINT, kwargs=dict(task.kwargs))  # fmt: skip
+
+
+def normalised_score(wk_m_s2: float, passive_m_s2: float, oracle_m_s2: float) -> float:
+    """``(passive - x) / (passive - oracle)``: 0 for the passive damper, 1 for the oracle."""
+    if not passive_m_s2 > oracle_m_s2:
+        raise ValueError(f"passive_m_s2 must exceed oracle_m_s2, got {passive_m_s2} and "
+                         f"{oracle_m_s2}")  # fmt: skip
+    return (passive_m_s2 - wk_m_s2) / (passive_m_s2 - oracle_m_s2)

@@ -1,0 +1,79 @@
+"""Registered tasks: each is the env with its options, works through every entry point, and its
+card's reference scores are the evaluation's."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import capsule_env  # noqa: F401  (registers the tasks)
+from capsule_env.task_cards import task_cards
+from capsule_env.tasks import TASKS, normalised_score, task_named
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = json.loads((ROOT / "docs" / "figures" / "evaluation.json").read_text())
+
+
+def _rollout(env, seed: int, steps: int = 120) -> list[np.ndarray]:
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(1)
+    out = [obs]
+    for _ in range(steps):
+        obs, reward, *_ = env.step(rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32))
+        out += [obs, np.asarray(reward)]
+    return out
+
+
+@pytest.mark.parametrize("task", TASKS, ids=lambda t: t.env_id)
+def test_task_is_the_env_with_its_options(task):
+    made = gym.make(task.env_id)
+    plain = gym.make("CapsuleSuspension-v0", **task.kwargs)
+    assert made.observation_space == plain.observation_space
+    for a, b in zip(_rollout(made, 5), _rollout(plain, 5)):
+        assert np.array_equal(a, b)
+    venv = gym.make_vec(task.env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    obs, _ = venv.reset(seed=2)
+    assert obs.shape == (3, *plain.observation_space.shape)
+    venv.close()
+
+
+def test_shipped_policies_were_trained_on_their_tasks():
+    for task in TASKS:
+        if not task.shipped_policy:
+            continue
+        meta = json.loads((ROOT / "capsule_env" / "pretrained" /
+                           f"{task.shipped_policy}.json").read_text())  # fmt: skip
+        env_kwargs = {k: v for k, v in meta["env_kwargs"].items() if k != "action_mode"}
+        assert env_kwargs == task.kwargs
+        assert meta["env_kwargs"].get("action_mode", "force") == "force"
+
+
+def test_reference_laws_read_only_what_the_task_measures():
+    for task in TASKS:
+        entry = RESULTS["settings"][task.setting]["controllers"][task.best_classical]
+        assert entry["uses_unmeasured_signals"] is False
+        assert entry["preview"] is (task.kwargs.get("preview_points", 0) > 0)
+
+
+def test_cards_in_sync_and_scores_are_the_evaluations():
+    page = (ROOT / "docs" / "tasks.md").read_text()
+    assert task_cards(RESULTS) in page
+    hils = RESULTS["settings"]["hils"]["controllers"]
+    wk = hils["lqr-clipped-biexp-meas"]["wk_rms_body_acc_m_s2"]
+    expected = (0.2596 - 0.2399) / (0.2596 - 0.2116)  # the results page's rounded figures
+    score = normalised_score(wk, hils["passive"]["wk_rms_body_acc_m_s2"],
+                             hils["oracle"]["wk_rms_body_acc_m_s2"])  # fmt: skip
+    assert score == pytest.approx(expected, abs=2e-3)
+    assert normalised_score(0.3, 0.3, 0.2) == 0.0 and normalised_score(0.2, 0.3, 0.2) == 1.0
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="task must be one of CapsuleSuspension-v0"):
+        task_named("CapsuleRide-v9")
+    with pytest.raises(ValueError, match="passive_m_s2 must exceed oracle_m_s2"):
+        normalised_score(0.2, 0.2, 0.25)
+    assert task_named("CapsuleRide-v0").setting == "hils"
