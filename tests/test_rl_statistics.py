@@ -26,9 +26,9 @@ def test_iqm_is_the_quarter_trimmed_mean_and_its_interval_covers_it():
             assert result[name].value == pytest.approx(stats.trim_mean(s.ravel(), 0.25), rel=1e-12)
         assert result[name].low < result[name].value < result[name].high
     assert result["a"].high < result["b"].low  # 0.2 apart with sd 0.1 and 24-30 runs: separated
-    before = np.random.get_state()[1].copy()
+    before = np.random.get_state()[1].copy()  # noqa: NPY002
     assert iqm(scores, reps=2000) == result  # reproducible
-    assert np.array_equal(np.random.get_state()[1], before)  # the global generator restored
+    assert np.array_equal(np.random.get_state()[1], before)  # noqa: NPY002  (restored)
 
 
 def test_probability_of_improvement_is_the_mann_whitney_statistic():
