@@ -104,7 +104,7 @@ def check_column(name: str, quantity: str, label: str, values: np.ndarray) -> No
             raise ValueError(
                 f"{where} swings by {amplitude:.3g} N about its mean, outside "
                 f"[{MIN_FORCE_AMPLITUDE_N:g}, {MAX_FORCE_AMPLITUDE_N:g}] N for a damper test: "
-                "a wrong unit (force[kN]) or a column swapped with another?"
+                "a wrong unit (write force[kN]) or a column swapped with another?"
             )
         if amplitude < LOW_FORCE_AMPLITUDE_N:
             _warn(
