@@ -128,23 +128,12 @@ def fit_bi_exponential(
         d_hi = check_positive("d_bounds[1]", d_bounds[1])
         if not d_hi > d_lo:
             raise ValueError(f"d_bounds must be (low, high) with high > low > 0, got {d_bounds}")
-    currents, groups = group_by_current(loops)
-    data = {b: [] for b in _BRANCHES}
     if branch_gap_m is None:
         gap = BiExponentialDamper.branch_blend_m  # samples inside the blend belong to neither
     else:
         gap = check_in_range("branch_gap_m", branch_gap_m, 0.0, 1e-2)
-    for i_group, group in zip(currents, groups):
-        x, v, f, _ = stack_loops(group)
-        lower = x <= -gap if gap > 0.0 else x < 0.0
-        for branch, mask in zip(_BRANCHES, (x >= gap, lower)):
-            if np.count_nonzero(mask) < 4:
-                raise ValueError(
-                    f"the {branch} branch ({'x >= 0' if branch == 'upper' else 'x < 0'}) of the "
-                    f"loops at {group[0].current_a:g} A has fewer than 4 samples; the stroke "
-                    "must cross zero"
-                )
-            data[branch].append((v[mask], f[mask], np.full(np.count_nonzero(mask), i_group)))
+    currents, groups = group_by_current(loops)
+    data = _branch_samples(currents, groups, gap)
     free: dict[str, dict[str, np.ndarray]] = {}
     fixed: dict[str, dict[str, np.ndarray]] = {}
     table: dict[str, dict[str, float]] = {}
@@ -181,6 +170,27 @@ def fit_bi_exponential(
     values = {f"{b}_{k}": table[b][k] for b in _BRANCHES for k in table[b]}
     damper = BiExponentialDamper(max_current_a=max(1.5, float(currents.max())), **values)
     return damper, BiExponentialTrends(currents, free, fixed, table)
+
+
+def _branch_samples(
+    currents: np.ndarray, groups: Sequence[Sequence[Loop]], gap_m: float
+) -> dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """Per branch, per current: ``(v, F, i)`` of the samples with ``x >= gap_m`` (upper) or
+    ``x <= -gap_m`` (lower; ``x < 0`` when ``gap_m`` is 0); ``ValueError`` when a branch has
+    fewer than 4 samples."""
+    data: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {b: [] for b in _BRANCHES}
+    for i_group, group in zip(currents, groups):
+        x, v, f, _ = stack_loops(group)
+        lower = x <= -gap_m if gap_m > 0.0 else x < 0.0
+        for branch, mask in zip(_BRANCHES, (x >= gap_m, lower)):
+            if np.count_nonzero(mask) < 4:
+                raise ValueError(
+                    f"the {branch} branch ({'x >= 0' if branch == 'upper' else 'x < 0'}) of the "
+                    f"loops at {group[0].current_a:g} A has fewer than 4 samples; the stroke "
+                    "must cross zero"
+                )
+            data[branch].append((v[mask], f[mask], np.full(np.count_nonzero(mask), i_group)))
+    return data
 
 
 def _s_d(v: np.ndarray, d: float) -> np.ndarray:

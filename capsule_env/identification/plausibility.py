@@ -9,21 +9,19 @@ damper test can hold; each threshold is far outside any real test and within the
 ``ValueError``; doubtful values warn with :class:`PlausibilityWarning`. Every message is one
 line naming the file and the column. docs/howto-identify.md lists the checks and thresholds.
 
-=======================================  =========================  ==========================
-check                                    error                      warning
-=======================================  =========================  ==========================
-stroke, peak to peak (displacement)      > 1 m, or < 0.2 mm
-stroke frequency (dominant period)       < 0.01 Hz or > 200 Hz
-velocity column against d(displacement)  std ratio < 1/3 or > 3
- /dt
-force amplitude ``max |F - mean F|``     < 1 N or > 1e6 N           < 10 N
-current (column, ``--current``, name)    > 10 A                     column peaks below half
-                                                                    the current resolution
-fit (after identification)                                          best RMSE < 0.1 % of the
-                                                                    peak force; Bouc-Wen mean
-                                                                    residual > 1/2 its RMSE
-                                                                    with the force kept
-=======================================  =========================  ==========================
+Errors:
+
+- the stroke (displacement column) spans more than 1 m or less than 0.2 mm peak to peak;
+- the stroke's dominant frequency is below 0.01 Hz or above 200 Hz;
+- a velocity column's standard deviation is below 1/3 or above 3 times that of the
+  displacement's derivative;
+- the force swings by less than 1 N or more than 1 MN about its mean;
+- a current (a column, ``current_a`` or a file name) is above :data:`MAX_CURRENT_A` (10 A).
+
+Warnings: the force swings by less than 10 N; a current column peaks above 0 but below half
+the current resolution (every sample rounds to 0 A); after the fit (:func:`check_fit`), the
+best model's RMSE is below 0.1 % of the peak force, or, with the force kept as recorded, the
+Bouc-Wen fit's mean residual exceeds half its RMSE (a preload it cannot carry).
 """
 
 from __future__ import annotations
@@ -41,6 +39,7 @@ __all__ = [
     "PlausibilityWarning",
     "check_column",
     "check_current",
+    "check_current_resolution",
     "check_fit",
     "check_run",
 ]

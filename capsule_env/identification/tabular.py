@@ -50,7 +50,11 @@ or else at the current in the file name, a number followed by ``A`` or ``mA`` af
 Labcontrol files, which record none: the fit then carries everything in its
 current-independent coefficients).
 
-Every problem raises ``ValueError`` naming the file and, where there is one, the column.
+A current column's sign is checked after the rounding: a measured 0 A a few mA below zero is
+0 A. Every problem raises ``ValueError`` naming the file and, where there is one, the column,
+and so do the plausibility checks (:mod:`~capsule_env.identification.plausibility`: stroke,
+stroke frequency, velocity against the displacement's derivative, force amplitude, current),
+which also warn about doubtful values.
 """
 
 from __future__ import annotations
@@ -500,6 +504,30 @@ def _runs(
     return [(int(a), int(b), float(steps[a] * resolution)) for a, b in zip(starts, stops)]
 
 
+def _run_velocity(
+    found: dict[str, tuple[str, np.ndarray]],
+    start: int,
+    stop: int,
+    time_s: np.ndarray,
+    stroke_m: np.ndarray,
+    filter_args: tuple[int | None, int],
+    name: str,
+    where: str,
+) -> np.ndarray:
+    """The stroke rate of the run ``start:stop`` (m/s): the velocity column, else derived
+    (:func:`derive_velocity` with ``filter_args`` = window, polyorder); the run checked first
+    (:func:`~capsule_env.identification.plausibility.check_run`)."""
+    labels = {q: found[q][0] for q in ("time", "displacement", "velocity") if q in found}
+    given = found["velocity"][1][start:stop] if "velocity" in found else None
+    check_run(name, labels, time_s, stroke_m, given, where)
+    if given is not None:
+        return given
+    try:
+        return derive_velocity(time_s, stroke_m, *filter_args)
+    except ValueError as exc:
+        raise ValueError(f"{name}, column {labels['time']!r}{where}: {exc}") from None
+
+
 def _loops(
     found: dict[str, tuple[str, np.ndarray]],
     path: Path,
@@ -545,16 +573,7 @@ def _loops(
                 f"{start + int(back[0]) + 2}{where}"
             )
         x = disp[start:stop]
-        labels = {q: found[q][0] for q in ("time", "displacement", "velocity") if q in found}
-        given_v = found["velocity"][1][start:stop] if "velocity" in found else None
-        check_run(name, labels, t, x, given_v, where)
-        if given_v is not None:
-            v = given_v
-        else:
-            try:
-                v = derive_velocity(t, x, window, polyorder)
-            except ValueError as exc:
-                raise ValueError(f"{name}, column {time_label!r}{where}: {exc}") from None
+        v = _run_velocity(found, start, stop, t, x, (window, polyorder), name, where)
         source = path.name if len(runs) == 1 else f"{path.name} @ {current:g} A"
         loops.append(
             Loop(
