@@ -380,8 +380,9 @@ def load_loops(
     velocity_window, velocity_polyorder : the Savitzky-Golay derivative of a file without
         velocity (:func:`derive_velocity`; None: the default window).
     remove_force_offset : subtract the file's mean force (kept in ``Loop.force_offset_n``);
-        ``.mat`` files always do. By default the force is kept as recorded: the models'
-        constant terms carry a preload.
+        ``.mat`` files always do. By default the force is kept as recorded: the Bi-exponential
+        and tanh models' constant terms carry a preload, the Bouc-Wen model only within
+        ``k0 x0`` (``identify_measured`` warns when it cannot).
 
     Loops come in file order; ``Loop.periodic`` is False (a record of whole or partial cycles).
     """
