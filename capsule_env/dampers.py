@@ -282,7 +282,10 @@ class BiExponentialDamper(_DamperBase):
     a vehicle at rest starts, and no fixed-step integrator converges there.
     Default values: identified from the reference damper's loops by the paper's procedure
     (per branch and current fits; d = mean over currents; a, b, c refitted and made linear in
-    current; ``python -m capsule_env.identify --emit-defaults``).
+    current; ``python -m capsule_env.identify --emit-defaults``), with the literal branch split
+    ``x >= 0`` / ``x < 0`` (``fit_bi_exponential(loops, branch_gap_m=0.0)``). Today's
+    ``--emit-defaults`` leaves out the samples within ``branch_blend_m`` of ``x = 0`` (two of
+    1000 per loop) and differs by up to 0.58 %; the defaults were kept (docs/model.md 6).
     """
 
     upper_a0: float = 683.33

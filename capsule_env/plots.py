@@ -196,7 +196,8 @@ def plot_fits(
         ax.set_ylabel(f"damper force F ({unit})")
         kilo(ax)
         ax.legend(fontsize=7)
-    fig.suptitle(f"Loop at {i_top:g} A split by the sign of the stroke; Bi-exponential RMSE "
+    at = f"at {i_top:g} A" if result.current_known else "(current unknown)"
+    fig.suptitle(f"Loop {at} split by the sign of the stroke; Bi-exponential RMSE "
                  f"{result.models['bi_exponential'].rmse_n:.1f} N ({result.source})")  # fmt: skip
     path = directory / f"{prefix}top_current_branches.png"
     paths.append(_save(fig, path, plt))

@@ -582,12 +582,14 @@ def test_off_policy_checkpoints_keep_only_the_newest_replay_buffers(train, tmp_p
 def _write_mat(path: Path, n: int = 400, **override: Any) -> Path:
     """A small file shaped like the Labcontrol ones (``Tout`` (n, 1), ``x_F`` (n, 3): mm,
     mm/s, N, ``dist``/``forc`` copies, scalar ``Ts``): a 1 Hz, 0..25 mm stroke and a
-    hysteretic viscous-plus-friction force with a preload."""
+    hysteretic viscous-plus-friction force with a preload and 3 N of measurement noise (a
+    noise-free force fits too well for a measurement: the identification would warn)."""
     ts = 0.01
     t = np.arange(n) * ts
     x = 12.5 + 12.5 * np.sin(2 * np.pi * t)
     v = 12.5 * 2 * np.pi * np.cos(2 * np.pi * t)
-    f = 300 * np.tanh((v + 0.5 * (x - 12.5)) / 20) + 2.0 * v + 50
+    noise = np.random.default_rng(0).normal(0.0, 3.0, n)
+    f = 300 * np.tanh((v + 0.5 * (x - 12.5)) / 20) + 2.0 * v + 50 + noise
     x_f = np.column_stack([x, v, f])
     data = {"Tout": t[:, None], "x_F": x_f, "dist": x_f[:, :1], "forc": x_f[:, 2:], "Ts": ts}
     data.update(override)

@@ -21,6 +21,8 @@ least-squares solve). Modules, each one idea:
   (:func:`measured_files`, :func:`load_measured_loop`);
 - :mod:`~capsule_env.identification.tabular`: reading CSV and NumPy files, and any supported
   file (:func:`load_loops`; velocity derived when absent, :func:`derive_velocity`);
+- :mod:`~capsule_env.identification.plausibility`: checks of measured files and fits against
+  what a damper test holds (errors, :class:`PlausibilityWarning`);
 - :mod:`~capsule_env.identification.least_squares`: the shared least-squares pieces and
   :func:`rmse`;
 - :mod:`~capsule_env.identification.bi_exponential`, :mod:`~capsule_env.identification.bouc_wen`,
@@ -54,6 +56,7 @@ from capsule_env.identification.measured import (
     load_measured_loop,
     measured_files,
 )
+from capsule_env.identification.plausibility import PlausibilityWarning
 from capsule_env.identification.predict import predict_force
 from capsule_env.identification.results import (
     MODEL_NAMES,
@@ -84,6 +87,7 @@ __all__ = [
     "IdentificationResult",
     "Loop",
     "ModelFit",
+    "PlausibilityWarning",
     "dataclass_default_lines",
     "derive_velocity",
     "fit_bi_exponential",

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from capsule_env._validation import check_positive
+from capsule_env._validation import check_in_range, check_positive
 from capsule_env.dampers import BiExponentialDamper
 from capsule_env.identification.least_squares import line_fit, lstsq, velocity_scale
 from capsule_env.identification.loops import (
@@ -80,6 +80,7 @@ def fit_bi_exponential(
     d_bounds: tuple[float, float] | None = None,
     grid_points: int = 41,
     d_rule: str = "mean",
+    branch_gap_m: float | None = None,
 ) -> tuple[BiExponentialDamper, BiExponentialTrends]:
     """Identify the Bi-exponential model (docs/model.md 4.5 and 6.2) from force loops.
 
@@ -101,6 +102,14 @@ def fit_bi_exponential(
         spans a near-linear to a near-Coulomb shape whatever the stroke rate).
     grid_points : log-grid points of the coarse search (>= 5).
     d_rule : ``"mean"`` (default, the paper's) or ``"joint"``.
+    branch_gap_m : samples with ``|x| < branch_gap_m`` (m) belong to neither branch (upper
+        ``x >= gap``, lower ``x <= -gap``); None (default): the model's ``branch_blend_m``
+        (1e-4 m), within which its force blends the two branches. ``0`` is the literal split
+        (upper ``x >= 0``, lower ``x < 0``) with which the shipped
+        :class:`~capsule_env.dampers.BiExponentialDamper` defaults were identified: on the
+        reference loops the default drops the two zero-crossing samples of each loop (at the
+        peak stroke rate, ``x`` about +-1e-17 m), which moves the fitted values by up to
+        0.58 % (docs/model.md 6).
 
     Returns
     -------
@@ -119,19 +128,12 @@ def fit_bi_exponential(
         d_hi = check_positive("d_bounds[1]", d_bounds[1])
         if not d_hi > d_lo:
             raise ValueError(f"d_bounds must be (low, high) with high > low > 0, got {d_bounds}")
+    if branch_gap_m is None:
+        gap = BiExponentialDamper.branch_blend_m  # samples inside the blend belong to neither
+    else:
+        gap = check_in_range("branch_gap_m", branch_gap_m, 0.0, 1e-2)
     currents, groups = group_by_current(loops)
-    data = {b: [] for b in _BRANCHES}
-    blend = BiExponentialDamper.branch_blend_m  # samples inside the blend belong to neither
-    for i_group, group in zip(currents, groups):
-        x, v, f, _ = stack_loops(group)
-        for branch, mask in zip(_BRANCHES, (x >= blend, x <= -blend)):
-            if np.count_nonzero(mask) < 4:
-                raise ValueError(
-                    f"the {branch} branch ({'x >= 0' if branch == 'upper' else 'x < 0'}) of the "
-                    f"loops at {group[0].current_a:g} A has fewer than 4 samples; the stroke "
-                    "must cross zero"
-                )
-            data[branch].append((v[mask], f[mask], np.full(np.count_nonzero(mask), i_group)))
+    data = _branch_samples(currents, groups, gap)
     free: dict[str, dict[str, np.ndarray]] = {}
     fixed: dict[str, dict[str, np.ndarray]] = {}
     table: dict[str, dict[str, float]] = {}
@@ -168,6 +170,27 @@ def fit_bi_exponential(
     values = {f"{b}_{k}": table[b][k] for b in _BRANCHES for k in table[b]}
     damper = BiExponentialDamper(max_current_a=max(1.5, float(currents.max())), **values)
     return damper, BiExponentialTrends(currents, free, fixed, table)
+
+
+def _branch_samples(
+    currents: np.ndarray, groups: Sequence[Sequence[Loop]], gap_m: float
+) -> dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """Per branch, per current: ``(v, F, i)`` of the samples with ``x >= gap_m`` (upper) or
+    ``x <= -gap_m`` (lower; ``x < 0`` when ``gap_m`` is 0); ``ValueError`` when a branch has
+    fewer than 4 samples."""
+    data: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {b: [] for b in _BRANCHES}
+    for i_group, group in zip(currents, groups):
+        x, v, f, _ = stack_loops(group)
+        lower = x <= -gap_m if gap_m > 0.0 else x < 0.0
+        for branch, mask in zip(_BRANCHES, (x >= gap_m, lower)):
+            if np.count_nonzero(mask) < 4:
+                raise ValueError(
+                    f"the {branch} branch ({'x >= 0' if branch == 'upper' else 'x < 0'}) of the "
+                    f"loops at {group[0].current_a:g} A has fewer than 4 samples; the stroke "
+                    "must cross zero"
+                )
+            data[branch].append((v[mask], f[mask], np.full(np.count_nonzero(mask), i_group)))
+    return data
 
 
 def _s_d(v: np.ndarray, d: float) -> np.ndarray:

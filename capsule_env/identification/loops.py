@@ -43,7 +43,8 @@ class Loop:
 
     Attributes
     ----------
-    current_a : the constant coil current (A); 0 for a measured file whose current is unknown.
+    current_a : the constant coil current (A); 0 for a measured file whose current is unknown
+        (then ``current_known`` is False).
     time_s, stroke_m, stroke_rate_m_s, force_n : 1-D arrays of equal length: time (s), stroke
         ``x`` (m, centred on zero), stroke rate ``v = dx/dt`` (m/s), damper force (N, positive
         when resisting ``v > 0``).
@@ -54,6 +55,9 @@ class Loop:
         loops): a model is then warmed up by running the loop twice. False for a record of
         several roughly periodic cycles (measured files): the warm-up is the record's first
         period.
+    current_known : False when the file stated no current (no current column, no ``current_a``
+        given, none in its name) and ``current_a`` is the 0 A a fit assumes; reports and
+        figures then say "current unknown".
     """
 
     current_a: float
@@ -64,6 +68,7 @@ class Loop:
     source: str = ""
     force_offset_n: float = 0.0
     periodic: bool = True
+    current_known: bool = True
 
     def __post_init__(self) -> None:
         check_in_range("current_a", self.current_a, 0.0, math.inf)

@@ -57,7 +57,7 @@ def measured_files(folder: str | Path, suffixes: Sequence[str] = (".mat",)) -> l
     return files
 
 
-def load_measured_loop(path: str | Path, current_a: float = 0.0) -> Loop:
+def load_measured_loop(path: str | Path, current_a: float | None = None) -> Loop:
     """Read one Labcontrol MR-damper test file (MATLAB v5 ``.mat``) as a :class:`Loop`.
 
     The file holds ``x_F`` (n, 3): displacement (mm), velocity (mm/s) and force (N), and the
@@ -65,8 +65,9 @@ def load_measured_loop(path: str | Path, current_a: float = 0.0) -> Loop:
     with the displacement centred (its mean removed: the rig records e.g. 0 to 25 mm) and the
     mean force removed (a static preload or load-cell zero), which is kept in
     :attr:`Loop.force_offset_n`. ``current_a`` is the constant current to attach: the files do
-    not record their coil voltage, so the default 0 makes a fit carry everything in its
-    current-independent coefficients. ``periodic`` is False (a record of several cycles).
+    not record their coil voltage, so the default (None) attaches 0 A with
+    ``Loop.current_known`` False, and a fit carries everything in its current-independent
+    coefficients. ``periodic`` is False (a record of several cycles).
 
     Raises ``ValueError`` naming the path and the problem for a missing, unreadable or
     malformed file: no ``x_F`` of shape (n, 3), complex or non-numeric values, an empty or
@@ -133,14 +134,15 @@ def _real_array(data: dict[str, Any], key: str, name: str) -> np.ndarray:
 
 
 def _loop_from_samples(
-    time: np.ndarray, x_f: np.ndarray, name: str, source: str, current_a: float
+    time: np.ndarray, x_f: np.ndarray, name: str, source: str, current_a: float | None
 ) -> Loop:
     """Check a measured record and return it as a centred SI :class:`Loop` (any file format).
 
     ``time`` (s, n samples) and ``x_f`` (n, 3: displacement mm, velocity mm/s, force N) as the
     reader found them; ``name`` describes the file in error messages, ``source`` becomes
-    :attr:`Loop.source`. Raises ``ValueError`` for NaN/inf samples, magnitudes beyond
-    :data:`MAX_MEASURED_MAGNITUDE`, a constant column or a time that does not increase.
+    :attr:`Loop.source`; ``current_a`` None: 0 A, unknown. Raises ``ValueError`` for NaN/inf
+    samples, magnitudes beyond :data:`MAX_MEASURED_MAGNITUDE`, a constant column or a time that
+    does not increase.
     """
     if not (np.all(np.isfinite(x_f)) and np.all(np.isfinite(time))):
         raise ValueError(f"{name} holds NaN or infinite samples")
@@ -162,7 +164,7 @@ def _loop_from_samples(
     force = x_f[:, 2]
     offset = float(np.mean(force))
     return Loop(
-        current_a=check_in_range("current_a", current_a, 0.0, math.inf),
+        current_a=0.0 if current_a is None else check_in_range("current_a", current_a, 0, math.inf),
         time_s=time - time[0],
         stroke_m=disp_m - np.mean(disp_m),
         stroke_rate_m_s=x_f[:, 1] * 1e-3,
@@ -170,4 +172,5 @@ def _loop_from_samples(
         source=source,
         force_offset_n=offset,
         periodic=False,
+        current_known=current_a is not None,
     )

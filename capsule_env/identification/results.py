@@ -30,6 +30,7 @@ from capsule_env.identification.loops import (
     group_by_current,
     reference_loops,
 )
+from capsule_env.identification.plausibility import check_fit
 from capsule_env.identification.predict import predict_force
 from capsule_env.identification.tabular import load_loops
 from capsule_env.identification.tanh import fit_tanh
@@ -108,6 +109,12 @@ class IdentificationResult:
     d_rule: str = "mean"
 
     @property
+    def current_known(self) -> bool:
+        """False when no loop's file stated its current (each was fitted at 0 A,
+        :attr:`Loop.current_known`)."""
+        return any(lp.current_known for lp in self.loops)
+
+    @property
     def table(self) -> dict[str, dict[str, float]]:
         """The Bi-exponential linear-law table (paper's Table 2): ``{branch: {a0, ..., d}}``."""
         return self.bi_exponential.table
@@ -132,6 +139,7 @@ class IdentificationResult:
             "models": models,
             "peak_force_n": float(self.peak_force_n),
             "rmse_current_a": float(self.rmse_current_a),
+            "current_known": self.current_known,
             "force_offset_n": float(self.force_offset_n),
             "d_rule": self.d_rule,
             "table": self.bi_exponential.to_json_dict()["table"],
@@ -224,9 +232,17 @@ def identify_measured(
     Bi-exponential branch keeps its own ``d``. A CSV or NumPy file with a current column gives
     one loop per current, and the fit has current laws. ``rmse_n`` is the RMSE at the largest
     current (over the whole record for one current).
+
+    The file's columns are checked for plausibility as they are read (errors), and the fit
+    after it: :mod:`~capsule_env.identification.plausibility` warns
+    (:class:`~capsule_env.identification.plausibility.PlausibilityWarning`) about a fit too
+    good for a measurement and about a kept force offset that the Bouc-Wen model cannot carry.
     """
     loops = load_loops(path, **load_options)
-    return identify_loops(loops, source=Path(path).name, d_rule=d_rule)
+    result = identify_loops(loops, source=Path(path).name, d_rule=d_rule)
+    kept = Path(path).suffix.lower() != ".mat" and not load_options.get("remove_force_offset")
+    check_fit(result, f"measured data file {str(path)!r}", force_kept=kept)
+    return result
 
 
 def identify_files(
@@ -234,7 +250,8 @@ def identify_files(
 ) -> IdentificationResult:
     """Identify all models from the loops of several files at once, e.g. one file per current
     (``loop_0A.csv``, ``loop_0.5A.csv``, ...: the current laws across files). Each file is read
-    by :func:`~capsule_env.identification.tabular.load_loops` with ``load_options``."""
+    by :func:`~capsule_env.identification.tabular.load_loops` with ``load_options``; the
+    checks of :func:`identify_measured` apply."""
     paths = [Path(p) for p in paths]
     if not paths:
         raise ValueError("paths must hold at least one file")
@@ -243,7 +260,12 @@ def identify_files(
     source = (
         ", ".join(names) if len(names) <= 3 else f"{len(names)} files ({names[0]} to {names[-1]})"
     )
-    return identify_loops(loops, source=source, d_rule=d_rule)
+    result = identify_loops(loops, source=source, d_rule=d_rule)
+    kept = not load_options.get("remove_force_offset") and any(
+        p.suffix.lower() != ".mat" for p in paths
+    )
+    check_fit(result, f"measured data files {source}", force_kept=kept)
+    return result
 
 
 # ------------------------------------------------------------------------ package defaults

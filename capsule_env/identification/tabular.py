@@ -50,7 +50,11 @@ or else at the current in the file name, a number followed by ``A`` or ``mA`` af
 Labcontrol files, which record none: the fit then carries everything in its
 current-independent coefficients).
 
-Every problem raises ``ValueError`` naming the file and, where there is one, the column.
+A current column's sign is checked after the rounding: a measured 0 A a few mA below zero is
+0 A. Every problem raises ``ValueError`` naming the file and, where there is one, the column,
+and so do the plausibility checks (:mod:`~capsule_env.identification.plausibility`: stroke,
+stroke frequency, velocity against the displacement's derivative, force amplitude, current),
+which also warn about doubtful values.
 """
 
 from __future__ import annotations
@@ -66,6 +70,12 @@ from scipy.signal import savgol_filter
 from capsule_env._validation import check_in_range, check_positive
 from capsule_env.identification.loops import Loop
 from capsule_env.identification.measured import MAX_MEASURED_MAGNITUDE, load_measured_loop
+from capsule_env.identification.plausibility import (
+    check_column,
+    check_current,
+    check_current_resolution,
+    check_run,
+)
 
 __all__ = [
     "QUANTITIES",
@@ -370,8 +380,9 @@ def load_loops(
     velocity_window, velocity_polyorder : the Savitzky-Golay derivative of a file without
         velocity (:func:`derive_velocity`; None: the default window).
     remove_force_offset : subtract the file's mean force (kept in ``Loop.force_offset_n``);
-        ``.mat`` files always do. By default the force is kept as recorded: the models'
-        constant terms carry a preload.
+        ``.mat`` files always do. By default the force is kept as recorded: the Bi-exponential
+        and tanh models' constant terms carry a preload, the Bouc-Wen model only within
+        ``k0 x0`` (``identify_measured`` warns when it cannot).
 
     Loops come in file order; ``Loop.periodic`` is False (a record of whole or partial cycles).
     """
@@ -392,8 +403,7 @@ def load_loops(
     if suffix == ".mat":
         if columns is not None:
             raise ValueError(f"{name}: columns applies to CSV and NumPy files, not to .mat")
-        file_current = current_a if current_a is not None else named_current
-        return [load_measured_loop(path, file_current or 0.0)]
+        return [load_measured_loop(path, _file_current(current_a, named_current, name))]
     if suffix in _TEXT_SUFFIXES:
         header, data = _read_text(path, name)
     else:
@@ -414,6 +424,17 @@ def load_loops(
     found = _map_columns(names, data, name)
     return _loops(found, path, name, current_a, named_current, current_resolution_a,
                   velocity_window, velocity_polyorder, remove_force_offset)  # fmt: skip
+
+
+def _file_current(current_a: float | None, named: float | None, name: str) -> float | None:
+    """The one current of a file without a current column (``current_a``, else the one in its
+    name, else None), checked (:func:`~capsule_env.identification.plausibility.check_current`)."""
+    if current_a is not None:
+        check_current(current_a, f"{name}: current_a (--current)")
+        return current_a
+    if named is not None:
+        check_current(named, f"{name}: the current in its file name")
+    return named
 
 
 def _map_columns(
@@ -459,18 +480,53 @@ def _map_columns(
             )
         if quantity in ("displacement", "force") and np.ptp(values) == 0.0:
             raise ValueError(f"{name}, column {label!r} is constant: nothing to fit")
-        if quantity == "current" and values.min() < 0.0:
-            raise ValueError(f"{name}, column {label!r}: currents must be >= 0 A")
+        check_column(name, quantity, label, values)
     return found
 
 
-def _runs(current: np.ndarray, resolution: float) -> list[tuple[int, int, float]]:
-    """``(start, stop, current)`` of each run of consecutive samples at one rounded current."""
-    steps = np.round(current / resolution)
+def _runs(
+    current: np.ndarray, resolution: float, name: str, label: str
+) -> list[tuple[int, int, float]]:
+    """``(start, stop, current)`` of each run of consecutive samples at one rounded current;
+    ``ValueError`` naming the file and column when a rounded current is below 0 A (the sign is
+    checked after the rounding: a measured 0 A may be a few mA below zero)."""
+    steps = np.round(current / resolution) + 0.0  # + 0.0: no -0.0
+    negative = np.flatnonzero(steps < 0.0)
+    if negative.size:
+        k = int(negative[0])
+        raise ValueError(
+            f"{name}, column {label!r}: current {current[k]:.4g} A at sample {k + 1} is below "
+            f"0 A after rounding to the current resolution ({resolution:g} A); currents must be "
+            ">= 0 A"
+        )
     edges = np.flatnonzero(np.diff(steps)) + 1
     starts = np.concatenate([[0], edges])
     stops = np.concatenate([edges, [current.size]])
     return [(int(a), int(b), float(steps[a] * resolution)) for a, b in zip(starts, stops)]
+
+
+def _run_velocity(
+    found: dict[str, tuple[str, np.ndarray]],
+    start: int,
+    stop: int,
+    time_s: np.ndarray,
+    stroke_m: np.ndarray,
+    filter_args: tuple[int | None, int],
+    name: str,
+    where: str,
+) -> np.ndarray:
+    """The stroke rate of the run ``start:stop`` (m/s): the velocity column, else derived
+    (:func:`derive_velocity` with ``filter_args`` = window, polyorder); the run checked first
+    (:func:`~capsule_env.identification.plausibility.check_run`)."""
+    labels = {q: found[q][0] for q in ("time", "displacement", "velocity") if q in found}
+    given = found["velocity"][1][start:stop] if "velocity" in found else None
+    check_run(name, labels, time_s, stroke_m, given, where)
+    if given is not None:
+        return given
+    try:
+        return derive_velocity(time_s, stroke_m, *filter_args)
+    except ValueError as exc:
+        raise ValueError(f"{name}, column {labels['time']!r}{where}: {exc}") from None
 
 
 def _loops(
@@ -494,10 +550,13 @@ def _loops(
                 f"{name} has a current column ({found['current'][0]!r}): do not also give "
                 "its current (--current)"
             )
-        runs = _runs(found["current"][1], resolution)
+        label = found["current"][0]
+        check_current_resolution(name, label, found["current"][1], resolution)
+        runs = _runs(found["current"][1], resolution, name, label)
     else:
-        file_current = current_a if current_a is not None else named_current
+        file_current = _file_current(current_a, named_current, name)
         runs = [(0, time.size, float(file_current or 0.0))]
+    known = "current" in found or current_a is not None or named_current is not None
     loops = []
     for start, stop, current in runs:
         where = "" if len(runs) == 1 else f" (samples {start + 1} to {stop}, {current:g} A)"
@@ -515,13 +574,7 @@ def _loops(
                 f"{start + int(back[0]) + 2}{where}"
             )
         x = disp[start:stop]
-        if "velocity" in found:
-            v = found["velocity"][1][start:stop]
-        else:
-            try:
-                v = derive_velocity(t, x, window, polyorder)
-            except ValueError as exc:
-                raise ValueError(f"{name}, column {time_label!r}{where}: {exc}") from None
+        v = _run_velocity(found, start, stop, t, x, (window, polyorder), name, where)
         source = path.name if len(runs) == 1 else f"{path.name} @ {current:g} A"
         loops.append(
             Loop(
@@ -533,6 +586,7 @@ def _loops(
                 source=source,
                 force_offset_n=offset,
                 periodic=False,
+                current_known=known,
             )  # fmt: skip
         )
     return loops
