@@ -99,11 +99,14 @@ def _dict(node: ast.expr, key: str, names: Mapping[str, Any]) -> dict[str, Any]:
         if _dotted_name(node.func) != "dict" or node.args:
             raise ValueError(f"{key}: only dict(name=value, ...) calls are read, not "
                              f"{ast.unparse(node)!r}")  # fmt: skip
-        if any(k.arg is None for k in node.keywords):
-            raise ValueError(f"{key}: dict(**...) is not read")
-        return {k.arg: _value(k.value, f"{key}.{k.arg}", names) for k in node.keywords}
+        call: dict[str, Any] = {}
+        for keyword in node.keywords:
+            if keyword.arg is None:
+                raise ValueError(f"{key}: dict(**...) is not read")
+            call[keyword.arg] = _value(keyword.value, f"{key}.{keyword.arg}", names)
+        return call
     if isinstance(node, ast.Dict):
-        out = {}
+        out: dict[str, Any] = {}
         for k, v in zip(node.keys, node.values):
             if not (isinstance(k, ast.Constant) and isinstance(k.value, str)):
                 raise ValueError(

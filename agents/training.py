@@ -68,11 +68,15 @@ from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
     VALIDATION_GUIDEWAY_SEED,
+    Rollout,
     check_episode_length,
     episode_metrics,
     run_episodes,
 )
 from capsule_env.safe_io import check_writable_dir
+
+if typing.TYPE_CHECKING:
+    from stable_baselines3.common.vec_env import VecNormalize
 
 #: ``hyperparams/`` beside ``agents/`` (a checkout), or ``capsule_env/hyperparams`` beside
 #: ``capsule_env/agents`` (an installed package): the same relative place.
@@ -108,7 +112,10 @@ def field_docs(cls: type) -> dict[str, str]:
         tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
     except (OSError, TypeError):  # no source (a frozen program): no help texts
         return {}
-    body = tree.body[0].body
+    node = tree.body[0]
+    if not isinstance(node, ast.ClassDef):
+        return {}
+    body = node.body
     docs = {}
     for node, after in zip(body, body[1:]):
         if (
@@ -242,7 +249,8 @@ def prepare(args: Any) -> Plan:
         check_writable_dir(args.tensorboard, "--tensorboard")
 
     # Resume: the checkpoint fixes the algorithm, the number of vehicles and the statistics.
-    ckpt, ckpt_meta = None, {}
+    ckpt: Path | None = None
+    ckpt_meta: dict[str, Any] = {}
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
     if args.resume:
         ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir, args.algo)
@@ -284,7 +292,13 @@ def run_seed_for(seed: int, timesteps_done: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(timesteps_done)]).generate_state(1)[0])
 
 
-def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecnormalize=None):
+def make_env(
+    num_envs: int,
+    seed: int,
+    env_kwargs: dict,
+    norm_kwargs: dict,
+    vecnormalize: str | Path | None = None,
+) -> VecNormalize:
     """The batched kernel as an SB3 VecEnv, + VecMonitor + VecNormalize (new, or a saved one).
 
     Vehicle ``n`` gets stream ``n`` of ``numpy.random.SeedSequence(seed)`` (guideway window,
@@ -293,9 +307,9 @@ def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecn
 
     from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
 
-    venv = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
-    venv.seed(seed)
-    venv = VecMonitor(venv)
+    vehicles = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
+    vehicles.seed(seed)
+    venv = VecMonitor(vehicles)
     if vecnormalize is not None:  # resume: the checkpoint's running statistics
         return VecNormalize.load(str(vecnormalize), venv)
     return VecNormalize(venv, **norm_kwargs)
@@ -327,7 +341,7 @@ class Run:
         self.last_eval_timesteps = -1
         self.eval_kwargs = {**policy_env_kwargs(plan.env_kwargs),
                             "guideway_seed": VALIDATION_GUIDEWAY_SEED}  # fmt: skip
-        self.passive = None
+        self.passive: Rollout | None = None
         self.references: dict = {}
         self.last_checkpoint_clock = time.monotonic()  # for --checkpoint-minutes
         self.last_checkpoint_timesteps = self.start_timesteps
@@ -373,7 +387,7 @@ class Run:
         if self.passive is None:  # the VRE reference: passive damper on the same seeds
             passive_kwargs = {**self.eval_kwargs, **PassiveController.env_kwargs}
             self.passive = self._episodes(PassiveController(), passive_kwargs)
-            self.references = self._references()
+            self.references = self._references(self.passive)
         policy = SB3Policy.from_model(model, model.get_vec_normalize_env(), {"name": self.name})
         m = episode_metrics(self._episodes(policy, self.eval_kwargs), self.passive)
         self.eval_seconds += time.perf_counter() - t_start
@@ -412,15 +426,16 @@ class Run:
             logger.record("time/env_steps_per_s", result["steps_per_s"])
         return result
 
-    def _references(self) -> dict:
-        """Passive and the best Skyhook variant on the evaluation seeds (numbers to compare
-        with: the seeds differ from evaluate.py's, so do the absolute values)."""
+    def _references(self, passive: Rollout) -> dict:
+        """Passive (its rollout ``passive``) and the best Skyhook variant on the evaluation
+        seeds (numbers to compare with: the seeds differ from evaluate.py's, so do the absolute
+        values)."""
         a = self.args
-        refs = {"passive": {BEST_METRIC: episode_metrics(self.passive, None)[BEST_METRIC]}}
+        refs = {"passive": {BEST_METRIC: episode_metrics(passive, None)[BEST_METRIC]}}
         sky = classical_controllers().get(REFERENCE_CONTROLLER)
         if sky is not None:
             m = episode_metrics(self._episodes(sky, {**self.eval_kwargs, **sky.env_kwargs}),
-                                self.passive)  # fmt: skip
+                                passive)  # fmt: skip
             refs[REFERENCE_CONTROLLER] = {
                 BEST_METRIC: m[BEST_METRIC],
                 "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],

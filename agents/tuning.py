@@ -151,8 +151,9 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
     units, (wk, stroke, _) = best()
     tuned = make_controller(name, **{g: v[0] for g, v in space.gains(np.array(units)).items()})
     feasible = sum(r.feasible(limit) for r in seen.values())
+    gains = tuned.gains()
     entry = {
-        "gains": tuned.gains(),
+        "gains": gains,
         "training": {"wk_rms_body_acc_m_s2": wk, "max_stroke_m": stroke},
         "candidates": len(seen),
         "feasible_candidates": feasible,
@@ -160,10 +161,10 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
         "search_s": round(time.perf_counter() - t0, 1),
     }
     if log is not None:
-        gains = ", ".join(f"{k} {v:.4g}" for k, v in entry["gains"].items())
+        listed = ", ".join(f"{k} {v:.4g}" for k, v in gains.items())
         print(f"{name:<24} Wk {wk:.4f} m/s^2  max stroke {1e3 * stroke:5.2f} mm  "
               f"{len(seen):4d} candidates ({feasible} feasible)  {entry['search_s']:6.1f} s  "
-              f"{gains}", file=log, flush=True)  # fmt: skip
+              f"{listed}", file=log, flush=True)  # fmt: skip
     return entry
 
 
