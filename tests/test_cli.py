@@ -177,7 +177,9 @@ def test_tuning_command_usage_errors(tmp_path, capsys):
     err = _usage_error(lambda: main(["--stroke-limit-mm", "0", "--quick"]), capsys)
     assert err == prog + "--stroke-limit-mm must be > 0, got 0.0\n"
     (tmp_path / "file").write_text("")  # a file where the folder should be
-    err = _usage_error(lambda: main(["--quick", "--out", str(tmp_path / "file" / "g.json")]), capsys)
+    err = _usage_error(
+        lambda: main(["--quick", "--out", str(tmp_path / "file" / "g.json")]), capsys
+    )
     assert err.startswith(prog + "--out"), err
 
 
