@@ -32,17 +32,14 @@ Output folder: ``best_model.{zip,vecnormalize.pkl,json}`` (the json: ``name``, `
 from __future__ import annotations
 
 import argparse
-import ast
-import inspect
 import json
 import math
 import sys
-import textwrap
 import time
 import typing
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 from capsule_env.agents import PassiveController, classical_controllers
@@ -57,13 +54,18 @@ from capsule_env.agents.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
     normalize_kwargs_from,
-    parse_env_item,
-    parse_env_kwargs,
     resolve_env_kwargs,
 )
 from capsule_env.agents.sb3_policy import SB3Policy
 from stable_baselines3.common.callbacks import BaseCallback
 
+from capsule_env._cli import (
+    ArgumentParser,
+    add_dataclass_options,
+    dataclass_values,
+    parse_env_item,
+    parse_env_kwargs,
+)
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
@@ -91,68 +93,6 @@ BEST_METRIC = "wk_rms_body_acc_m_s2"
 
 
 # ----------------------------------------------------------------------------- command line
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _integer(text: str) -> int:
-    """An integer, also written like 2e6."""
-    value = float(text)
-    if value != int(value):
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}")
-    return int(value)
-
-
-def field_docs(cls: type) -> dict[str, str]:
-    """The string literal under each field of the dataclass ``cls`` (CleanRL / tyro style)."""
-    try:
-        tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
-    except (OSError, TypeError):  # no source (a frozen program): no help texts
-        return {}
-    node = tree.body[0]
-    if not isinstance(node, ast.ClassDef):
-        return {}
-    body = node.body
-    docs = {}
-    for node, after in zip(body, body[1:]):
-        if (
-            isinstance(node, ast.AnnAssign)
-            and isinstance(node.target, ast.Name)
-            and isinstance(after, ast.Expr)
-            and isinstance(after.value, ast.Constant)
-            and isinstance(after.value.value, str)
-        ):
-            docs[node.target.id] = " ".join(after.value.value.split())
-    return docs
-
-
-def _add_argument(parser: argparse.ArgumentParser, f: Any, kind: Any, help_text: str) -> None:
-    """``--name`` for the dataclass field ``f`` of type ``kind``: ``bool`` a ``--name`` /
-    ``--no-name`` pair, ``Literal[...]`` its choices, ``list[str]`` a repeatable option,
-    ``dict`` a JSON text (read after argparse), int/float/str (maybe optional) a value."""
-    origin, default = typing.get_origin(kind), f.default
-    if f.default_factory is not MISSING:
-        default = f.default_factory()
-    if "default" not in help_text and kind is not bool and origin is not list:
-        help_text = f"{help_text} (default: {default})"
-    options: dict[str, Any] = {"default": default, "help": help_text}
-    if kind is bool:
-        options["action"] = argparse.BooleanOptionalAction
-    elif origin is typing.Literal:
-        options["choices"] = typing.get_args(kind)
-    elif origin is list:
-        options.update(action="append", metavar="KEY=VALUE")
-    elif kind is dict:
-        options.update(default="{}", metavar="JSON")
-    else:
-        types = set(typing.get_args(kind)) or {kind}
-        options["type"] = _integer if int in types else float if float in types else str
-    parser.add_argument("--" + f.name.replace("_", "-"), **options)
-
-
 def parse_args(cls: type, argv: list[str] | None, description: str | None) -> Any:
     """The command line as an instance of the argument dataclass ``cls`` (``train.Args``).
 
@@ -161,13 +101,10 @@ def parse_args(cls: type, argv: list[str] | None, description: str | None) -> An
     VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
     items last. A bad value exits with one line on stderr and status 2.
     """
-    parser = _Parser(prog="train.py", description=description,
-                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    docs, hints = field_docs(cls), typing.get_type_hints(cls)
-    for f in fields(cls):
-        _add_argument(parser, f, hints[f.name], docs.get(f.name, ""))
-    ns = parser.parse_args(argv)
-    values = {f.name: getattr(ns, f.name) for f in fields(cls)}
+    parser = ArgumentParser(prog="train.py", description=description,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    add_dataclass_options(parser, cls)
+    values = dataclass_values(parser.parse_args(argv), cls)
     try:
         env_kwargs = parse_env_kwargs(values["env_kwargs"])
         env_kwargs.update(parse_env_item(item) for item in values["env"])
