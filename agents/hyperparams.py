@@ -14,20 +14,23 @@ Nothing is ``eval``-ed. RL Zoo writes ``policy_kwargs`` and ``normalize`` as Pyt
 such a string with :mod:`ast`: a ``dict(...)`` call or a ``{...}`` literal whose values are
 literals, lists, tuples or dicts of them, or one of the names in :data:`ALLOWED_NAMES`.
 Env arguments on the command line (``--env KEY=VALUE``, ``--env-kwargs``) are JSON or Python
-literals (:func:`parse_literal`). Every error is a ``ValueError`` with a one-line message
+literals (:func:`capsule_env._cli.parse_literal`; ``parse_literal``, ``parse_env_item`` and
+``parse_env_kwargs`` are importable from here too). Every error is a ``ValueError`` with a one-line message
 naming the key.
 """
 
 from __future__ import annotations
 
 import ast
-import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from capsule_env._cli import parse_env_item as parse_env_item
+from capsule_env._cli import parse_env_kwargs as parse_env_kwargs
+from capsule_env._cli import parse_literal as parse_literal
 from capsule_env.config import EnvConfig
 
 ENV_ID = "CapsuleSuspension-v0"
@@ -99,11 +102,14 @@ def _dict(node: ast.expr, key: str, names: Mapping[str, Any]) -> dict[str, Any]:
         if _dotted_name(node.func) != "dict" or node.args:
             raise ValueError(f"{key}: only dict(name=value, ...) calls are read, not "
                              f"{ast.unparse(node)!r}")  # fmt: skip
-        if any(k.arg is None for k in node.keywords):
-            raise ValueError(f"{key}: dict(**...) is not read")
-        return {k.arg: _value(k.value, f"{key}.{k.arg}", names) for k in node.keywords}
+        call: dict[str, Any] = {}
+        for keyword in node.keywords:
+            if keyword.arg is None:
+                raise ValueError(f"{key}: dict(**...) is not read")
+            call[keyword.arg] = _value(keyword.value, f"{key}.{keyword.arg}", names)
+        return call
     if isinstance(node, ast.Dict):
-        out = {}
+        out: dict[str, Any] = {}
         for k, v in zip(node.keys, node.values):
             if not (isinstance(k, ast.Constant) and isinstance(k.value, str)):
                 raise ValueError(
@@ -127,42 +133,6 @@ def parse_kwargs_expression(text: str, key: str, names: Mapping[str, Any] | None
     except (SyntaxError, ValueError, MemoryError, RecursionError):
         raise ValueError(f"{key}: not a Python expression: {text!r}") from None
     return _dict(tree.body, key, names or {})
-
-
-def parse_literal(text: str) -> Any:
-    """``text`` as JSON, else as a Python literal (:func:`ast.literal_eval`); raises
-    ``ValueError`` when it is neither."""
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        pass
-    try:
-        return ast.literal_eval(text.strip())
-    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-        raise ValueError(f"not JSON or a Python literal: {text!r}") from None
-
-
-def parse_env_item(item: str) -> tuple[str, Any]:
-    """``--env KEY=VALUE``: ``(KEY, VALUE)``, VALUE read by :func:`parse_literal`, or kept as
-    a string when it is not a literal (``--env setting=sim``)."""
-    key, sep, text = item.partition("=")
-    if not sep or not key.strip():
-        raise ValueError(f"--env expects KEY=VALUE, got {item!r}")
-    try:
-        return key.strip(), parse_literal(text)
-    except ValueError:
-        return key.strip(), text
-
-
-def parse_env_kwargs(text: str) -> dict[str, Any]:
-    """``--env-kwargs``: a JSON object or a Python dict literal."""
-    try:
-        value = parse_literal(text)
-    except ValueError as exc:
-        raise ValueError(f"--env-kwargs: {exc}") from None
-    if not isinstance(value, dict):
-        raise ValueError(f"--env-kwargs must be a JSON object (a dict), got {text!r}")
-    return value
 
 
 # ----------------------------------------------------------------------------- SB3 arguments

@@ -63,6 +63,11 @@ class ClippedOptimalController(ForceLaw):
     """
 
     SIGNALS = STATE_SIGNALS
+    # Weights, scalar or one per vehicle, set by _set_gains: q_stroke and q_levitation
+    # (1/s^4), r_force (1/kg^2).
+    q_stroke: np.ndarray
+    q_levitation: np.ndarray
+    r_force: np.ndarray
 
     def __init__(
         self,

@@ -32,7 +32,7 @@ dissipative band).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
@@ -61,7 +61,7 @@ class PreviewGains(NamedTuple):
 
 def plant_matrices(
     vehicle: VehicleParams, dt_s: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """``(A, B, E, C, D)``: the plant sampled with a zero-order hold at ``dt_s``,
     ``x_{k+1} = A x_k + B F_k + E d_k``, and the body acceleration ``a_c = C x + D F``."""
     mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
@@ -185,6 +185,11 @@ class PreviewLQController(ForceLaw):
     """
 
     SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity")
+    # Weights, scalar or one per vehicle, set by _set_gains: q_stroke and q_levitation
+    # (1/s^4), r_force (1/kg^2).
+    q_stroke: np.ndarray
+    q_levitation: np.ndarray
+    r_force: np.ndarray
 
     def __init__(
         self,
@@ -225,10 +230,11 @@ class PreviewLQController(ForceLaw):
         vehicle = vehicle or VehicleParams()
         cache: dict[tuple[float, float, float], PreviewGains] = {}
         rows = []
-        for triple in zip(*(w.ravel().tolist() for w in weights)):
+        for q_s, q_g, r_f in zip(*(w.ravel().tolist() for w in weights)):
+            triple = (q_s, q_g, r_f)
             if triple not in cache:
-                cache[triple] = preview_lq_gains(vehicle, self.dt_s, self.n_preview, *triple,
-                                                 delay_steps=self.delay_steps)  # fmt: skip
+                cache[triple] = preview_lq_gains(vehicle, self.dt_s, self.n_preview, q_s, q_g,
+                                                 r_f, delay_steps=self.delay_steps)  # fmt: skip
             rows.append(cache[triple])
         shape = weights[0].shape
         self.state_gain = np.array([g.state_gain for g in rows]).reshape(*shape, 4)
@@ -249,7 +255,13 @@ class PreviewLQController(ForceLaw):
     def reset(self) -> None:
         self._in_flight = None
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set forgets its
         requests in flight."""
         if episode_start is not None and self._in_flight is not None:

@@ -26,18 +26,23 @@ own request, not the sum the env receives).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 from capsule_env.agents.base import Controller
 
 from capsule_env.envs._compat import AutoresetMode
+from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
 
 try:  # the SB3 wrapper needs the rl extra; the others do not
     from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    _HAS_SB3 = True
 except ImportError:  # pragma: no cover - exercised only without stable-baselines3
+    # mypy runs with the dev extra (stable-baselines3 installed): this branch is not checked
     VecEnvWrapper = object  # type: ignore[assignment,misc]
+    _HAS_SB3 = False
 
 __all__ = [
     "combine_actions",
@@ -88,18 +93,22 @@ class ResidualEnv(gym.Wrapper):
 
     def __init__(self, env: gym.Env, law: Controller, scale: float = 0.5) -> None:
         super().__init__(env)
+        if not isinstance(env.unwrapped, CapsuleSuspensionEnv):
+            raise ValueError(f"env must wrap CapsuleSuspensionEnv, got {env.unwrapped!r}")
         check_law_fits(law, env.unwrapped.config)
         self.law, self.scale = law, _check_scale(scale)
         self._obs: np.ndarray | None = None
         self._start = np.ones(1, dtype=bool)
 
-    def reset(self, **kwargs: Any):
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
         self.law.reset()
         self._obs, self._start[:] = obs, True
         return obs, info
 
-    def step(self, action):
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
         base = _base_actions(self.law, self._obs, self._start)
@@ -116,6 +125,8 @@ class ResidualVectorEnv(gym.vector.VectorWrapper):
 
     def __init__(self, env: gym.vector.VectorEnv, law: Controller, scale: float = 0.5) -> None:
         super().__init__(env)
+        if not isinstance(env.unwrapped, CapsuleSuspensionVectorEnv):
+            raise ValueError(f"env must be a CapsuleSuspensionVectorEnv, got {env.unwrapped!r}")
         check_law_fits(law, env.unwrapped.config)
         self.law, self.scale = law, _check_scale(scale)
         self._mode = AutoresetMode(env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP))
@@ -123,14 +134,16 @@ class ResidualVectorEnv(gym.vector.VectorWrapper):
         self._start = np.ones(self.num_envs, dtype=bool)
         self._resets_next = np.zeros(self.num_envs, dtype=bool)
 
-    def reset(self, **kwargs: Any):
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
         self.law.reset()
         self._obs = obs
         self._start[:], self._resets_next[:] = True, False
         return obs, info
 
-    def step(self, actions):
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
         base = _base_actions(self.law, self._obs, self._start)
@@ -159,7 +172,13 @@ class ResidualPolicy(Controller):
     def reset(self) -> None:
         self.law.reset()
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
         obs = np.atleast_2d(np.asarray(observation))
         start = (np.zeros(obs.shape[0], dtype=bool) if episode_start is None
                  else np.asarray(episode_start, dtype=bool))  # fmt: skip
@@ -191,12 +210,12 @@ def zero_last_layer(model: Any) -> None:
         policy.actor_target.load_state_dict(policy.actor.state_dict())
 
 
-class ResidualVecEnv(VecEnvWrapper):  # type: ignore[misc,valid-type]
+class ResidualVecEnv(VecEnvWrapper):
     """An SB3 VecEnv (:class:`~capsule_env.sb3.CapsuleSuspensionSB3VecEnv`) with residual
     actions; SB3 resets a finished vehicle at once, so its next obs starts an episode."""
 
     def __init__(self, venv: Any, law: Controller, scale: float = 0.5) -> None:
-        if VecEnvWrapper is object:
+        if not _HAS_SB3:
             raise ImportError(
                 "ResidualVecEnv needs stable-baselines3: pip install 'capsule-env[rl]'"
             )
@@ -206,11 +225,12 @@ class ResidualVecEnv(VecEnvWrapper):  # type: ignore[misc,valid-type]
         self._obs: np.ndarray | None = None
         self._start = np.ones(self.num_envs, dtype=bool)
 
-    def reset(self):
-        self._obs = self.venv.reset()
+    def reset(self) -> Any:
+        obs = self.venv.reset()
+        self._obs = np.asarray(obs)  # the same array (CapsuleSuspensionSB3VecEnv's)
         self.law.reset()
         self._start[:] = True
-        return self._obs
+        return obs
 
     def step_async(self, actions: np.ndarray) -> None:
         if self._obs is None:
@@ -219,7 +239,7 @@ class ResidualVecEnv(VecEnvWrapper):  # type: ignore[misc,valid-type]
         total = combine_actions(base, np.reshape(actions, (self.num_envs,)), self.scale)
         self.venv.step_async(total[:, None])
 
-    def step_wait(self):
+    def step_wait(self) -> Any:
         obs, reward, done, infos = self.venv.step_wait()
-        self._obs, self._start = obs, np.asarray(done, dtype=bool).copy()
+        self._obs, self._start = np.asarray(obs), np.asarray(done, dtype=bool).copy()
         return obs, reward, done, infos

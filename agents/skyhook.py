@@ -70,6 +70,11 @@ class SkyhookController(ForceLaw):
     """
 
     SIGNALS = ("body_velocity", "relative_velocity")
+    # Gains (N s/m), scalar or one per vehicle, set by _set_gains: c_max and c_min in the
+    # on_off variant, c_sky in the continuous one.
+    c_max: np.ndarray
+    c_min: np.ndarray
+    c_sky: np.ndarray
 
     def __init__(
         self,
@@ -115,6 +120,11 @@ class HybridController(ForceLaw):
     ``alpha c_sky``, ``(1 - alpha) c_ground`` spans the same laws)."""
 
     SIGNALS = ("body_velocity", "bogie_velocity", "relative_velocity")
+    # Gains, scalar or one per vehicle, set by _set_gains: alpha (dimensionless), c_sky and
+    # c_ground (N s/m).
+    alpha: np.ndarray
+    c_sky: np.ndarray
+    c_ground: np.ndarray
 
     def __init__(
         self,

@@ -32,17 +32,14 @@ Output folder: ``best_model.{zip,vecnormalize.pkl,json}`` (the json: ``name``, `
 from __future__ import annotations
 
 import argparse
-import ast
-import inspect
 import json
 import math
 import sys
-import textwrap
 import time
 import typing
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 from capsule_env.agents import PassiveController, classical_controllers
@@ -57,22 +54,31 @@ from capsule_env.agents.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
     normalize_kwargs_from,
-    parse_env_item,
-    parse_env_kwargs,
     resolve_env_kwargs,
 )
 from capsule_env.agents.sb3_policy import SB3Policy
 from stable_baselines3.common.callbacks import BaseCallback
 
+from capsule_env._cli import (
+    ArgumentParser,
+    add_dataclass_options,
+    dataclass_values,
+    parse_env_item,
+    parse_env_kwargs,
+)
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
     VALIDATION_GUIDEWAY_SEED,
+    Rollout,
     check_episode_length,
     episode_metrics,
     run_episodes,
 )
 from capsule_env.safe_io import check_writable_dir
+
+if typing.TYPE_CHECKING:
+    from stable_baselines3.common.vec_env import VecNormalize
 
 #: ``hyperparams/`` beside ``agents/`` (a checkout), or ``capsule_env/hyperparams`` beside
 #: ``capsule_env/agents`` (an installed package): the same relative place.
@@ -87,65 +93,6 @@ BEST_METRIC = "wk_rms_body_acc_m_s2"
 
 
 # ----------------------------------------------------------------------------- command line
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _integer(text: str) -> int:
-    """An integer, also written like 2e6."""
-    value = float(text)
-    if value != int(value):
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}")
-    return int(value)
-
-
-def field_docs(cls: type) -> dict[str, str]:
-    """The string literal under each field of the dataclass ``cls`` (CleanRL / tyro style)."""
-    try:
-        tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
-    except (OSError, TypeError):  # no source (a frozen program): no help texts
-        return {}
-    body = tree.body[0].body
-    docs = {}
-    for node, after in zip(body, body[1:]):
-        if (
-            isinstance(node, ast.AnnAssign)
-            and isinstance(node.target, ast.Name)
-            and isinstance(after, ast.Expr)
-            and isinstance(after.value, ast.Constant)
-            and isinstance(after.value.value, str)
-        ):
-            docs[node.target.id] = " ".join(after.value.value.split())
-    return docs
-
-
-def _add_argument(parser: argparse.ArgumentParser, f: Any, kind: Any, help_text: str) -> None:
-    """``--name`` for the dataclass field ``f`` of type ``kind``: ``bool`` a ``--name`` /
-    ``--no-name`` pair, ``Literal[...]`` its choices, ``list[str]`` a repeatable option,
-    ``dict`` a JSON text (read after argparse), int/float/str (maybe optional) a value."""
-    origin, default = typing.get_origin(kind), f.default
-    if f.default_factory is not MISSING:
-        default = f.default_factory()
-    if "default" not in help_text and kind is not bool and origin is not list:
-        help_text = f"{help_text} (default: {default})"
-    options: dict[str, Any] = {"default": default, "help": help_text}
-    if kind is bool:
-        options["action"] = argparse.BooleanOptionalAction
-    elif origin is typing.Literal:
-        options["choices"] = typing.get_args(kind)
-    elif origin is list:
-        options.update(action="append", metavar="KEY=VALUE")
-    elif kind is dict:
-        options.update(default="{}", metavar="JSON")
-    else:
-        types = set(typing.get_args(kind)) or {kind}
-        options["type"] = _integer if int in types else float if float in types else str
-    parser.add_argument("--" + f.name.replace("_", "-"), **options)
-
-
 def parse_args(cls: type, argv: list[str] | None, description: str | None) -> Any:
     """The command line as an instance of the argument dataclass ``cls`` (``train.Args``).
 
@@ -154,13 +101,10 @@ def parse_args(cls: type, argv: list[str] | None, description: str | None) -> An
     VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
     items last. A bad value exits with one line on stderr and status 2.
     """
-    parser = _Parser(prog="train.py", description=description,
-                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    docs, hints = field_docs(cls), typing.get_type_hints(cls)
-    for f in fields(cls):
-        _add_argument(parser, f, hints[f.name], docs.get(f.name, ""))
-    ns = parser.parse_args(argv)
-    values = {f.name: getattr(ns, f.name) for f in fields(cls)}
+    parser = ArgumentParser(prog="train.py", description=description,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    add_dataclass_options(parser, cls)
+    values = dataclass_values(parser.parse_args(argv), cls)
     try:
         env_kwargs = parse_env_kwargs(values["env_kwargs"])
         env_kwargs.update(parse_env_item(item) for item in values["env"])
@@ -242,7 +186,8 @@ def prepare(args: Any) -> Plan:
         check_writable_dir(args.tensorboard, "--tensorboard")
 
     # Resume: the checkpoint fixes the algorithm, the number of vehicles and the statistics.
-    ckpt, ckpt_meta = None, {}
+    ckpt: Path | None = None
+    ckpt_meta: dict[str, Any] = {}
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
     if args.resume:
         ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir, args.algo)
@@ -284,7 +229,13 @@ def run_seed_for(seed: int, timesteps_done: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(timesteps_done)]).generate_state(1)[0])
 
 
-def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecnormalize=None):
+def make_env(
+    num_envs: int,
+    seed: int,
+    env_kwargs: dict,
+    norm_kwargs: dict,
+    vecnormalize: str | Path | None = None,
+) -> VecNormalize:
     """The batched kernel as an SB3 VecEnv, + VecMonitor + VecNormalize (new, or a saved one).
 
     Vehicle ``n`` gets stream ``n`` of ``numpy.random.SeedSequence(seed)`` (guideway window,
@@ -293,9 +244,9 @@ def make_env(num_envs: int, seed: int, env_kwargs: dict, norm_kwargs: dict, vecn
 
     from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
 
-    venv = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
-    venv.seed(seed)
-    venv = VecMonitor(venv)
+    vehicles = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
+    vehicles.seed(seed)
+    venv = VecMonitor(vehicles)
     if vecnormalize is not None:  # resume: the checkpoint's running statistics
         return VecNormalize.load(str(vecnormalize), venv)
     return VecNormalize(venv, **norm_kwargs)
@@ -327,7 +278,7 @@ class Run:
         self.last_eval_timesteps = -1
         self.eval_kwargs = {**policy_env_kwargs(plan.env_kwargs),
                             "guideway_seed": VALIDATION_GUIDEWAY_SEED}  # fmt: skip
-        self.passive = None
+        self.passive: Rollout | None = None
         self.references: dict = {}
         self.last_checkpoint_clock = time.monotonic()  # for --checkpoint-minutes
         self.last_checkpoint_timesteps = self.start_timesteps
@@ -373,7 +324,7 @@ class Run:
         if self.passive is None:  # the VRE reference: passive damper on the same seeds
             passive_kwargs = {**self.eval_kwargs, **PassiveController.env_kwargs}
             self.passive = self._episodes(PassiveController(), passive_kwargs)
-            self.references = self._references()
+            self.references = self._references(self.passive)
         policy = SB3Policy.from_model(model, model.get_vec_normalize_env(), {"name": self.name})
         m = episode_metrics(self._episodes(policy, self.eval_kwargs), self.passive)
         self.eval_seconds += time.perf_counter() - t_start
@@ -412,15 +363,16 @@ class Run:
             logger.record("time/env_steps_per_s", result["steps_per_s"])
         return result
 
-    def _references(self) -> dict:
-        """Passive and the best Skyhook variant on the evaluation seeds (numbers to compare
-        with: the seeds differ from evaluate.py's, so do the absolute values)."""
+    def _references(self, passive: Rollout) -> dict:
+        """Passive (its rollout ``passive``) and the best Skyhook variant on the evaluation
+        seeds (numbers to compare with: the seeds differ from evaluate.py's, so do the absolute
+        values)."""
         a = self.args
-        refs = {"passive": {BEST_METRIC: episode_metrics(self.passive, None)[BEST_METRIC]}}
+        refs = {"passive": {BEST_METRIC: episode_metrics(passive, None)[BEST_METRIC]}}
         sky = classical_controllers().get(REFERENCE_CONTROLLER)
         if sky is not None:
             m = episode_metrics(self._episodes(sky, {**self.eval_kwargs, **sky.env_kwargs}),
-                                self.passive)  # fmt: skip
+                                passive)  # fmt: skip
             refs[REFERENCE_CONTROLLER] = {
                 BEST_METRIC: m[BEST_METRIC],
                 "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],

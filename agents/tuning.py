@@ -28,7 +28,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any, NamedTuple, NoReturn
+from typing import Any, NamedTuple
 
 import numpy as np
 from capsule_env.agents.classical import make_controller
@@ -36,6 +36,7 @@ from capsule_env.agents.search_space import SEARCH_SPACES, SearchSpace
 from capsule_env.agents.tuned import TUNED_GAINS_PATH
 
 from capsule_env import metrics
+from capsule_env._cli import ArgumentParser
 from capsule_env.evaluation import Rollout, run_episodes
 from capsule_env.safe_io import atomic_write_text, check_writable_file
 
@@ -151,8 +152,9 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
     units, (wk, stroke, _) = best()
     tuned = make_controller(name, **{g: v[0] for g, v in space.gains(np.array(units)).items()})
     feasible = sum(r.feasible(limit) for r in seen.values())
+    gains = tuned.gains()
     entry = {
-        "gains": tuned.gains(),
+        "gains": gains,
         "training": {"wk_rms_body_acc_m_s2": wk, "max_stroke_m": stroke},
         "candidates": len(seen),
         "feasible_candidates": feasible,
@@ -160,10 +162,10 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
         "search_s": round(time.perf_counter() - t0, 1),
     }
     if log is not None:
-        gains = ", ".join(f"{k} {v:.4g}" for k, v in entry["gains"].items())
+        listed = ", ".join(f"{k} {v:.4g}" for k, v in gains.items())
         print(f"{name:<24} Wk {wk:.4f} m/s^2  max stroke {1e3 * stroke:5.2f} mm  "
               f"{len(seen):4d} candidates ({feasible} feasible)  {entry['search_s']:6.1f} s  "
-              f"{gains}", file=log, flush=True)  # fmt: skip
+              f"{listed}", file=log, flush=True)  # fmt: skip
     return entry
 
 
@@ -221,15 +223,10 @@ def merge_previous(data: dict[str, Any], path: Path) -> dict[str, Any]:
     return merged
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status."""
-    p = _Parser(prog="python -m capsule_env.agents.tuning", description=__doc__,
-                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p = ArgumentParser(prog="python -m capsule_env.agents.tuning", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     p.add_argument("--controllers", default="all",
                    help="comma-separated names, or 'all': " + ", ".join(SEARCH_SPACES))  # fmt: skip
     p.add_argument("--quick", action="store_true",
@@ -242,18 +239,18 @@ def main(argv: list[str] | None = None) -> int:
     names = list(SEARCH_SPACES) if args.controllers == "all" else args.controllers.split(",")
     unknown = [n for n in names if n not in SEARCH_SPACES]
     if unknown:
-        sys.exit(f"tuning: error: no search space for {unknown}; tuned: {', '.join(SEARCH_SPACES)}")
+        p.error(f"--controllers: no search space for {unknown}; tuned: {', '.join(SEARCH_SPACES)}")
     settings = TuningSettings.quick() if args.quick else TuningSettings()
     if args.stroke_limit_mm is not None:
         if not args.stroke_limit_mm > 0:
-            sys.exit("tuning: error: --stroke-limit-mm must be > 0")
+            p.error(f"--stroke-limit-mm must be > 0, got {args.stroke_limit_mm}")
         settings = replace(settings, stroke_limit_m=args.stroke_limit_mm / 1e3)
     out = args.out if args.out is not None or args.quick else TUNED_GAINS_PATH
     if out is not None:
         try:
             check_writable_file(out, "--out")
         except (ValueError, OSError) as exc:
-            sys.exit(f"tuning: error: {exc}")
+            p.error(str(exc))
     words = sys.argv[1:] if argv is None else argv
     command = " ".join(["python -m capsule_env.agents.tuning", *words])
     data = tune_all(names, settings, command, log=sys.stdout)

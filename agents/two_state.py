@@ -41,6 +41,8 @@ class TwoStateController(ClassicalLaw):
 
     #: Name of the law on ideal sensors (``-meas`` is appended on the measured set).
     BASE_NAME = "two-state"
+    #: The on current (A), scalar or one per vehicle (set by :meth:`_set_gains`).
+    i_on: np.ndarray
 
     def __init__(
         self,
@@ -105,6 +107,8 @@ class MixedSkyhookADDController(TwoStateController):
 
     BASE_NAME = "sh-add"
     SIGNALS = ("body_velocity", "body_acceleration", "relative_velocity")
+    #: The frequency selector (s), scalar or one per vehicle (set by :meth:`_set_gains`).
+    alpha: np.ndarray
 
     def __init__(
         self,

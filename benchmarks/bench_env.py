@@ -349,7 +349,9 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line; an unwritable ``--json`` path is refused now, not after minutes of
+    measuring (one line, exit status 2)."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
@@ -371,20 +373,21 @@ def main(argv: list[str] | None = None) -> int:
         help="also the vector env at N=1024 with the substeps forced to 1 and 2 (minutes)",
     )
     args = parser.parse_args(argv)
-    if args.json is not None:  # refused now, not after minutes of measuring
+    if args.json is not None:
         from capsule_env.safe_io import check_writable_file
 
         try:
             check_writable_file(args.json, "--json")
         except ValueError as exc:
             parser.exit(2, f"bench_env.py: {exc}\n")
-    scale = 0.05 if args.quick else 1.0
-    n_single = max(200, int(20_000 * scale))
-    import capsule_env  # noqa: F401  (registers the env)
+    return args
 
-    res: dict = {"machine": machine(), "date": time.strftime("%Y-%m-%d"), "single": {},
-                 "vector": {}, "sb3": {}, "realtime": {}}  # fmt: skip
-    res["startup"] = import_and_first_step()
+
+def measure_speeds(scale: float) -> dict:
+    """Single env, native vector env, SB3 VecEnv, real-time factor and memory, ``scale`` times
+    the full number of steps."""
+    n_single = max(200, int(20_000 * scale))
+    res: dict = {"single": {}, "vector": {}, "sb3": {}, "realtime": {}}
     res["single"]["Pendulum-v1"] = single_env("Pendulum-v1", n_single)
     res["single"]["CartPole-v1"] = single_env("CartPole-v1", n_single)
     for setting in ("sim", "hils"):
@@ -407,6 +410,17 @@ def main(argv: list[str] | None = None) -> int:
         res["realtime"][setting] = res["single"][f"capsule-{setting}"] * dt
     per_env, bank = memory_per_env(1024, setting="hils")
     res["memory"] = {"bytes_per_env": per_env, "guideway_bank_bytes": bank}
+    return res
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """Every measurement the options ask for, as the ``--json`` file holds them."""
+    scale = 0.05 if args.quick else 1.0
+    import capsule_env  # noqa: F401  (registers the env)
+
+    res: dict = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
+    res["startup"] = import_and_first_step()
+    res.update(measure_speeds(scale))
     res["long_window"] = long_windows(max(20, int(1500 * scale)), num_envs=1024)
     res["substep_ceiling"] = None
     if args.substep_ceiling:
@@ -415,7 +429,11 @@ def main(argv: list[str] | None = None) -> int:
     if not args.quick or args.cold:  # the default env (sim), then hils (the other kernels)
         res["cold_start"] = {s: cold_first_step(setting=s) for s in ("sim", "hils")}
     res["cold_demo"] = cold_demo() if args.cold_demo else None
+    return res
 
+
+def print_speeds(res: dict) -> None:
+    """The start-up, single env, vector env, SB3, real-time and memory lines."""
     print(f"machine: {res['machine']}  date: {res['date']}")
     print(f"import capsule_env: {res['startup']['import_s']:.2f} s; first reset+step "
           f"(compile or cache load): {res['startup']['first_step_s']:.2f} s")  # fmt: skip
@@ -439,6 +457,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {setting:<6}{rtf:10.0f}")
     print(f"\nmemory: {res['memory']['bytes_per_env'] / 1024:.1f} KiB per vehicle "
           f"(+ shared guideway bank {res['memory']['guideway_bank_bytes'] / 2**20:.1f} MiB)")  # fmt: skip
+
+
+def print_windows(res: dict) -> None:
+    """The long windows and, if measured, the substep ceiling."""
     lw = res["long_window"]
     print(f"\nlong windows ({lw['window_steps']} steps, the single env {10 * lw['window_steps']}; "
           f"median of {lw['repeats']} interleaved repeats; load {lw['load_before'][0]:.1f} -> "
@@ -456,8 +478,11 @@ def main(argv: list[str] | None = None) -> int:
         for name, run in sc["runs"].items():
             taken = f"   {run['mean_substeps']:.2f} substeps" if "mean_substeps" in run else ""
             print(f"  {name:<20}{run['median']:>14,.0f}   x{run['ratio']:5.2f} CartPole-v1{taken}")
-    cold = res["cold_start"] or {}
-    for setting, c in cold.items():
+
+
+def print_cold(res: dict) -> None:
+    """The empty-cache first step and demo, where measured."""
+    for setting, c in (res["cold_start"] or {}).items():
         print(f"\ncold start, {setting} (empty numba cache; import + make + reset + first step): "
               f"{c['total_wall_s']:.1f} s wall, {c['total_cpu_s']:.1f} s CPU (import "
               f"{c['import_cpu_s']:.1f} s, first step {c['first_step_cpu_s']:.1f} s CPU); whole "
@@ -466,6 +491,15 @@ def main(argv: list[str] | None = None) -> int:
         c = res["cold_demo"]
         print(f"\ncold demo (empty numba cache): python evaluate.py {c['process_wall_s']:.1f} s "
               f"wall, {c['process_cpu_s']:.1f} s CPU")  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure, print, and write ``--json`` (atomically) if asked."""
+    args = parse_args(argv)
+    res = measure(args)
+    print_speeds(res)
+    print_windows(res)
+    print_cold(res)
     if args.json is not None:
         from capsule_env.safe_io import atomic_write_text
 

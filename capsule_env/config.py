@@ -33,6 +33,7 @@ from capsule_env.dampers import (
     BiExponentialDamper,
     BoucWenDamper,
     DamperParams,
+    LinearDamper,
     TanhDamper,
     make_damper,
 )
@@ -288,7 +289,7 @@ class EnvConfig:
         name = self.plant_damper_name
         damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
         tau = self.effective_coil_time_constant_s
-        if name != "passive":
+        if not isinstance(damper, LinearDamper):  # the passive damper has no coil
             damper = replace(damper, coil_time_constant_s=tau)
         return damper
 
@@ -315,7 +316,9 @@ class EnvConfig:
         name = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}[
             self.inverse_model
         ]
-        return make_damper(name, **self.inverse_params)
+        damper = make_damper(name, **self.inverse_params)
+        assert isinstance(damper, (BiExponentialDamper, BoucWenDamper, TanhDamper))  # names above
+        return damper
 
     @property
     def guideway_spec(self) -> GuidewayParams:

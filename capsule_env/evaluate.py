@@ -26,10 +26,11 @@ import sys
 import textwrap
 import time
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
+from capsule_env._cli import ArgumentParser
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.base import OBSERVATION_GROUPS
 from capsule_env.agents.classical import PAPER_FIXED
@@ -87,16 +88,9 @@ COLUMNS = [
 FORMATS = [".2f"] * 5 + [".4f", ".4f", ".1f", ".3f", ".3f", ".2f", ".2f", ".0%"]
 
 
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line (syntax only; :func:`check_args` checks the values)."""
-    p = _Parser(
+    p = ArgumentParser(
         prog="evaluate.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
     p.add_argument("--setting", choices=["sim", "hils", "both"], default="both",

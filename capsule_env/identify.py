@@ -27,8 +27,9 @@ import sys
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
+from capsule_env._cli import ArgumentParser
 from capsule_env.identification import (
     D_RULES,
     MODEL_NAMES,
@@ -51,13 +52,6 @@ _CLASSES = {
     "tanh": "TanhDamper",
     "bi_exponential": "BiExponentialDamper",
 }
-
-
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (no usage block), exit 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _number_type(low: float, strict: bool, what: str) -> Callable[[str], float]:
@@ -102,7 +96,7 @@ _FILE_OPTIONS = {
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m capsule_env.identify``."""
-    parser = _Parser(
+    parser = ArgumentParser(
         prog="python -m capsule_env.identify",
         description=(
             "Identify the Bi-exponential, Bouc-Wen and tanh MR-damper models from force loops "

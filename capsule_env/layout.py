@@ -1,10 +1,19 @@
 """Named layouts of every packed array the compiled kernels read.
 
-The kernels see numbers in arrays, not dataclasses; this module gives each slot a name, once.
-Every index is derived from a tuple of names (``name.index(...)``), so a layout and its
-constants cannot disagree, and every kernel reads ``state[n, BODY_VEL]`` or
-``signals[SIG_STROKE, n]``, never ``state[n, 1]``. Module-level integers are compile-time
-constants for numba: naming costs no speed.
+The kernels see numbers in arrays, not dataclasses; this module gives each slot a name, once,
+and every kernel reads ``state[n, BODY_VEL]`` or ``signals[SIG_STROKE, n]``, never
+``state[n, 1]``. Module-level integers are compile-time constants for numba: naming costs no
+speed.
+
+Most indices are derived from their tuple of names (``name.index(...)``, or an unpacking of
+``range(len(names))`` that fails if a name is added without its constant), so a layout and its
+constants cannot disagree. Not yet (issue 26): the shared damper slots ``I_MAX, COIL_TAU,
+BRANCH_BLEND = 14, 15, 16`` and ``N_DAMPER_PARAMS = 17`` are written as numbers (after the
+longest model's 14 parameters; an assert checks that every model fits), the Bi-exponential
+offsets ``BX_*`` within a branch and ``PV_DAMPING`` likewise, and the per-vehicle floats'
+``VF_*`` are ``range(9)`` (``VF_REWARD_FILTER`` is the first of the reward filter's 8 slots):
+inserting a name in :data:`VEHICLE_FLOAT_NAMES` or :data:`SHARED_DAMPER_SLOTS` does not move
+those constants.
 
 | array | shape | layout |
 | --- | --- | --- |

@@ -128,50 +128,77 @@ def plot_fits(
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     currents, groups = group_by_current(loops)
+    scale, unit = (1e-3, "kN") if result.peak_force_n >= 2e3 else (1.0, "N")
+    paths: list[Path] = []
+    for kind in ("velocity", "displacement"):
+        fig = _fit_loops_figure(plt, result, currents, groups, kind, (scale, unit))
+        paths.append(_save(fig, directory / f"{prefix}force_{kind}.png", plt))
+    fig = _branches_figure(plt, result, currents, groups, (scale, unit))
+    paths.append(_save(fig, directory / f"{prefix}top_current_branches.png", plt))
+    if result.bi_exponential.currents_a.size > 1:
+        fig = _trends_figure(plt, result)
+        paths.append(_save(fig, directory / f"{prefix}bi_exponential_trends.png", plt))
+    return paths
+
+
+def _closed(loop: Loop) -> np.ndarray:
+    """The sample order of ``loop``, a periodic loop closed for a continuous line."""
+    idx = np.arange(loop.n_samples)
+    return np.append(idx, 0) if loop.periodic else idx
+
+
+def _fit_loops_figure(
+    plt: Any,
+    result: IdentificationResult,
+    currents: np.ndarray,
+    groups: list[list[Loop]],
+    kind: str,
+    force_unit: tuple[float, str],
+) -> Any:
+    """Force against stroke rate (``kind`` "velocity") or stroke ("displacement"): data
+    (dots) and each model (lines), one panel per model, every current."""
+    scale, unit = force_unit
+    xlabel = "stroke rate v (m/s)" if kind == "velocity" else "stroke x (mm)"
     cmap = plt.get_cmap("viridis")
     colours = [cmap(k / max(len(currents) - 1, 1)) for k in range(len(currents))]
-    paths: list[Path] = []
-
-    def ordered(loop: Loop) -> np.ndarray:
-        # close a periodic loop for a continuous line
-        idx = np.arange(loop.n_samples)
-        return np.append(idx, 0) if loop.periodic else idx
-
-    def kilo(ax: Any) -> None:
-        ax.grid(True, alpha=0.3)
-
-    peak = result.peak_force_n
     where = f"at {result.rmse_current_a:g} A" if len(currents) > 1 else "(whole record)"
-    scale, unit = (1e-3, "kN") if peak >= 2e3 else (1.0, "N")
-    for kind, xlabel in (("velocity", "stroke rate v (m/s)"), ("displacement", "stroke x (mm)")):
-        fig, axes = plt.subplots(1, len(MODEL_NAMES), figsize=(5.2 * len(MODEL_NAMES), 4.4),
-                                 sharey=True, constrained_layout=True)  # fmt: skip
-        for ax, name in zip(axes, MODEL_NAMES):
-            fit = result.models[name]
-            for colour, i, group in zip(colours, currents, groups):
-                for n, loop in enumerate(group):
-                    model = predict_force(fit.damper, loop)
-                    idx = ordered(loop)
-                    xs = loop.stroke_rate_m_s if kind == "velocity" else loop.stroke_m * 1e3
-                    step = max(1, loop.n_samples // (250 if loop.periodic else 3000))
-                    single = len(currents) == 1
-                    ax.plot(xs[::step], loop.force_n[::step] * scale, ".", ms=2.5,
-                            color="0.45" if single else colour, alpha=0.5,
-                            label=("data" if single else f"data {i:g} A") if n == 0 else None)  # fmt: skip
-                    ax.plot(xs[idx], model[idx] * scale, "-", lw=1.1,
-                            color="tab:red" if single else colour,
-                            label="model" if single and n == 0 else None)  # fmt: skip
-            ax.set_title(f"{_MODEL_LABELS[name]}: RMSE {fit.rmse_n:.1f} N {where}")
-            ax.set_xlabel(xlabel)
-            kilo(ax)
-        axes[0].set_ylabel(f"damper force F ({unit})")
-        axes[0].legend(fontsize=7, loc="upper left", title="dots: data, lines: model",
-                       title_fontsize=7, framealpha=0.9)  # fmt: skip
-        fig.suptitle(f"Force-{kind} loops, data vs identified models ({result.source})")
-        path = directory / f"{prefix}force_{kind}.png"
-        paths.append(_save(fig, path, plt))
+    single = len(currents) == 1
+    fig, axes = plt.subplots(1, len(MODEL_NAMES), figsize=(5.2 * len(MODEL_NAMES), 4.4),
+                             sharey=True, constrained_layout=True)  # fmt: skip
+    for ax, name in zip(axes, MODEL_NAMES):
+        fit = result.models[name]
+        for colour, i, group in zip(colours, currents, groups):
+            for n, loop in enumerate(group):
+                model = predict_force(fit.damper, loop)
+                idx = _closed(loop)
+                xs = loop.stroke_rate_m_s if kind == "velocity" else loop.stroke_m * 1e3
+                step = max(1, loop.n_samples // (250 if loop.periodic else 3000))
+                ax.plot(xs[::step], loop.force_n[::step] * scale, ".", ms=2.5,
+                        color="0.45" if single else colour, alpha=0.5,
+                        label=("data" if single else f"data {i:g} A") if n == 0 else None)  # fmt: skip
+                ax.plot(xs[idx], model[idx] * scale, "-", lw=1.1,
+                        color="tab:red" if single else colour,
+                        label="model" if single and n == 0 else None)  # fmt: skip
+        ax.set_title(f"{_MODEL_LABELS[name]}: RMSE {fit.rmse_n:.1f} N {where}")
+        ax.set_xlabel(xlabel)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel(f"damper force F ({unit})")
+    axes[0].legend(fontsize=7, loc="upper left", title="dots: data, lines: model",
+                   title_fontsize=7, framealpha=0.9)  # fmt: skip
+    fig.suptitle(f"Force-{kind} loops, data vs identified models ({result.source})")
+    return fig
 
-    # The reporting current, split by branch (Figures 4 and 7).
+
+def _branches_figure(
+    plt: Any,
+    result: IdentificationResult,
+    currents: np.ndarray,
+    groups: list[list[Loop]],
+    force_unit: tuple[float, str],
+) -> Any:
+    """The loop at the reporting current split by the sign of the stroke, with the
+    Bi-exponential branches (Figures 4 and 7)."""
+    scale, unit = force_unit
     top = groups[-1]
     bi = result.models["bi_exponential"].damper
     fig, (ax_x, ax_v) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
@@ -194,56 +221,55 @@ def plot_fits(
     ax_v.set_xlabel("stroke rate v (m/s)")
     for ax in (ax_x, ax_v):
         ax.set_ylabel(f"damper force F ({unit})")
-        kilo(ax)
+        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     at = f"at {i_top:g} A" if result.current_known else "(current unknown)"
     fig.suptitle(f"Loop {at} split by the sign of the stroke; Bi-exponential RMSE "
                  f"{result.models['bi_exponential'].rmse_n:.1f} N ({result.source})")  # fmt: skip
-    path = directory / f"{prefix}top_current_branches.png"
-    paths.append(_save(fig, path, plt))
+    return fig
 
+
+def _trends_figure(plt: Any, result: IdentificationResult) -> Any:
+    """Bi-exponential a, b, c, d against current: free per-current fits (top, Figure 5) and
+    the refit at the chosen d with its linear laws (bottom, Figure 6), and branch RMSEs."""
     trends = result.bi_exponential
-    if trends.currents_a.size > 1:
-        units = {"a": "a (N)", "b": "b (N s/m)", "c": "c (N)", "d": "d (s/m)"}
-        fig, axes = plt.subplots(2, 4, figsize=(16, 7.5), constrained_layout=True)
-        ii = trends.currents_a
-        fine = np.linspace(ii.min(), ii.max(), 50)
-        styles = (("upper", "tab:red", "o", 9), ("lower", "tab:blue", "s", 4))
-        for branch, colour, marker, size in styles:
-            for col, p in enumerate("abcd"):
-                ax = axes[0, col]
-                ax.plot(ii, trends.free[branch][p], marker + "-", color=colour, ms=size,
-                        mfc="none" if size > 5 else colour, label=branch)  # fmt: skip
-                if p == "d":
-                    ax.axhline(trends.table[branch]["d"], color=colour, ls="--",
-                               label=f"{branch} mean {trends.table[branch]['d']:.4g}")  # fmt: skip
-                ax.set_title(f"free fit: {units[p]}")
-            for col, p in enumerate("abc"):
-                ax = axes[1, col]
-                row = trends.table[branch]
-                ax.plot(ii, trends.fixed_d[branch][p], marker, color=colour, ms=size,
-                        mfc="none" if size > 5 else colour,
-                        label=f"{branch}, d = {row['d']:.4g}")  # fmt: skip
-                ax.plot(fine, row[f"{p}0"] + row[f"{p}1"] * fine, "-", color=colour,
-                        label=_law_label(p, row))  # fmt: skip
-                ax.set_title(f"fixed d: {units[p]}")
-            mfc = "none" if size > 5 else colour
-            axes[1, 3].plot(ii, trends.fixed_d[branch]["rmse_n"], marker + "-", color=colour,
-                            ms=size, mfc=mfc, label=f"{branch}, fixed d")  # fmt: skip
-            axes[1, 3].plot(ii, trends.free[branch]["rmse_n"], marker + ":", color=colour,
-                            ms=size, mfc=mfc, label=f"{branch}, free d")  # fmt: skip
-        axes[1, 3].set_title("branch RMSE (N) per current")
-        for ax in axes.flat:
-            ax.set_xlabel("current i (A)")
-            kilo(ax)
-            ax.legend(fontsize=7)
-        fig.suptitle(
-            "Bi-exponential parameters vs current: free per-current fits (top, paper Fig. 5) "
-            f"and refit at the {result.d_rule} d with linear laws (bottom, Fig. 6 / Table 2)"
-        )
-        path = directory / f"{prefix}bi_exponential_trends.png"
-        paths.append(_save(fig, path, plt))
-    return paths
+    units = {"a": "a (N)", "b": "b (N s/m)", "c": "c (N)", "d": "d (s/m)"}
+    fig, axes = plt.subplots(2, 4, figsize=(16, 7.5), constrained_layout=True)
+    ii = trends.currents_a
+    fine = np.linspace(ii.min(), ii.max(), 50)
+    styles = (("upper", "tab:red", "o", 9), ("lower", "tab:blue", "s", 4))
+    for branch, colour, marker, size in styles:
+        mfc = "none" if size > 5 else colour
+        row = trends.table[branch]
+        for col, p in enumerate("abcd"):
+            ax = axes[0, col]
+            ax.plot(ii, trends.free[branch][p], marker + "-", color=colour, ms=size,
+                    mfc=mfc, label=branch)  # fmt: skip
+            if p == "d":
+                ax.axhline(row["d"], color=colour, ls="--",
+                           label=f"{branch} mean {row['d']:.4g}")  # fmt: skip
+            ax.set_title(f"free fit: {units[p]}")
+        for col, p in enumerate("abc"):
+            ax = axes[1, col]
+            ax.plot(ii, trends.fixed_d[branch][p], marker, color=colour, ms=size, mfc=mfc,
+                    label=f"{branch}, d = {row['d']:.4g}")  # fmt: skip
+            ax.plot(fine, row[f"{p}0"] + row[f"{p}1"] * fine, "-", color=colour,
+                    label=_law_label(p, row))  # fmt: skip
+            ax.set_title(f"fixed d: {units[p]}")
+        axes[1, 3].plot(ii, trends.fixed_d[branch]["rmse_n"], marker + "-", color=colour,
+                        ms=size, mfc=mfc, label=f"{branch}, fixed d")  # fmt: skip
+        axes[1, 3].plot(ii, trends.free[branch]["rmse_n"], marker + ":", color=colour,
+                        ms=size, mfc=mfc, label=f"{branch}, free d")  # fmt: skip
+    axes[1, 3].set_title("branch RMSE (N) per current")
+    for ax in axes.flat:
+        ax.set_xlabel("current i (A)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(
+        "Bi-exponential parameters vs current: free per-current fits (top, paper Fig. 5) "
+        f"and refit at the {result.d_rule} d with linear laws (bottom, Fig. 6 / Table 2)"
+    )
+    return fig
 
 
 def _law_label(p: str, row: dict[str, float]) -> str:

@@ -130,6 +130,47 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def checked_inputs(args: argparse.Namespace) -> tuple[list[str], list[Any]]:
+    """The laws to sweep and the policies loaded, after every check of the arguments (the
+    output paths writable); ``ValueError`` or ``OSError`` naming the option otherwise."""
+    laws = list(SEARCH_SPACES) if args.laws == "all" else args.laws.split(",")
+    unknown = [n for n in laws if n not in SEARCH_SPACES]
+    if unknown:
+        raise ValueError(f"--laws: no search space for {unknown}")
+    if args.points < 2 or args.episodes < 1 or args.seed < 0:
+        raise ValueError("--points must be >= 2, --episodes >= 1, --seed >= 0")
+    for path, option in ((args.out, "--out"), (args.json, "--json")):
+        if path is not None:
+            check_writable_file(path, option)
+    paths = list(args.policy)
+    if not args.no_shipped_policy:
+        from capsule_env.agents.sb3_policy import shipped_policy_paths
+
+        paths = shipped_policy_paths() + paths
+    if not paths:
+        return laws, []
+    from capsule_env.agents.sb3_policy import SB3Policy, use_one_torch_thread
+
+    use_one_torch_thread()
+    return laws, [SB3Policy.load(p) for p in paths]
+
+
+def other_points(
+    policies: list[Any], seeds: list[int], length_s: float, passive: Rollout
+) -> dict[str, dict[str, Any]]:
+    """The figure's single points: the open-loop currents and the policies."""
+    points = {}
+    for name in OPEN_LOOP:
+        metrics_ = point(make_controller(name), seeds, length_s, passive)[0]
+        points[name] = {"kind": "open loop", "observation": "none", **metrics_}
+    for policy in policies:
+        metrics_ = point(policy, seeds, length_s, passive)[0]
+        reads = policy.observation + ("+preview" if policy.preview else "")
+        points[policy.name] = {"kind": "policy", "observation": reads,
+                               "path": str(policy.path), **metrics_}  # fmt: skip
+    return points
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (bad arguments: one line and status 1)."""
     args = parse_args(argv)
@@ -139,27 +180,8 @@ def main(argv: list[str] | None = None) -> int:
         pareto_figure(json.loads(args.from_json.read_text()), args.out)
         print(f"wrote {args.out}")
         return 0
-    laws = list(SEARCH_SPACES) if args.laws == "all" else args.laws.split(",")
     try:
-        unknown = [n for n in laws if n not in SEARCH_SPACES]
-        if unknown:
-            raise ValueError(f"--laws: no search space for {unknown}")
-        if args.points < 2 or args.episodes < 1 or args.seed < 0:
-            raise ValueError("--points must be >= 2, --episodes >= 1, --seed >= 0")
-        for path, option in ((args.out, "--out"), (args.json, "--json")):
-            if path is not None:
-                check_writable_file(path, option)
-        paths = list(args.policy)
-        if not args.no_shipped_policy:
-            from capsule_env.agents.sb3_policy import shipped_policy_paths
-
-            paths = shipped_policy_paths() + paths
-        policies = []
-        if paths:
-            from capsule_env.agents.sb3_policy import SB3Policy, use_one_torch_thread
-
-            use_one_torch_thread()
-            policies = [SB3Policy.load(p) for p in paths]
+        laws, policies = checked_inputs(args)
     except (ValueError, OSError) as exc:
         sys.exit(f"pareto.py: error: {exc}")
     seeds = list(range(args.seed, args.seed + args.episodes))
@@ -180,15 +202,7 @@ def main(argv: list[str] | None = None) -> int:
         "laws": {},
         "points": {"passive": {"kind": "open loop", "observation": "none", **passive_metrics}},
     }
-    for name in OPEN_LOOP:
-        ctrl = make_controller(name)
-        metrics_ = point(ctrl, seeds, args.episode_length, passive)[0]
-        data["points"][name] = {"kind": "open loop", "observation": "none", **metrics_}
-    for policy in policies:
-        metrics_ = point(policy, seeds, args.episode_length, passive)[0]
-        reads = policy.observation + ("+preview" if policy.preview else "")
-        data["points"][policy.name] = {"kind": "policy", "observation": reads,
-                                       "path": str(policy.path), **metrics_}  # fmt: skip
+    data["points"].update(other_points(policies, seeds, args.episode_length, passive))
     for name in laws:
         data["laws"][name] = curve = sweep(name, args.points, seeds, args.episode_length, passive)
         k = curve["tuned_index"]

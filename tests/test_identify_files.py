@@ -195,9 +195,19 @@ def _good_rows(n: int = 64) -> np.ndarray:
     return np.column_stack([t, 0.01 * np.sin(6 * t), 100 * np.cos(6 * t)])
 
 
-def _bad_file(case: str, tmp: Path) -> tuple[Path, dict, str, str]:
+BadFile = tuple[Path, dict, str, str]
+
+
+def _bad_file(case: str, tmp: Path) -> BadFile:
     """``(path, load options, the column named, text of the error)`` of a bad file."""
-    rows = _good_rows()
+    made = _bad_table(case, tmp, _good_rows()) or _bad_layout(case, tmp, _good_rows())
+    if made is None:
+        raise KeyError(case)
+    return made
+
+
+def _bad_table(case: str, tmp: Path, rows: np.ndarray) -> BadFile | None:
+    """A CSV whose names or values are wrong (None: ``case`` is not one of these)."""
     header = "time,displacement,force"
     if case == "not a number":
         text = _write_csv(tmp / "a.csv", header, rows).read_text().splitlines()
@@ -214,6 +224,16 @@ def _bad_file(case: str, tmp: Path) -> tuple[Path, dict, str, str]:
     if case == "time goes back":
         rows[20:, 0] -= 0.5
         return _write_csv(tmp / "e.csv", header, rows), {}, "'time'", "does not increase"
+    if case == "constant force":
+        rows[:, 2] = 5.0
+        return _write_csv(tmp / "m.csv", header, rows), {}, "'force'", "constant"
+    return None
+
+
+def _bad_layout(case: str, tmp: Path, rows: np.ndarray) -> BadFile | None:
+    """A file whose columns, sampling, current or lines are wrong (None: ``case`` is not one
+    of these)."""
+    header = "time,displacement,force"
     if case == "no names":
         np.save(tmp / "f.npy", rows)
         return tmp / "f.npy", {}, "--columns", "no column names"
@@ -235,13 +255,10 @@ def _bad_file(case: str, tmp: Path) -> tuple[Path, dict, str, str]:
     if case == "mixed npz":
         np.savez(tmp / "l.npz", time=rows[:, 0], data=rows)
         return tmp / "l.npz", {}, "'time'", "shapes"
-    if case == "constant force":
-        rows[:, 2] = 5.0
-        return _write_csv(tmp / "m.csv", header, rows), {}, "'force'", "constant"
     if case == "ragged line":
         (tmp / "n.csv").write_text(header + "\n0,1,2\n0.1,1\n")
         return tmp / "n.csv", {}, "line 3", "2 fields"
-    raise KeyError(case)
+    return None
 
 
 BAD_CASES = [

@@ -290,6 +290,14 @@ def no_run(monkeypatch):
 
 def _bad_evaluate_case(case: str, tmp: Path) -> tuple[list[str], list[str]]:
     """``(argv, texts the one-line message must hold)`` of a bad evaluate.py invocation."""
+    made = _bad_policy_case(case, tmp) or _bad_option_case(case, tmp)
+    if made is None:
+        raise KeyError(case)
+    return made
+
+
+def _bad_policy_case(case: str, tmp: Path) -> tuple[list[str], list[str]] | None:
+    """A bad ``--policy`` file (None: ``case`` is not one of these)."""
     if case == "missing policy":
         return ["--policy", str(tmp / "nope.zip")], ["nope.zip"]
     if case == "corrupt policy":
@@ -310,6 +318,11 @@ def _bad_evaluate_case(case: str, tmp: Path) -> tuple[list[str], list[str]]:
     if case == "other observation size":
         make_policy(tmp / "pendulum", name="pendulum", env="pendulum")
         return ["--policy", str(tmp / "pendulum.zip")], ["pendulum.zip", "(3,)", "(10,)"]
+    return None
+
+
+def _bad_option_case(case: str, tmp: Path) -> tuple[list[str], list[str]] | None:
+    """A bad value of another option (None: ``case`` is not one of these)."""
     if case == "negative seed":
         return ["--seed", "-1"], ["--seed"]
     if case == "zero episodes":
@@ -326,7 +339,7 @@ def _bad_evaluate_case(case: str, tmp: Path) -> tuple[list[str], list[str]]:
     if case == "plots is a file":
         (tmp / "file").write_text("x")
         return ["--plots", str(tmp / "file")], ["--plots", "is a file"]
-    raise KeyError(case)
+    return None
 
 
 NEEDS_SB3 = ["corrupt policy", "corrupt statistics", "other observation size"]

@@ -274,6 +274,43 @@ class _Lockstep:
 
 
 # ------------------------------------------------------------------------------ starts
+def _named_start(episodes: OracleEpisodes, j: int, start: str, random_seed: int) -> np.ndarray:
+    """The (E, T) currents of start name ``start`` (``starts[j]``)."""
+    if start not in START_NAMES:
+        raise ValueError(f"starts[{j}]: unknown start {start!r}; accepted: {START_NAMES}")
+    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
+    if start == "skyhook":
+        return episodes.skyhook_currents()
+    if start == "random":
+        rows = [
+            np.random.default_rng([random_seed, s]).uniform(0.0, i_max, t) for s in episodes.seeds
+        ]
+        return np.stack(rows)
+    return np.full((e, t), _START_LEVELS[start] * i_max)
+
+
+def _array_start(episodes: OracleEpisodes, j: int, start: Any) -> np.ndarray:
+    """The (E, T) currents of a given current array ``start`` (``starts[j]``), checked."""
+    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
+    if isinstance(start, (bool, np.bool_)) or not isinstance(start, (Sequence, np.ndarray)):
+        raise TypeError(
+            f"starts[{j}] must be a start name, a number (a constant current, A) or a "
+            f"current array, got {start!r} ({type(start).__name__})"
+        )
+    try:
+        a = np.asarray(start, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"starts[{j}]: a current array must hold numbers (A)") from None
+    if a.shape not in ((t,), (e, t)):
+        raise ValueError(
+            f"starts[{j}]: a current array must have shape ({t},) or ({e}, {t}) "
+            f"(episodes, steps), got {a.shape}"
+        )
+    if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > i_max:
+        raise ValueError(f"starts[{j}]: currents must be finite and in [0, {i_max}] A")
+    return np.broadcast_to(a, (e, t)).copy()
+
+
 def _starts(
     episodes: OracleEpisodes, starts: Sequence[Any], random_seed: int
 ) -> tuple[list[str], np.ndarray]:
@@ -288,45 +325,19 @@ def _starts(
     names, arrays = [], []
     for j, start in enumerate(starts):
         if isinstance(start, str):
-            if start not in START_NAMES:
-                raise ValueError(f"starts[{j}]: unknown start {start!r}; accepted: {START_NAMES}")
             names.append(start)
-            if start == "skyhook":
-                arrays.append(episodes.skyhook_currents())
-            elif start == "random":
-                rows = [
-                    np.random.default_rng([random_seed, s]).uniform(0.0, i_max, t)
-                    for s in episodes.seeds
-                ]
-                arrays.append(np.stack(rows))
-            else:
-                arrays.append(np.full((e, t), _START_LEVELS[start] * i_max))
-            continue
-        if isinstance(start, (int, float, np.integer, np.floating)) and not isinstance(start, bool):
+            arrays.append(_named_start(episodes, j, start, random_seed))
+        elif isinstance(start, (int, float, np.integer, np.floating)) and not isinstance(
+            start, bool
+        ):
             level = float(start)
             if not 0.0 <= level <= i_max:
                 raise ValueError(f"starts[{j}]: a constant current must be in [0, {i_max}] A")
             names.append(f"constant:{level:g}")
             arrays.append(np.full((e, t), level))
-            continue
-        if isinstance(start, (bool, np.bool_)) or not isinstance(start, (Sequence, np.ndarray)):
-            raise TypeError(
-                f"starts[{j}] must be a start name, a number (a constant current, A) or a "
-                f"current array, got {start!r} ({type(start).__name__})"
-            )
-        try:
-            a = np.asarray(start, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise TypeError(f"starts[{j}]: a current array must hold numbers (A)") from None
-        if a.shape not in ((t,), (e, t)):
-            raise ValueError(
-                f"starts[{j}]: a current array must have shape ({t},) or ({e}, {t}) "
-                f"(episodes, steps), got {a.shape}"
-            )
-        if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > i_max:
-            raise ValueError(f"starts[{j}]: currents must be finite and in [0, {i_max}] A")
-        names.append(f"given:{j}")
-        arrays.append(np.broadcast_to(a, (e, t)).copy())
+        else:
+            arrays.append(_array_start(episodes, j, start))
+            names.append(f"given:{j}")
     return names, np.stack(arrays)
 
 

@@ -13,7 +13,8 @@ agree bit for bit.
 Models: reference (Spencer), Bi-exponential, tanh, passive. Bouc-Wen (its unloading branch
 needs tan/atan) and Spencer parameters with ``gamma > beta`` use the scalar kernel
 (:func:`block_kernel_mode`). The damper model and the kernel variant are compile-time constants
-(:func:`plant_block` is specialised on them), so only the code of the model in use compiles.
+(:func:`block_step`, :func:`substep_lanes` and :func:`output_lanes` are specialised on them),
+so only the code of the model in use compiles.
 """
 
 from __future__ import annotations

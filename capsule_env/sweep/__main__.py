@@ -7,8 +7,8 @@ import importlib.util
 import sys
 import time
 from pathlib import Path
-from typing import NoReturn
 
+from capsule_env._cli import ArgumentParser
 from capsule_env.sweep import __doc__ as DOC
 from capsule_env.sweep.runner import check_same_study, run_ray, run_serial, write_results
 from capsule_env.sweep.study import StudyError, load_study, read_study_file
@@ -16,13 +16,10 @@ from capsule_env.sweep.study import StudyError, load_study, read_study_file
 PROG = "python -m capsule_env.sweep"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = _Parser(prog=PROG, description=DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(
+        prog=PROG, description=DOC, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("study", type=Path, help="the study file (.yml, .yaml or .json)")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default runs/sweep/<study name>); running again with "

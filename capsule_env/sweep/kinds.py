@@ -51,6 +51,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
+from capsule_env._cli import field_docs
+
 if TYPE_CHECKING:
     from capsule_env.sweep.study import Trial
 
@@ -176,10 +178,8 @@ def _train_unavailable() -> str | None:
 
 
 def _train_keys() -> dict[str, str]:
-    from capsule_env.agents.training import field_docs
-
     docs = field_docs(train_module().Args)
-    return {k: " ".join(v.split()) for k, v in docs.items() if k not in _TRAIN_CHOSEN}
+    return {k: v for k, v in docs.items() if k not in _TRAIN_CHOSEN}
 
 
 def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:

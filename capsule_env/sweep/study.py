@@ -262,11 +262,8 @@ def _check_duplicate_seeds(trials: list[Trial], where: str) -> None:
         first[t.seed] = t.name
 
 
-def build_study(data: Any, path: str | Path, out_dir: str | Path) -> Study:
-    """Check a study file's content (``data``, as read from ``path``) and expand it into
-    trials whose folders are ``<out_dir>/trials/<trial name>``. :class:`StudyError` names the
-    first bad key and what it accepts."""
-    path = Path(path)
+def _study_header(data: Any, path: Path) -> tuple[str, int, float, list]:
+    """The study's name, root seed, CPUs per trial and its list of blocks, checked."""
     where = str(path)
     if not isinstance(data, Mapping):
         raise StudyError(f"{where}: expected a mapping with the keys {', '.join(STUDY_KEYS)}, "
@@ -285,49 +282,70 @@ def build_study(data: Any, path: str | Path, out_dir: str | Path) -> Study:
     if not isinstance(blocks, list) or not blocks:
         raise StudyError(f"{where}: trials: expected a non-empty list of blocks, each with the "
                          f"keys {', '.join(BLOCK_KEYS)}")  # fmt: skip
+    return name, root, float(cpus), blocks
+
+
+def _point_params(kind: Kind, fixed: dict, point: dict, bwhere: str) -> dict[str, Any]:
+    """A grid point's parameters (the block's ``params`` and the point), checked by the kind
+    and resolved."""
+    params = {**fixed, **point}
+    at = f"grid point {point}" if point else "params"
+    for key, value in params.items():
+        if not json_ready(value):
+            raise StudyError(f"{bwhere} ({at}): {key}: expected numbers, strings, "
+                             f"lists or mappings, got {value!r}")  # fmt: skip
+    try:
+        kind.check(params)
+    except (ValueError, TypeError) as exc:
+        raise StudyError(f"{bwhere} ({at}): {exc}") from None
+    return kind.resolve(params)
+
+
+def _block_trials(
+    block: Any, b: int, root: int, labels: set[str], trials_dir: Path, where: str
+) -> list[Trial]:
+    """The trials of block ``b`` (its label is added to ``labels``, which must not hold it)."""
+    bwhere = f"{where}: trials[{b}]"
+    if not isinstance(block, Mapping):
+        raise StudyError(f"{bwhere}: expected a mapping with the keys "
+                         f"{', '.join(BLOCK_KEYS)}, got {block!r}")  # fmt: skip
+    _unknown(block, BLOCK_KEYS, bwhere)
+    kind = _kind(block, bwhere)
+    label = block.get("name", f"{kind.name}{b}")
+    if not isinstance(label, str) or not _NAME.match(label) or label in labels:
+        raise StudyError(f"{bwhere}.name: expected a new label of letters, digits, '-', "
+                         f"'_', '.', got {label!r}")  # fmt: skip
+    labels.add(label)
+    fixed = _mapping(block.get("params"), f"{bwhere}.params")
+    grid = _mapping(block.get("grid"), f"{bwhere}.grid")
+    for key in fixed.keys() & grid.keys():
+        raise StudyError(f"{bwhere}: {key!r} is in both params and grid; keep it in one")
+    for section, keys in (("params", fixed), ("grid", grid)):
+        for key in keys:
+            kind.check_key(key, f"{bwhere}.{section}")
+    trials: list[Trial] = []
+    for p, point in enumerate(_grid_points(grid, bwhere)):
+        params = _point_params(kind, fixed, point, bwhere)
+        for seed in _seeds(block, kind, root, b, p, bwhere):
+            trial_name = f"{label}-{len(trials):03d}"
+            trials.append(Trial(trial_name, kind.name, label, params, point, seed,
+                                str(trials_dir / trial_name)))  # fmt: skip
+    return trials
+
+
+def build_study(data: Any, path: str | Path, out_dir: str | Path) -> Study:
+    """Check a study file's content (``data``, as read from ``path``) and expand it into
+    trials whose folders are ``<out_dir>/trials/<trial name>``. :class:`StudyError` names the
+    first bad key and what it accepts."""
+    path = Path(path)
+    name, root, cpus, blocks = _study_header(data, path)
     trials_dir = Path(out_dir).resolve() / "trials"
     trials: list[Trial] = []
     labels: set[str] = set()
     for b, block in enumerate(blocks):
-        bwhere = f"{where}: trials[{b}]"
-        if not isinstance(block, Mapping):
-            raise StudyError(f"{bwhere}: expected a mapping with the keys "
-                             f"{', '.join(BLOCK_KEYS)}, got {block!r}")  # fmt: skip
-        _unknown(block, BLOCK_KEYS, bwhere)
-        kind = _kind(block, bwhere)
-        label = block.get("name", f"{kind.name}{b}")
-        if not isinstance(label, str) or not _NAME.match(label) or label in labels:
-            raise StudyError(f"{bwhere}.name: expected a new label of letters, digits, '-', "
-                             f"'_', '.', got {label!r}")  # fmt: skip
-        labels.add(label)
-        fixed = _mapping(block.get("params"), f"{bwhere}.params")
-        grid = _mapping(block.get("grid"), f"{bwhere}.grid")
-        for key in fixed.keys() & grid.keys():
-            raise StudyError(f"{bwhere}: {key!r} is in both params and grid; keep it in one")
-        for section, keys in (("params", fixed), ("grid", grid)):
-            for key in keys:
-                kind.check_key(key, f"{bwhere}.{section}")
-        points = _grid_points(grid, bwhere)
-        index = 0
-        for p, point in enumerate(points):
-            params = {**fixed, **point}
-            at = f"grid point {point}" if point else "params"
-            for key, value in params.items():
-                if not json_ready(value):
-                    raise StudyError(f"{bwhere} ({at}): {key}: expected numbers, strings, "
-                                     f"lists or mappings, got {value!r}")  # fmt: skip
-            try:
-                kind.check(params)
-            except (ValueError, TypeError) as exc:
-                raise StudyError(f"{bwhere} ({at}): {exc}") from None
-            params = kind.resolve(params)
-            for seed in _seeds(block, kind, root, b, p, bwhere):
-                trial_name = f"{label}-{index:03d}"
-                index += 1
-                trials.append(Trial(trial_name, kind.name, label, params, point, seed,
-                                    str(trials_dir / trial_name)))  # fmt: skip
-    _check_duplicate_seeds(trials, where)
-    return Study(name, str(path.resolve()), float(cpus), trials)
+        trials += _block_trials(block, b, root, labels, trials_dir, str(path))
+    _check_duplicate_seeds(trials, str(path))
+    return Study(name, str(path.resolve()), cpus, trials)
 
 
 def load_study(path: str | Path, out_dir: str | Path) -> Study:
