@@ -23,7 +23,9 @@ def _rollout(env, seed: int, steps: int = 120) -> list[np.ndarray]:
     rng = np.random.default_rng(1)
     out = [obs]
     for _ in range(steps):
-        obs, reward, *_ = env.step(rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32))
+        obs, reward, *_ = env.step(
+            rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32)
+        )
         out += [obs, np.asarray(reward)]
     return out
 
