@@ -72,6 +72,7 @@ from capsule_env.evaluation import (
     episode_metrics,
     run_episodes,
 )
+from capsule_env.policy_files import clean_leftovers
 from capsule_env.safe_io import check_writable_dir
 
 #: ``hyperparams/`` beside ``agents/`` (a checkout), or ``capsule_env/hyperparams`` beside
@@ -238,6 +239,8 @@ def prepare(args: Any) -> Plan:
     # Output folders: writable before any training time is spent.
     check_writable_dir(output_dir, "--output-dir")
     check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
+    for folder in (output_dir, output_dir / "checkpoints"):  # what killed saves left
+        clean_leftovers(folder)
     if args.tensorboard:
         check_writable_dir(args.tensorboard, "--tensorboard")
 
@@ -245,7 +248,9 @@ def prepare(args: Any) -> Plan:
     ckpt, ckpt_meta = None, {}
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
     if args.resume:
-        ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir, args.algo)
+        ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir)
+        if ckpt_meta["algo"] != args.algo:
+            raise ValueError(f"--resume: {ckpt} is {ckpt_meta['algo']}, not {args.algo}")
         if ckpt_meta["train_env_kwargs"] != env_kwargs:
             print(
                 f"note: env arguments differ from the checkpoint's {ckpt_meta['train_env_kwargs']}"
