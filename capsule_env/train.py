@@ -31,6 +31,7 @@ from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
 
 from capsule_env.agents.checkpoints import resume_model, save_policy
+from capsule_env.agents.run_args import continue_command
 from capsule_env.agents.training import Run, TrainingMonitor, make_env, prepare, run_seed_for
 from capsule_env.agents.training import parse_args as parse_dataclass_args
 
@@ -71,7 +72,9 @@ class Args:
     keep_replay_buffers: int = 2
     """SAC/TD3: keep the replay buffers of only the newest this many checkpoints"""
     resume: str | None = None
-    """continue from a checkpoint .zip, or 'auto' for the newest intact one in output_dir"""
+    """continue a run: 'auto' (the newest intact checkpoint in output_dir), a run folder, or a
+    checkpoint .zip; the run's own arguments (env, budget, algorithm, hyperparameters, seed,
+    evaluation) come from the checkpoint, and one given again with another value is refused"""
     tensorboard: str | None = None
     """tensorboard log folder (needs the tensorboard package)"""
     threads: int = 1
@@ -84,6 +87,9 @@ class Args:
     """torch device"""
     verbose: int = 0
     """SB3 verbosity (1: SB3's log tables)"""
+    explicit: frozenset[str] | None = field(default=None, metadata={"cli": False})
+    """the fields the command line gave (set by parse_args; None: every field that is not None
+    counts as given): what --resume checks against the run's own arguments"""
 
 
 def train(args: Args, extra_callbacks: list | None = None) -> dict:
@@ -93,6 +99,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         plan = prepare(args)
     except (ValueError, OSError, TypeError) as exc:
         raise SystemExit(f"train.py: error: {exc}") from None
+    args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
     torch.set_num_threads(args.threads)
 
     # Seeds, in one place: torch, numpy, random and the vehicles' streams. A resumed run gets
@@ -127,8 +134,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
             model.num_timesteps = run.rollout_end_timesteps
         path = run.checkpoint(model)
         print(f"\ninterrupted at {model.num_timesteps} timesteps: checkpoint {path}\n"
-              f"continue with: python train.py ... --output-dir {plan.output_dir} "
-              "--resume auto")  # fmt: skip
+              f"continue with: {continue_command(args, plan.output_dir)}")  # fmt: skip
     if not interrupted:
         run.evaluate(model)  # the final policy is a candidate for the best one too
         final_meta = run.meta(model, name=f"{run.name}-final")  # its own row in evaluate.py
