@@ -205,6 +205,34 @@ def resume_model(algo_cls: Any, ckpt: Path, env: Any, **load_kwargs: Any) -> Any
     return model
 
 
+def saved_at(stem: Path, num_timesteps: int) -> bool:
+    """Whether the policy set ``stem`` (e.g. ``final_model``) is complete
+    (:func:`capsule_env.policy_files.set_problem`) and saved at ``num_timesteps``."""
+    readable = readable_stem(stem)
+    if set_problem(readable) is not None:
+        return False
+    try:
+        return (
+            json.loads(sibling(readable, ".json").read_text()).get("num_timesteps") == num_timesteps
+        )
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return False
+
+
+def logged_timesteps(log: Path) -> list[int]:
+    """The ``num_timesteps`` of every readable line of the log ``log`` (``evaluations.jsonl``;
+    none when it is missing)."""
+    if not Path(log).is_file():
+        return []
+    steps = []
+    for line in Path(log).read_text(errors="replace").splitlines():
+        try:
+            steps.append(int(json.loads(line)["num_timesteps"]))
+        except (ValueError, TypeError, KeyError):
+            continue
+    return steps
+
+
 def best_so_far(output_dir: Path, metric: str) -> dict | None:
     """The ``best`` block of ``output_dir/best_model.json`` (the best evaluation before a
     resume; it may be newer than the checkpoint), or None when absent, unreadable or written

@@ -79,7 +79,7 @@ from capsule_env.evaluation import (
     run_episodes,
 )
 from capsule_env.policy_files import clean_leftovers
-from capsule_env.safe_io import check_writable_dir
+from capsule_env.safe_io import append_line, check_writable_dir
 
 #: ``hyperparams/`` beside ``agents/`` (a checkout), or ``capsule_env/hyperparams`` beside
 #: ``capsule_env/agents`` (an installed package): the same relative place.
@@ -451,8 +451,7 @@ class Run:
             self.best = result
             save_policy(model, self.output_dir / "best_model",
                         self.meta(model, eval=self._eval_block(m)))  # fmt: skip
-        with (self.output_dir / "evaluations.jsonl").open("a") as fh:
-            fh.write(json.dumps(result) + "\n")
+        append_line(self.output_dir / "evaluations.jsonl", json.dumps(result))
         print(
             f"[{result['num_timesteps']:>10d}] eval Wk acc {result[BEST_METRIC]:.4f} m/s^2"
             f"  VRE body m1 {result['vre_body_mode1_pct']:6.2f} %  stroke "

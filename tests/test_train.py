@@ -454,3 +454,32 @@ def test_resume_of_a_checkpoint_without_stored_arguments(measured_run, tmp_path)
                                      "--total-timesteps", "2048"]))  # fmt: skip
     assert plan.env_kwargs["observation"] == "measured" and plan.num_envs == 4
     assert plan.args.seed == 3 and plan.hp["n_steps"] == 256
+
+
+# ------------------------------------------------------- --resume of a finished run
+def _folder_bytes(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}  # fmt: skip
+
+
+def test_resume_of_a_finished_run_changes_nothing(ppo_run, tmp_path, capsys):
+    out = _copy_run(ppo_run[0], tmp_path)
+    before = _folder_bytes(out)
+    assert len((out / "evaluations.jsonl").read_text().splitlines()) == 2
+    summary = train.train(train.parse_args(["--resume", "auto", "--output-dir", str(out),
+                                            "--no-progress"]))  # fmt: skip
+    assert summary["num_timesteps"] == 2048 and not summary["interrupted"]
+    assert "had finished at 2048 timesteps" in capsys.readouterr().out
+    assert _folder_bytes(out) == before  # no evaluation appended, no file rewritten
+
+
+def test_resume_after_a_kill_before_the_final_save_saves_it_once(ppo_run, tmp_path):
+    # killed after the final evaluation was logged, before final_model was saved
+    out = _copy_run(ppo_run[0], tmp_path)
+    for path in out.glob("final_model.*"):
+        path.unlink()
+    lines = (out / "evaluations.jsonl").read_text()
+    train.train(train.parse_args(["--resume", "auto", "--output-dir", str(out), "--no-progress"]))
+    assert (out / "evaluations.jsonl").read_text() == lines
+    final = SB3Policy.load(out / "final_model.zip")
+    assert final.meta["num_timesteps"] == 2048 and final.name == "tiny-ppo-final"
