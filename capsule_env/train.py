@@ -14,9 +14,11 @@ used to choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<se
 ``best_model.*`` (the best evaluation by the Wk-weighted RMS car-body acceleration;
 ``evaluate.py --policy`` loads it), ``final_model.*``, ``checkpoints/`` (every
 ``--checkpoint-freq`` steps and ``--checkpoint-minutes``, on Ctrl-C or SIGTERM and at the end;
-``--resume``) and ``evaluations.jsonl``. Saves are atomic; bad arguments stop the script before
-training with one line on stderr. Details: agents/training.py, agents/checkpoints.py,
-agents/hyperparams.py.
+``--resume``) and ``evaluations.jsonl``. Each save is one atomic step (capsule_env/policy_files.py);
+``--resume`` restores the run's own arguments from the checkpoint and refuses one given again
+with another value (agents/run_args.py); Ctrl-C prints the command that continues the run. Bad
+arguments stop the script before training, and a full disk during it, with one line on stderr.
+Details: agents/training.py, agents/checkpoints.py, agents/run_args.py, agents/hyperparams.py.
 """
 
 from __future__ import annotations
@@ -41,10 +43,10 @@ class Args:
     algo: Literal["ppo", "sac", "td3"] = "ppo"
     """the algorithm"""
     total_timesteps: int | None = None
-    """env steps, all vehicles together (default: the file's n_timesteps), rounded up to whole
-    PPO rollouts (n_steps * num_envs) or vector steps"""
+    """env steps, all vehicles together (default: the file's n_timesteps, or the resumed run's),
+    rounded up to whole PPO rollouts (n_steps * num_envs) or vector steps"""
     num_envs: int | None = None
-    """vehicles simulated in parallel (default: the file's n_envs, or the checkpoint's)"""
+    """vehicles simulated in parallel (default: the file's n_envs, or the resumed run's)"""
     seed: int = 0
     """random seed of torch, numpy and the vehicles (runs with different seeds share no stream)"""
     env_kwargs: dict = field(default_factory=dict)
