@@ -1,13 +1,15 @@
 """Saving trained policies and checkpoints, and resuming from them (``train.py``).
 
-A saved policy is a group of files with one stem: ``stem.zip`` (the SB3 model),
+A saved policy is a set of files with one stem: ``stem.zip`` (the SB3 model),
 ``stem.vecnormalize.pkl`` (its ``VecNormalize`` statistics), for SAC/TD3 checkpoints
 ``stem.replay_buffer.pkl``, and ``stem.json`` (metadata: name, algorithm, env arguments,
-timesteps, wall time, and the sizes and SHA-256 of the other files). :func:`save_policy`
-writes them all under temporary names and renames them into place, the json last
-(:class:`capsule_env.safe_io.StagedFiles`): a full disk or a kill during a save leaves the
-previous files intact, and the loaders (:func:`checkpoint_problem`,
-``capsule_env.agents.sb3_policy.SB3Policy.load``) refuse a set mixed from two saves or truncated later.
+timesteps, wall time, the run's arguments, and the sizes and SHA-256 of the other files).
+:func:`save_policy` replaces a set in one atomic step (:func:`capsule_env.policy_files.save_file_set`:
+the new files are written into a hidden folder, committed by one rename, then published): a full
+disk or a kill at any point leaves the previous complete set or the new one readable, never a
+mix, and the loaders (:func:`checkpoint_problem`, ``capsule_env.agents.sb3_policy.SB3Policy.load``)
+read the committed set (:func:`capsule_env.policy_files.readable_stem`) and refuse a set mixed
+from two saves or truncated later.
 
 Checkpoints are ``<output>/checkpoints/ckpt_<timesteps, 12 digits>.*``; only the newest
 ``keep_replay_buffers`` keep their replay buffer (:func:`prune_replay_buffers`).
@@ -30,38 +32,40 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from capsule_env.safe_io import StagedFiles, digest_mismatch, file_digest
-
-
-def _sibling(stem: Path, suffix: str) -> Path:
-    """``stem`` + ``suffix`` (``stem.with_suffix`` would replace a dotted part of the name)."""
-    return stem.with_name(stem.name + suffix)
+from capsule_env.policy_files import (
+    commit_dir,
+    readable_stem,
+    save_file_set,
+    set_problem,
+    sibling,
+)
+from capsule_env.safe_io import file_digest
 
 
 def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False) -> None:
     """``stem.zip`` (model), ``stem.vecnormalize.pkl`` (statistics), optionally
-    ``stem.replay_buffer.pkl`` (SAC/TD3), and ``stem.json`` (metadata), saved together.
-
-    Every file is written to a temporary name next to it first, then all are renamed into
-    place (statistics, replay buffer, model, and the metadata last): a failed save (a full
-    disk, a kill) leaves the previous files as they were. The json records the size and
+    ``stem.replay_buffer.pkl`` (SAC/TD3), and ``stem.json`` (metadata), saved together in one
+    atomic step (:func:`capsule_env.policy_files.save_file_set`): a failed save (a full disk,
+    a kill) leaves the previous set or the new one, complete. The json records the size and
     SHA-256 of the model and statistics (``files``) and of the replay buffer
     (``replay_buffer``), which the loaders check (:func:`checkpoint_problem`,
     ``capsule_env.agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
     """
     stem = Path(stem)
-    zip_path, pkl_path = _sibling(stem, ".zip"), _sibling(stem, ".vecnormalize.pkl")
-    rb_path = _sibling(stem, ".replay_buffer.pkl")
-    with StagedFiles() as staged:
-        model.get_vec_normalize_env().save(str(staged.temp_for(pkl_path)))
+
+    def write(temp: Path) -> None:
+        zip_path, pkl_path = sibling(temp, ".zip"), sibling(temp, ".vecnormalize.pkl")
+        rb_path = sibling(temp, ".replay_buffer.pkl")
+        model.get_vec_normalize_env().save(str(pkl_path))
         if replay_buffer:
-            model.save_replay_buffer(str(staged.temp_for(rb_path)))
-        model.save(str(staged.temp_for(zip_path)))
-        temps = staged.staged
-        meta = {**meta, "files": {p.name: file_digest(temps[p]) for p in (zip_path, pkl_path)}}
+            model.save_replay_buffer(str(rb_path))
+        model.save(str(zip_path))
+        full = {**meta, "files": {p.name: file_digest(p) for p in (zip_path, pkl_path)}}
         if replay_buffer:
-            meta["replay_buffer"] = {rb_path.name: file_digest(temps[rb_path])}
-        staged.write_text(_sibling(stem, ".json"), json.dumps(meta, indent=2, default=str))
+            full["replay_buffer"] = {rb_path.name: file_digest(rb_path)}
+        sibling(temp, ".json").write_text(json.dumps(full, indent=2, default=str))
+
+    save_file_set(stem, write)
 
 
 def save_checkpoint(model: Any, ckpt_dir: Path, meta: dict, keep_replay_buffers: int = 2) -> Path:
@@ -72,7 +76,7 @@ def save_checkpoint(model: Any, ckpt_dir: Path, meta: dict, keep_replay_buffers:
     save_policy(model, stem, {**meta, "num_timesteps": int(model.num_timesteps)}, with_buffer)
     if hasattr(model, "save_replay_buffer"):
         prune_replay_buffers(ckpt_dir, keep_replay_buffers)
-    return _sibling(stem, ".zip")
+    return sibling(stem, ".zip")
 
 
 def prune_replay_buffers(ckpt_dir: Path, keep: int) -> list[Path]:
@@ -87,16 +91,18 @@ def prune_replay_buffers(ckpt_dir: Path, keep: int) -> list[Path]:
 
 def checkpoint_problem(zip_path: Path) -> str | None:
     """Why the checkpoint ``zip_path`` (with its ``.vecnormalize.pkl`` and ``.json``, and
-    ``.replay_buffer.pkl`` when present) cannot be resumed from, or None when it is intact.
+    ``.replay_buffer.pkl`` when present; the committed set of a save cut off after its commit,
+    :func:`capsule_env.policy_files.readable_stem`) cannot be resumed from, or None when it is
+    intact.
 
-    Checked: the json (written last, the mark of a complete save) is readable; the files
+    Checked: the json (the mark of a complete save) is readable checkpoint metadata; the files
     exist and, when the json records their sizes and SHA-256 (:func:`save_policy`), match
     them; else (older checkpoints) the zip is a readable zip archive and the statistics
     unpickle.
     """
-    zip_path = Path(zip_path)
-    stem = zip_path.with_suffix("")
-    meta_path, pkl_path = _sibling(stem, ".json"), _sibling(stem, ".vecnormalize.pkl")
+    stem = readable_stem(zip_path)
+    zip_path, name = sibling(stem, ".zip"), sibling(zip_path, "").name
+    meta_path, pkl_path = sibling(stem, ".json"), sibling(stem, ".vecnormalize.pkl")
     if not meta_path.is_file():
         return f"no {meta_path.name} (the save did not finish)"
     try:
@@ -107,42 +113,36 @@ def checkpoint_problem(zip_path: Path) -> str | None:
     missing = [k for k in ("algo", "num_envs", "train_env_kwargs") if k not in meta]
     if missing:
         return f"{meta_path.name} lacks {', '.join(missing)}"
-    if f"ckpt_{steps:012d}" != stem.name and stem.name.startswith("ckpt_"):
+    if f"ckpt_{steps:012d}" != name and name.startswith("ckpt_"):
         return f"{meta_path.name} says {steps} timesteps, not those of its name"
     for path in (zip_path, pkl_path):
         if not path.is_file() or path.stat().st_size == 0:
             return f"{path.name} is missing or empty"
     if isinstance(meta.get("files"), dict):
-        problem = digest_mismatch(zip_path.parent, meta["files"])
-        if problem:
-            return problem
-    else:  # a checkpoint from before the digests: check that the files can be read
+        return set_problem(stem)
+    try:  # a checkpoint from before the digests: check that the files can be read
         import pickle
         import zipfile
 
-        try:
-            with zipfile.ZipFile(zip_path) as archive:
-                bad = archive.testzip()
-            if bad is not None:
-                return f"{zip_path.name}: member {bad} is corrupt"
-            with pkl_path.open("rb") as fh:
-                pickle.load(fh)
-        except Exception as exc:  # a corrupt archive or pickle raises many types
-            return f"cannot read it ({type(exc).__name__}: {exc})"
-    buffer = meta.get("replay_buffer")
-    if isinstance(buffer, dict):  # pruned buffers are allowed to be absent
-        present = {n: d for n, d in buffer.items() if (zip_path.parent / n).is_file()}
-        problem = digest_mismatch(zip_path.parent, present)
-        if problem:
-            return problem
+        with zipfile.ZipFile(zip_path) as archive:
+            bad = archive.testzip()
+        if bad is not None:
+            return f"{zip_path.name}: member {bad} is corrupt"
+        with pkl_path.open("rb") as fh:
+            pickle.load(fh)
+    except Exception as exc:  # a corrupt archive or pickle raises many types
+        return f"cannot read it ({type(exc).__name__}: {exc})"
     return None
 
 
 def latest_checkpoint(output_dir: Path) -> Path:
-    """The newest intact checkpoint in ``output_dir/checkpoints`` (:func:`checkpoint_problem`);
-    each newer one that is not intact is reported on stderr, with the reason, and skipped."""
+    """The ``.zip`` of the newest intact checkpoint in ``output_dir/checkpoints``
+    (:func:`checkpoint_problem`; in its commit folder when a save was cut off after its
+    commit); each newer one that is not intact is reported on stderr, with the reason, and
+    skipped."""
     ckpt_dir = Path(output_dir) / "checkpoints"
     stems = {p.name.split(".")[0] for p in ckpt_dir.glob("ckpt_*.*")}
+    stems |= {p.name.split(".")[1] for p in ckpt_dir.glob(".ckpt_*.commit") if p.is_dir()}
     if not stems:
         raise ValueError(f"--resume auto: no checkpoint in {ckpt_dir}")
     skipped = 0
@@ -150,33 +150,33 @@ def latest_checkpoint(output_dir: Path) -> Path:
         zip_path = ckpt_dir / f"{name}.zip"
         problem = checkpoint_problem(zip_path)
         if problem is None:
-            return zip_path
+            return sibling(readable_stem(zip_path), ".zip")
         skipped += 1
         print(f"--resume auto: skipping {zip_path}: {problem}", file=sys.stderr, flush=True)
     raise ValueError(f"--resume auto: no intact checkpoint in {ckpt_dir} ({skipped} skipped)")
 
 
-def find_checkpoint(resume: str, output_dir: Path, algo: str) -> tuple[Path, dict]:
-    """The checkpoint ``--resume`` names (``auto``: :func:`latest_checkpoint`) and its
-    metadata, checked to be intact and of ``algo``; ``ValueError`` (one line) otherwise."""
-    if resume == "auto":
+def find_checkpoint(resume: str, output_dir: Path) -> tuple[Path, dict]:
+    """The checkpoint ``--resume`` names and its metadata, checked to be intact; ``ValueError``
+    (one line) otherwise. ``resume``: ``auto`` or a run folder (:func:`latest_checkpoint` of
+    ``output_dir``, the caller's run folder), or a checkpoint's ``.zip``."""
+    if resume == "auto" or Path(resume).is_dir():
         ckpt = latest_checkpoint(output_dir)
     else:
         ckpt = Path(resume)
-        if not ckpt.is_file():
+        if not ckpt.is_file() and not commit_dir(ckpt).is_dir():
             raise ValueError(f"--resume: no checkpoint {ckpt}")
         problem = checkpoint_problem(ckpt)
         if problem:
             raise ValueError(f"--resume: cannot resume from {ckpt}: {problem}")
-    meta = json.loads(ckpt.with_suffix(".json").read_text())
-    if meta["algo"] != algo:
-        raise ValueError(f"--resume: {ckpt} is {meta['algo']}, not {algo}")
+        ckpt = sibling(readable_stem(ckpt), ".zip")
+    meta = json.loads(sibling(ckpt, ".json").read_text())
     return ckpt, meta
 
 
 def statistics_path(ckpt: Path) -> Path:
     """The ``.vecnormalize.pkl`` of the checkpoint ``ckpt`` (a ``.zip``)."""
-    return _sibling(Path(ckpt).with_suffix(""), ".vecnormalize.pkl")
+    return sibling(ckpt, ".vecnormalize.pkl")
 
 
 def resume_model(algo_cls: Any, ckpt: Path, env: Any, **load_kwargs: Any) -> Any:
@@ -194,7 +194,7 @@ def resume_model(algo_cls: Any, ckpt: Path, env: Any, **load_kwargs: Any) -> Any
         env.close()
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SystemExit(f"train.py: error: --resume: cannot load {ckpt}: {reason}") from None
-    buffer = _sibling(Path(ckpt).with_suffix(""), ".replay_buffer.pkl")
+    buffer = sibling(ckpt, ".replay_buffer.pkl")
     if hasattr(model, "load_replay_buffer"):
         if buffer.is_file():
             model.load_replay_buffer(str(buffer))
@@ -203,6 +203,34 @@ def resume_model(algo_cls: Any, ckpt: Path, env: Any, **load_kwargs: Any) -> Any
                   "newest ones): the replay buffer starts empty", file=sys.stderr)  # fmt: skip
     print(f"resumed {ckpt} at {model.num_timesteps} timesteps")
     return model
+
+
+def saved_at(stem: Path, num_timesteps: int) -> bool:
+    """Whether the policy set ``stem`` (e.g. ``final_model``) is complete
+    (:func:`capsule_env.policy_files.set_problem`) and saved at ``num_timesteps``."""
+    readable = readable_stem(stem)
+    if set_problem(readable) is not None:
+        return False
+    try:
+        return (
+            json.loads(sibling(readable, ".json").read_text()).get("num_timesteps") == num_timesteps
+        )
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return False
+
+
+def logged_timesteps(log: Path) -> list[int]:
+    """The ``num_timesteps`` of every readable line of the log ``log`` (``evaluations.jsonl``;
+    none when it is missing)."""
+    if not Path(log).is_file():
+        return []
+    steps = []
+    for line in Path(log).read_text(errors="replace").splitlines():
+        try:
+            steps.append(int(json.loads(line)["num_timesteps"]))
+        except (ValueError, TypeError, KeyError):
+            continue
+    return steps
 
 
 def best_so_far(output_dir: Path, metric: str) -> dict | None:

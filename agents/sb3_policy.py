@@ -12,6 +12,7 @@ import numpy as np
 from capsule_env.agents.base import Controller
 
 import capsule_env
+from capsule_env.policy_files import readable_stem, sibling
 from capsule_env.safe_io import digest_mismatch
 
 PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
@@ -87,19 +88,22 @@ class SB3Policy(Controller):
         trained on normalised observations acts on raw ones without them, far worse than the
         passive damper); False runs a policy without them on raw observations.
 
-        When the ``.json`` lists the sizes and SHA-256 of the ``.zip`` and ``.pkl``
-        (``train.py`` writes it last, as the mark of a complete save), those present are
-        checked.
+        The files are ``NAME.vecnormalize.pkl`` and ``NAME.json`` for ``NAME.zip``, a dotted
+        ``NAME`` included (:func:`capsule_env.policy_files.sibling`); a save cut off after its
+        commit is read from its commit folder
+        (:func:`capsule_env.policy_files.readable_stem`). When the ``.json`` lists the sizes and
+        SHA-256 of the ``.zip`` and ``.pkl`` (``train.py`` writes it last, as the mark of a
+        complete save), those present are checked.
         Raises ``ValueError`` naming the file and the reason for a missing, empty, corrupt,
         inconsistent or mismatched file.
         """
         path = Path(path)
-        if path.suffix != ".zip" or not path.is_file():
+        stem = readable_stem(path) if path.suffix == ".zip" else path
+        zip_path, meta_path = sibling(stem, ".zip"), sibling(stem, ".json")
+        if path.suffix != ".zip" or not zip_path.is_file():
             raise ValueError(f"policy path must be an existing SB3 .zip file, got {path}")
-        if path.stat().st_size == 0:
+        if zip_path.stat().st_size == 0:
             raise ValueError(f"policy file {path} is empty")
-        stem = path.with_suffix("")
-        meta_path = stem.with_suffix(".json")
         meta: dict = {}
         if meta_path.is_file():
             try:
@@ -112,8 +116,8 @@ class SB3Policy(Controller):
                 raise ValueError(f"policy metadata {meta_path} is not a JSON object")
         recorded = meta.get("files")
         if isinstance(recorded, dict):  # a missing .pkl is dealt with below
-            present = {n: d for n, d in recorded.items() if (path.parent / n).is_file()}
-            problem = digest_mismatch(path.parent, present)
+            present = {n: d for n, d in recorded.items() if (stem.parent / n).is_file()}
+            problem = digest_mismatch(stem.parent, present)
             if problem:
                 raise ValueError(f"policy {path} does not match {meta_path.name}: {problem}")
         meta.setdefault("name", stem.name)
@@ -123,13 +127,13 @@ class SB3Policy(Controller):
         import stable_baselines3 as sb3
 
         try:
-            model = getattr(sb3, algo.upper()).load(str(path), device="cpu")
+            model = getattr(sb3, algo.upper()).load(str(zip_path), device="cpu")
         except Exception as exc:  # a corrupt zip raises many types (BadZipFile, KeyError, ...)
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ValueError(
                 f"cannot load {path} as an SB3 {algo.upper()} model: {reason}"
             ) from None
-        norm_path = Path(str(stem) + ".vecnormalize.pkl")
+        norm_path = sibling(stem, ".vecnormalize.pkl")
         statistics = _RAW_OBSERVATIONS
         if norm_path.is_file():
             try:

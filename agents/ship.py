@@ -6,8 +6,9 @@
 Copies the model and its normalisation statistics under the new name, and writes the json
 (``train.py``'s metadata) with ``name`` set, the files' sizes and SHA-256 (``files``, checked
 when the policy loads), where it came from (``shipped_from``) and why it was chosen
-(``selection``). All three are staged and renamed into place together
-(:class:`capsule_env.safe_io.StagedFiles`): a failed copy leaves the shipped files as they were.
+(``selection``). All three are saved in one atomic step
+(:func:`capsule_env.policy_files.save_file_set`): a failed copy leaves the shipped files as they
+were.
 ``evaluate.py`` lists every shipped policy by default.
 """
 
@@ -20,7 +21,8 @@ from pathlib import Path
 
 from capsule_env.agents.sb3_policy import PRETRAINED_DIR, SB3Policy
 
-from capsule_env.safe_io import StagedFiles, file_digest
+from capsule_env.policy_files import readable_stem, save_file_set, sibling
+from capsule_env.safe_io import file_digest
 
 __all__ = ["ship_policy"]
 
@@ -34,21 +36,22 @@ def ship_policy(source_zip: str | Path, name: str, note: str = "",
         raise ValueError(f"name must be a plain file stem such as 'ppo-measured', got {name!r}")
     source_zip = Path(source_zip)
     SB3Policy.load(source_zip)  # refuses a missing, mixed or corrupt set
-    stem = source_zip.with_suffix("")
-    meta = json.loads(stem.with_suffix(".json").read_text())
-    data = {
-        ".zip": source_zip.read_bytes(),
-        ".vecnormalize.pkl": Path(f"{stem}.vecnormalize.pkl").read_bytes(),
-    }
-    folder = Path(folder)
-    targets = {suffix: folder / f"{name}{suffix}" for suffix in data}
-    with StagedFiles() as staged:
-        temps = {suffix: staged.write_bytes(targets[suffix], blob) for suffix, blob in data.items()}
-        digests = {targets[s].name: file_digest(temps[s]) for s in data}
+    stem = readable_stem(source_zip)
+    meta = json.loads(sibling(stem, ".json").read_text())
+    suffixes = (".zip", ".vecnormalize.pkl")
+    data = {suffix: sibling(stem, suffix).read_bytes() for suffix in suffixes}
+    target = Path(folder) / name
+
+    def write(temp: Path) -> None:
+        for suffix, blob in data.items():
+            sibling(temp, suffix).write_bytes(blob)
+        digests = {sibling(target, s).name: file_digest(sibling(temp, s)) for s in suffixes}
         meta.update({"name": name, "files": digests,
                      "shipped_from": str(source_zip), "selection": note})  # fmt: skip
-        staged.write_text(folder / f"{name}.json", json.dumps(meta, indent=2, default=str))
-    return targets[".zip"]
+        sibling(temp, ".json").write_text(json.dumps(meta, indent=2, default=str))
+
+    save_file_set(target, write)
+    return sibling(target, ".zip")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -37,7 +37,7 @@ import math
 import sys
 import time
 import typing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +55,12 @@ from capsule_env.agents.hyperparams import (
     load_hyperparams,
     normalize_kwargs_from,
     resolve_env_kwargs,
+)
+from capsule_env.agents.run_args import (
+    restore_arguments,
+    restore_env_kwargs,
+    restore_hyperparams,
+    run_arguments,
 )
 from capsule_env.agents.sb3_policy import SB3Policy
 from stable_baselines3.common.callbacks import BaseCallback
@@ -75,7 +81,8 @@ from capsule_env.evaluation import (
     episode_metrics,
     run_episodes,
 )
-from capsule_env.safe_io import check_writable_dir
+from capsule_env.policy_files import clean_leftovers
+from capsule_env.safe_io import append_line, check_writable_dir
 
 if typing.TYPE_CHECKING:
     from stable_baselines3.common.vec_env import VecNormalize
@@ -99,12 +106,17 @@ def parse_args(cls: type, argv: list[str] | None, description: str | None) -> An
     Each field is an option ``--field-name``; its help is the string literal under the field.
     ``env_kwargs`` (a JSON object or Python dict literal) and the ``env`` items (``KEY=VALUE``,
     VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
-    items last. A bad value exits with one line on stderr and status 2.
+    items last. A field ``explicit`` (when ``cls`` has one) gets the names of the options the
+    command line gave. A bad value exits with one line on stderr and status 2.
     """
     parser = ArgumentParser(prog="train.py", description=description,
                             formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     add_dataclass_options(parser, cls)
     values = dataclass_values(parser.parse_args(argv), cls)
+    if "explicit" in {f.name for f in fields(cls)}:  # what --resume checks (agents/run_args.py)
+        given = ArgumentParser(prog="train.py")
+        add_dataclass_options(given, cls, suppress=True)
+        values["explicit"] = frozenset(vars(given.parse_args(argv)))
     try:
         env_kwargs = parse_env_kwargs(values["env_kwargs"])
         env_kwargs.update(parse_env_item(item) for item in values["env"])
@@ -142,6 +154,7 @@ def check_args(args: Any) -> None:
 class Plan:
     """What :func:`prepare` checked and loaded before anything is trained."""
 
+    args: Any  # the arguments, with a resumed run's own restored
     output_dir: Path
     hp: dict
     env_kwargs: dict
@@ -165,58 +178,88 @@ class Plan:
         return None if self.ckpt is None else statistics_path(self.ckpt)
 
 
+def output_dir_for(args: Any) -> Path:
+    """The run folder: ``--resume DIR``; else ``--output-dir``; else, for ``--resume`` of a
+    checkpoint ``RUN/checkpoints/ckpt_*.zip``, ``RUN``; else ``runs/<algo>-seed<seed>``.
+    ``ValueError`` when ``--resume DIR`` and ``--output-dir`` name different folders."""
+    resume = args.resume
+    if resume and resume != "auto" and Path(resume).is_dir():
+        if args.output_dir and Path(args.output_dir).resolve() != Path(resume).resolve():
+            raise ValueError(f"--resume {resume} and --output-dir {args.output_dir} name "
+                             "different run folders: give one")  # fmt: skip
+        return Path(resume)
+    if args.output_dir:
+        return Path(args.output_dir)
+    if resume and resume != "auto" and Path(resume).parent.name == "checkpoints":
+        return Path(resume).parent.parent
+    return Path(f"runs/{args.algo}-seed{args.seed}")
+
+
+def _resumed(args: Any, output_dir: Path) -> tuple[Any, Path, dict, dict, dict]:
+    """``(args, checkpoint, its metadata, hyperparameters, env arguments)`` of ``--resume``:
+    the run's own arguments restored from the checkpoint, and those given again checked
+    against them (:mod:`capsule_env.agents.run_args`)."""
+    ckpt, meta = find_checkpoint(args.resume, output_dir)
+    args = restore_arguments(args, meta, ckpt)
+    if args.hyperparams or not isinstance(meta.get("hyperparams"), dict):
+        path = args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml"
+        loaded = load_hyperparams(path)
+    else:
+        path, loaded = None, None
+    hp = restore_hyperparams(str(path), loaded, meta, ckpt)
+    env_kwargs = resolve_env_kwargs({}, restore_env_kwargs(args, meta, ckpt))
+    return args, ckpt, meta, hp, env_kwargs
+
+
 def prepare(args: Any) -> Plan:
-    """Check everything the run needs before it starts: the hyperparameters, the env
-    arguments, the evaluation episode length, the checkpoint to resume from (``auto``: the
-    newest intact one) and that the output and TensorBoard folders can be written. Raises
+    """Check everything the run needs before it starts: the run folder (writable; what
+    killed saves left there finished or removed), the checkpoint to resume from (``auto``:
+    the newest intact one) with the run's own arguments, the hyperparameters, the env
+    arguments, the evaluation episode length and the TensorBoard folder. Raises
     ``ValueError``/``OSError``/``TypeError`` with a one-line message."""
     import stable_baselines3 as sb3
 
-    output_dir = Path(args.output_dir or f"runs/{args.algo}-seed{args.seed}")
-    hp = load_hyperparams(args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml")
-    env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
+    output_dir = output_dir_for(args)
+    check_writable_dir(output_dir, "--output-dir")
+    check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
+    for folder in (output_dir, output_dir / "checkpoints"):  # what killed saves left
+        clean_leftovers(folder)
+    if args.tensorboard:
+        check_writable_dir(args.tensorboard, "--tensorboard")
+
+    ckpt: Path | None = None
+    ckpt_meta: dict[str, Any] = {}
+    if args.resume:  # the checkpoint's run: its arguments, statistics and model
+        args, ckpt, ckpt_meta, hp, env_kwargs = _resumed(args, output_dir)
+    else:
+        hp = load_hyperparams(args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml")
+        env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
     norm_kwargs, algo_kwargs = normalize_kwargs_from(hp), algo_kwargs_from(hp)
     dt_s = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs)).dt_s
     check_episode_length(args.eval_episode_length, dt_s, "--eval-episode-length")
 
-    # Output folders: writable before any training time is spent.
-    check_writable_dir(output_dir, "--output-dir")
-    check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
-    if args.tensorboard:
-        check_writable_dir(args.tensorboard, "--tensorboard")
-
-    # Resume: the checkpoint fixes the algorithm, the number of vehicles and the statistics.
-    ckpt: Path | None = None
-    ckpt_meta: dict[str, Any] = {}
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
-    if args.resume:
-        ckpt, ckpt_meta = find_checkpoint(args.resume, output_dir, args.algo)
-        if ckpt_meta["train_env_kwargs"] != env_kwargs:
-            print(
-                f"note: env arguments differ from the checkpoint's {ckpt_meta['train_env_kwargs']}"
-            )
-        num_envs = args.num_envs or ckpt_meta["num_envs"]
-        if args.algo != "ppo" and num_envs != ckpt_meta["num_envs"]:
-            raise ValueError("--resume: SAC/TD3 replay buffers need the checkpoint's num_envs")
-
     total = int(args.total_timesteps or float(hp["n_timesteps"]))
     chunk = num_envs * (algo_kwargs.get("n_steps", 2048) if args.algo == "ppo" else 1)
     if total % chunk:
         total = (total // chunk + 1) * chunk
         print(f"total timesteps rounded up to {total} (a multiple of {chunk})")
-
-    tensorboard_log = None
-    if args.tensorboard:
-        try:
-            import tensorboard  # noqa: F401
-        except ImportError:
-            print("tensorboard logging disabled: the tensorboard package is not installed "
-                  "(pip install tensorboard)", file=sys.stderr)  # fmt: skip
-        else:
-            tensorboard_log = args.tensorboard
     algo_cls = getattr(sb3, args.algo.upper())
-    return Plan(output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs, total,
-                ckpt, ckpt_meta, tensorboard_log)  # fmt: skip
+    return Plan(args, output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs,
+                total, ckpt, ckpt_meta, _tensorboard_log(args.tensorboard))  # fmt: skip
+
+
+def _tensorboard_log(folder: str | None) -> str | None:
+    """``folder`` when TensorBoard logging can run (the package installed), else None."""
+    if not folder:
+        return None
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:
+        print("tensorboard logging disabled: the tensorboard package is not installed "
+              "(pip install tensorboard)", file=sys.stderr)  # fmt: skip
+        return None
+    return folder
 
 
 # ----------------------------------------------------------------------------- env
@@ -305,6 +348,7 @@ class Run:
             "seed": self.args.seed,
             "num_envs": model.n_envs,
             "hyperparams": self.plan.hp,
+            "args": run_arguments(self.args, self.plan.total, self.plan.num_envs, self.name),
             "best": self.best,
             **extra,
         }
@@ -347,8 +391,7 @@ class Run:
             self.best = result
             save_policy(model, self.output_dir / "best_model",
                         self.meta(model, eval=self._eval_block(m)))  # fmt: skip
-        with (self.output_dir / "evaluations.jsonl").open("a") as fh:
-            fh.write(json.dumps(result) + "\n")
+        append_line(self.output_dir / "evaluations.jsonl", json.dumps(result))
         print(
             f"[{result['num_timesteps']:>10d}] eval Wk acc {result[BEST_METRIC]:.4f} m/s^2"
             f"  VRE body m1 {result['vre_body_mode1_pct']:6.2f} %  stroke "

@@ -87,12 +87,17 @@ def _field_default(f: dataclasses.Field[Any]) -> Any:
 
 
 def _add_field(
-    parser: argparse.ArgumentParser, f: dataclasses.Field[Any], kind: Any, help_text: str
+    parser: argparse.ArgumentParser,
+    f: dataclasses.Field[Any],
+    kind: Any,
+    help_text: str,
+    suppress: bool = False,
 ) -> None:
     """``--name`` for the dataclass field ``f`` of type ``kind``: ``bool`` a ``--name`` /
     ``--no-name`` pair, ``Literal[...]`` its choices, ``list[str]`` a repeatable option,
     ``dict`` a JSON text (for the caller to read after argparse), int/float/str (maybe
-    optional) a value; the default is added to the help unless it says one."""
+    optional) a value; the default is added to the help unless it says one. ``suppress``: no
+    default (the namespace then holds only the options given)."""
     origin, default = typing.get_origin(kind), _field_default(f)
     if "default" not in help_text and kind is not bool and origin is not list:
         help_text = f"{help_text} (default: {default})"
@@ -108,20 +113,30 @@ def _add_field(
     else:
         types = set(typing.get_args(kind)) or {kind}
         options["type"] = integer if int in types else float if float in types else str
+    if suppress:
+        options["default"] = argparse.SUPPRESS
     parser.add_argument("--" + f.name.replace("_", "-"), **options)
 
 
-def add_dataclass_options(parser: argparse.ArgumentParser, cls: type) -> None:
+def _cli_fields(cls: type) -> list[dataclasses.Field[Any]]:
+    """The fields of ``cls`` that are options (not marked ``metadata={"cli": False}``)."""
+    return [f for f in dataclasses.fields(cls) if f.metadata.get("cli", True)]
+
+
+def add_dataclass_options(
+    parser: argparse.ArgumentParser, cls: type, suppress: bool = False
+) -> None:
     """One option ``--field-name`` per field of the dataclass ``cls`` (see :func:`_add_field`
-    for the types understood), its help the string literal under the field."""
+    for the types understood; a field with ``metadata={"cli": False}`` is none), its help the
+    string literal under the field; ``suppress``: without defaults, to see what was given."""
     docs, hints = field_docs(cls), typing.get_type_hints(cls)
-    for f in dataclasses.fields(cls):
-        _add_field(parser, f, hints[f.name], docs.get(f.name, ""))
+    for f in _cli_fields(cls):
+        _add_field(parser, f, hints[f.name], docs.get(f.name, ""), suppress)
 
 
 def dataclass_values(namespace: argparse.Namespace, cls: type) -> dict[str, Any]:
     """The parsed options of :func:`add_dataclass_options`, by field name of ``cls``."""
-    return {f.name: getattr(namespace, f.name) for f in dataclasses.fields(cls)}
+    return {f.name: getattr(namespace, f.name) for f in _cli_fields(cls)}
 
 
 # ----------------------------------------------------------------------------- env arguments

@@ -8,6 +8,7 @@
 - :func:`file_digest` / :func:`digest_mismatch`: sizes and SHA-256 of the files of a group,
   recorded in the group's metadata (the file renamed last, the "commit" marker) and checked by
   the loaders, which so detect a group mixed from two saves or truncated afterwards.
+- :func:`append_line`: one line added to a log, or none (a failed write is cut off again).
 - :func:`check_writable_dir` / :func:`check_writable_file`: an output path is checked before a
   long run starts, not after it.
 
@@ -27,6 +28,7 @@ from types import TracebackType
 __all__ = [
     "StagedFiles",
     "atomic_write_text",
+    "append_line",
     "file_digest",
     "digest_mismatch",
     "check_writable_dir",
@@ -157,6 +159,25 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     never a part of it; a failed write leaves the old file as it was."""
     with StagedFiles() as staged:
         staged.write_text(path, text)
+
+
+def append_line(path: str | Path, line: str) -> None:
+    """Add ``line`` (and a newline) to the end of the file ``path`` (created if needed), flushed
+    to disk: the whole line, or, when the write fails (a full disk), nothing: the part written
+    is cut off again before the error is raised, so the file keeps only whole lines."""
+    data = (line.rstrip("\n") + "\n").encode("utf-8")
+    with open(path, "ab") as fh:
+        start = fh.seek(0, os.SEEK_END)
+        try:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        except BaseException:
+            try:
+                fh.truncate(start)
+            except OSError:
+                pass
+            raise
 
 
 def file_digest(path: str | Path) -> dict[str, int | str]:

@@ -14,9 +14,11 @@ used to choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<se
 ``best_model.*`` (the best evaluation by the Wk-weighted RMS car-body acceleration;
 ``evaluate.py --policy`` loads it), ``final_model.*``, ``checkpoints/`` (every
 ``--checkpoint-freq`` steps and ``--checkpoint-minutes``, on Ctrl-C or SIGTERM and at the end;
-``--resume``) and ``evaluations.jsonl``. Saves are atomic; bad arguments stop the script before
-training with one line on stderr. Details: agents/training.py, agents/checkpoints.py,
-agents/hyperparams.py.
+``--resume``) and ``evaluations.jsonl``. Each save is one atomic step (capsule_env/policy_files.py);
+``--resume`` restores the run's own arguments from the checkpoint and refuses one given again
+with another value (agents/run_args.py); Ctrl-C prints the command that continues the run. Bad
+arguments stop the script before training, and a full disk during it, with one line on stderr.
+Details: agents/training.py, agents/checkpoints.py, agents/run_args.py, agents/hyperparams.py.
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ import torch
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
 
-from capsule_env.agents.checkpoints import resume_model, save_policy
+from capsule_env.agents.checkpoints import logged_timesteps, resume_model, save_policy, saved_at
+from capsule_env.agents.run_args import continue_command
 from capsule_env.agents.training import Run, TrainingMonitor, make_env, prepare, run_seed_for
 from capsule_env.agents.training import parse_args as parse_dataclass_args
 
@@ -40,10 +43,10 @@ class Args:
     algo: Literal["ppo", "sac", "td3"] = "ppo"
     """the algorithm"""
     total_timesteps: int | None = None
-    """env steps, all vehicles together (default: the file's n_timesteps), rounded up to whole
-    PPO rollouts (n_steps * num_envs) or vector steps"""
+    """env steps, all vehicles together (default: the file's n_timesteps, or the resumed run's),
+    rounded up to whole PPO rollouts (n_steps * num_envs) or vector steps"""
     num_envs: int | None = None
-    """vehicles simulated in parallel (default: the file's n_envs, or the checkpoint's)"""
+    """vehicles simulated in parallel (default: the file's n_envs, or the resumed run's)"""
     seed: int = 0
     """random seed of torch, numpy and the vehicles (runs with different seeds share no stream)"""
     env_kwargs: dict = field(default_factory=dict)
@@ -71,7 +74,9 @@ class Args:
     keep_replay_buffers: int = 2
     """SAC/TD3: keep the replay buffers of only the newest this many checkpoints"""
     resume: str | None = None
-    """continue from a checkpoint .zip, or 'auto' for the newest intact one in output_dir"""
+    """continue a run: 'auto' (the newest intact checkpoint in output_dir), a run folder, or a
+    checkpoint .zip; the run's own arguments (env, budget, algorithm, hyperparameters, seed,
+    evaluation) come from the checkpoint, and one given again with another value is refused"""
     tensorboard: str | None = None
     """tensorboard log folder (needs the tensorboard package)"""
     threads: int = 1
@@ -84,15 +89,21 @@ class Args:
     """torch device"""
     verbose: int = 0
     """SB3 verbosity (1: SB3's log tables)"""
+    explicit: frozenset[str] | None = field(default=None, metadata={"cli": False})
+    """the fields the command line gave (set by parse_args; None: every field that is not None
+    counts as given): what --resume checks against the run's own arguments"""
 
 
 def train(args: Args, extra_callbacks: list | None = None) -> dict:
     """Train as ``args`` says; returns a summary (paths, timesteps, best evaluation, model).
-    Bad arguments or files raise ``SystemExit`` with one line before training starts."""
+    Bad arguments or files raise ``SystemExit`` with one line before training starts; a
+    failed write (a full disk) raises ``SystemExit`` with one line too, the files as the last
+    complete save left them."""
     try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
         plan = prepare(args)
     except (ValueError, OSError, TypeError) as exc:
         raise SystemExit(f"train.py: error: {exc}") from None
+    args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
     torch.set_num_threads(args.threads)
 
     # Seeds, in one place: torch, numpy, random and the vehicles' streams. A resumed run gets
@@ -100,46 +111,78 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
     run_seed = run_seed_for(args.seed, plan.start_timesteps)
     set_random_seed(run_seed)
     env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs, plan.statistics)
+    try:
+        model = _model(args, plan, env, run_seed)
+        run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
+        interrupted = _learn(run, model, extra_callbacks)
+        if not interrupted:
+            _finish(run, model)
+        if model.num_timesteps != run.last_checkpoint_timesteps:  # always resumable at the end
+            run.checkpoint(model)
+        run.report(model)  # throughput and the best evaluation
+    except OSError as exc:  # a full disk, a folder gone: the saves left the files consistent
+        where = f" ({exc.filename})" if exc.filename else ""
+        raise SystemExit(
+            f"train.py: error: {exc.strerror or exc}{where}; the run's files are "
+            "as its last complete save left them; once fixed, continue with: "
+            f"{continue_command(args, plan.output_dir)}"
+        ) from None
+    finally:
+        env.close()
+    return {"output_dir": str(plan.output_dir), "num_timesteps": int(model.num_timesteps),
+            "interrupted": interrupted, "best": run.best, "wall_time_s": run.wall_time(),
+            "model": model}  # fmt: skip
 
+
+def _model(args: Args, plan: Any, env: Any, run_seed: int) -> Any:
+    """A new model on ``env``, or the checkpoint's when resuming."""
     if plan.ckpt is None:
-        model = plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
-                              tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
-    else:  # Algo.load(env=env): learn() first resets the env, which adds that one batch of
-        # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
-        model = resume_model(plan.algo_cls, plan.ckpt, env, device=args.device,
-                             verbose=args.verbose,
-                             tensorboard_log=plan.tensorboard_log)  # fmt: skip
+        return plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
+                             tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
+    # Algo.load(env=env): learn() first resets the env, which adds that one batch of
+    # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
+    return resume_model(plan.algo_cls, plan.ckpt, env, device=args.device, verbose=args.verbose,
+                        tensorboard_log=plan.tensorboard_log)  # fmt: skip
 
-    run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
+
+def _learn(run: Run, model: Any, extra_callbacks: list | None) -> bool:
+    """Train up to the budget; on Ctrl-C (or SIGTERM) save a checkpoint and print the command
+    that continues the run. Returns whether it was interrupted."""
+    args, plan = run.args, run.plan
     callbacks = CallbackList([TrainingMonitor(run), *(extra_callbacks or [])])
     print(f"{args.algo.upper()} on CapsuleSuspension-v0 {plan.env_kwargs}: {plan.num_envs} "
           f"vehicles, {plan.total} timesteps, torch threads {args.threads}; output "
           f"{plan.output_dir}", flush=True)  # fmt: skip
-    interrupted = False
     try:
         if plan.total > model.num_timesteps:
             model.learn(plan.total - model.num_timesteps, callback=callbacks,
                         reset_num_timesteps=plan.ckpt is None, progress_bar=args.progress,
                         tb_log_name=run.name)  # fmt: skip
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (see main): a checkpoint to resume from
-        interrupted = True
         if args.algo == "ppo":  # a rollout cut short was not learned from: count it out
             model.num_timesteps = run.rollout_end_timesteps
         path = run.checkpoint(model)
         print(f"\ninterrupted at {model.num_timesteps} timesteps: checkpoint {path}\n"
-              f"continue with: python train.py ... --output-dir {plan.output_dir} "
-              "--resume auto")  # fmt: skip
-    if not interrupted:
-        run.evaluate(model)  # the final policy is a candidate for the best one too
+              f"continue with: {continue_command(args, plan.output_dir)}")  # fmt: skip
+        return True
+    return False
+
+
+def _finish(run: Run, model: Any) -> None:
+    """The final evaluation (the final policy is a candidate for the best one too) and
+    ``final_model``. A resumed run that learned nothing here (it had finished, or was cut off
+    during these last steps) does only what is missing: an evaluation already in
+    ``evaluations.jsonl`` is not repeated, a ``final_model`` already saved is kept."""
+    steps, output_dir = int(model.num_timesteps), run.output_dir
+    nothing_learned = run.plan.ckpt is not None and steps == run.start_timesteps
+    if nothing_learned and steps in logged_timesteps(output_dir / "evaluations.jsonl"):
+        print(f"the run had finished at {steps} timesteps: its final evaluation is in "
+              f"{output_dir / 'evaluations.jsonl'}")  # fmt: skip
+    else:
+        run.evaluate(model)
+    if not (nothing_learned and saved_at(output_dir / "final_model", steps)):
         final_meta = run.meta(model, name=f"{run.name}-final")  # its own row in evaluate.py
-        save_policy(model, plan.output_dir / "final_model", final_meta)
-    if model.num_timesteps != run.last_checkpoint_timesteps:  # always resumable at the end
-        run.checkpoint(model)
-    run.report(model)  # throughput and the best evaluation
-    env.close()
-    return {"output_dir": str(plan.output_dir), "num_timesteps": int(model.num_timesteps),
-            "interrupted": interrupted, "best": run.best, "wall_time_s": run.wall_time(),
-            "model": model}  # fmt: skip
+        save_policy(model, output_dir / "final_model", final_meta)
 
 
 def parse_args(argv: list[str] | None = None) -> Args:

@@ -28,7 +28,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from capsule_env.agents.checkpoints import checkpoint_problem, latest_checkpoint, save_policy
+from capsule_env.agents.checkpoints import (
+    checkpoint_problem,
+    latest_checkpoint,
+    save_policy,
+    saved_at,
+)
 from capsule_env.agents.sb3_policy import SB3Policy
 from scipy import io as sio
 
@@ -589,6 +594,77 @@ def test_off_policy_checkpoints_keep_only_the_newest_replay_buffers(train, tmp_p
                                             str(ckpt_dir / "ckpt_000000000100.zip")]))  # fmt: skip
     assert resumed["num_timesteps"] == 400
     assert "no replay buffer" in capsys.readouterr().err
+
+
+# A full disk in a train.py process: PPO.save (case "save": from its third call, after the
+# best model and the checkpoint at 1024 steps) or the evaluations.jsonl append (case "log":
+# from its second line) stores half its data, then raises ENOSPC.
+FULL_DISK_DRIVER = r"""
+import builtins, errno, sys
+from pathlib import Path
+case, argv = sys.argv[1], sys.argv[2:]
+
+def enospc():
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+if case == "save":
+    import stable_baselines3 as sb3
+    real_save, calls = sb3.PPO.save, []
+    def save(self, path, *args, **kwargs):
+        calls.append(path)
+        if len(calls) > 2:
+            Path(path).write_bytes(b"PK\x03\x04 half a file")
+            enospc()
+        return real_save(self, path, *args, **kwargs)
+    sb3.PPO.save = save
+else:
+    real_open, opened = builtins.open, []
+    class Half:
+        def __init__(self, fh): self.fh = fh
+        def write(self, data):
+            self.fh.write(data[: len(data) // 2]); self.fh.flush(); enospc()
+        def __getattr__(self, name): return getattr(self.fh, name)
+        def __enter__(self): return self
+        def __exit__(self, *exc): self.fh.close()
+    def fake_open(file, mode="r", *args, **kwargs):
+        fh = real_open(file, mode, *args, **kwargs)
+        if str(file).endswith("evaluations.jsonl") and "a" in mode:
+            opened.append(file)
+            if len(opened) > 1:
+                return Half(fh)
+        return fh
+    builtins.open = fake_open
+from capsule_env.train import main
+sys.exit(main(argv))
+"""
+
+
+@pytest.mark.rl
+@pytest.mark.parametrize("case", ["save", "log"])
+def test_train_on_a_full_disk_is_one_line_and_the_files_stay_intact(train, ppo_yml, tmp_path, case):
+    out = tmp_path / "run"
+    argv = ppo_argv(ppo_yml, out, "--total-timesteps", "2048", "--eval-freq", "1024",
+                    "--checkpoint-freq", "1024")  # fmt: skip
+    result = subprocess.run([sys.executable, "-c", FULL_DISK_DRIVER, case, *argv],
+                            capture_output=True, text=True, cwd=ROOT, timeout=300)  # fmt: skip
+    assert_one_line_error(result.returncode, result.stderr, "train.py: error",
+                          "No space left on device", "--resume auto")  # fmt: skip
+    # what was saved before the disk filled is complete and loads; nothing half-written stays
+    assert SB3Policy.load(out / "best_model.zip").meta["num_timesteps"] >= 1024
+    assert checkpoint_problem(out / "checkpoints" / "ckpt_000000001024.zip") is None
+    for folder in (out, out / "checkpoints"):
+        assert [p.name for p in folder.iterdir() if p.name.startswith(".")] == []
+    logged = [json.loads(x)["num_timesteps"] for x in (out / "evaluations.jsonl").open()]
+    # whole lines only: the one cut by the full disk is gone (case "save": the 2048-step line
+    # is there when that evaluation was not a new best, whose save would have failed first)
+    assert logged == [1024] if case == "log" else logged in ([1024], [1024, 2048])
+    # once space is freed, the printed command continues the run
+    command = result.stderr.split("continue with: ")[1].split()
+    assert command[3:] == ["--output-dir", str(out), "--resume", "auto", "--no-progress"]
+    resumed = train.train(train.parse_args(command[3:]))
+    assert resumed["num_timesteps"] == 2048
+    logged = [json.loads(x)["num_timesteps"] for x in (out / "evaluations.jsonl").open()]
+    assert logged[-1] == 2048 and saved_at(out / "final_model", 2048)
 
 
 # ---------------------------------------------------------------- python -m identify (16)

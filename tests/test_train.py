@@ -336,3 +336,150 @@ def test_cli_bad_env_value_names_the_key(tmp_path):
     assert result.returncode != 0 and "no_such_option" in result.stderr
     result = _run_cli("--env", "setting", "--output-dir", str(tmp_path))
     assert result.returncode != 0 and "KEY=VALUE" in result.stderr
+
+
+# ------------------------------------------------------------- --resume restores the run
+@pytest.fixture(scope="module")
+def measured_run(tiny_ppo_yml, tmp_path_factory):
+    """A 2048-step run with ``--env observation=measured`` (the file says full_state) and a
+    2-episode evaluation every 1024 steps, Ctrl-C'd in its second rollout: a checkpoint at
+    1024 steps. Returns the folder and what the Ctrl-C printed."""
+    out = tmp_path_factory.mktemp("measured") / "run"
+    argv = fast_args(tiny_ppo_yml, out, "--total-timesteps", "2048", "--eval-freq", "1024",
+                     "--env", "observation=measured", "--seed", "3")  # fmt: skip
+    import contextlib
+    import io
+
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        first = train.train(train.parse_args(argv), extra_callbacks=[_StopAt(1536)])
+    assert first["interrupted"] and first["num_timesteps"] == 1024
+    return out, printed.getvalue()
+
+
+def _copy_run(run: Path, tmp_path: Path) -> Path:
+    import shutil
+
+    shutil.copytree(run, tmp_path / "run")
+    return tmp_path / "run"
+
+
+def test_bare_resume_auto_continues_the_run_with_its_own_arguments(measured_run, tmp_path):
+    import shlex
+
+    from capsule_env.config import EnvConfig
+
+    run, printed = measured_run
+    out = _copy_run(run, tmp_path)
+    # the printed command, as a user would paste it (in the folder it names)
+    line = [x for x in printed.splitlines() if x.startswith("continue with: ")][0]
+    words = shlex.split(line[len("continue with: ") :])
+    assert words[:3] == ["python", "-m", "capsule_env.train"]
+    assert words[3:] == ["--output-dir", str(run), "--resume", "auto", "--no-progress"]
+    words[words.index(str(run))] = str(out)
+    summary = train.train(train.parse_args(words[3:]))
+    # its budget (2048, not the file's 4M), its observation (measured: 9 values, not the
+    # file's full_state: 10), its vehicles (4, not the file's 32), its seed
+    measured = len(EnvConfig.from_kwargs(setting="hils", observation="measured").observation_names)
+    assert measured == 9
+    assert summary["num_timesteps"] == 2048 and not summary["interrupted"]
+    model = summary["model"]
+    assert model.observation_space.shape == (measured,) and model.n_envs == 4
+    final = json.loads((out / "final_model.json").read_text())
+    assert final["env_kwargs"]["observation"] == "measured" and final["seed"] == 3
+    assert final["hyperparams"]["n_steps"] == 256  # the run's file, not hyperparams/ppo.yml
+    assert final["args"]["total_timesteps"] == 2048 and final["args"]["eval_episodes"] == 2
+    lines = (out / "evaluations.jsonl").read_text().splitlines()
+    assert [json.loads(x)["num_timesteps"] for x in lines] == [1024, 2048]
+
+
+def test_resume_of_a_run_folder_restores_the_same_arguments(measured_run, tmp_path):
+    from capsule_env.agents.training import prepare
+
+    out = _copy_run(measured_run[0], tmp_path)
+    for argv in (["--resume", str(out)], ["--resume", str(out / "checkpoints" / "ckpt_000000001024.zip")]):  # fmt: skip
+        plan = prepare(train.parse_args(argv))
+        assert plan.output_dir == out and plan.env_kwargs["observation"] == "measured"
+        assert plan.total == 2048 and plan.num_envs == 4 and plan.args.seed == 3
+        assert plan.args.eval_episode_length == 1.0 and plan.hp["n_steps"] == 256
+    # given again with the run's values (or an env default it already had): accepted
+    same = ["--resume", "auto", "--output-dir", str(out), "--env", "observation=measured",
+            "--seed", "3", "--env", "setting=hils", "--env", "reward_energy_weight=0.01"]  # fmt: skip
+    assert prepare(train.parse_args(same)).env_kwargs["observation"] == "measured"
+    # a longer budget is an explicit choice: it holds, and is said
+    longer = prepare(train.parse_args(["--resume", str(out), "--total-timesteps", "3072"]))
+    assert longer.total == 3072
+
+
+@pytest.mark.parametrize(
+    ("given", "expected"),
+    [
+        (["--env", "observation=full_state"], ["--env observation='full_state'", "'measured'"]),
+        (["--env", "speed_kmh=500"], ["--env speed_kmh=500", "not set: the env's default"]),
+        (["--seed", "0"], ["--seed 0", "run's 3"]),
+        (["--algo", "sac"], ["--algo 'sac'", "'ppo'"]),
+        (["--num-envs", "8"], ["--num-envs 8", "run's 4"]),
+        (["--eval-episodes", "5"], ["--eval-episodes 5", "run's 2"]),
+        (["--hyperparams", "OTHER"], ["--hyperparams", "n_steps: 512 there, 256 in the run"]),
+    ],
+)
+def test_resume_refuses_an_argument_that_differs_from_the_run(
+    measured_run, tmp_path, monkeypatch, given, expected
+):
+    out = _copy_run(measured_run[0], tmp_path)
+    if "OTHER" in given:
+        given = ["--hyperparams", str(edited_yml("ppo", tmp_path, n_steps=512, batch_size=256,
+                                                  n_epochs=2))]  # fmt: skip
+    monkeypatch.setattr(train, "make_env", lambda *a, **k: pytest.fail("training started"))
+    argv = ["--resume", "auto", "--output-dir", str(out), "--no-progress", *given]
+    with pytest.raises(SystemExit) as info:
+        train.train(train.parse_args(argv))
+    message = str(info.value.code)
+    assert "\n" not in message and message.startswith("train.py: error: --resume: ")
+    for text in (*expected, "ckpt_000000001024"):
+        assert text in message, (text, message)
+
+
+def test_resume_of_a_checkpoint_without_stored_arguments(measured_run, tmp_path):
+    # a checkpoint of an earlier version: no "args" block; its env arguments, hyperparameters,
+    # seed and vehicles are restored all the same
+    from capsule_env.agents.training import prepare
+
+    out = _copy_run(measured_run[0], tmp_path)
+    meta_path = out / "checkpoints" / "ckpt_000000001024.json"
+    meta = json.loads(meta_path.read_text())
+    del meta["args"]
+    meta_path.write_text(json.dumps(meta))
+    plan = prepare(train.parse_args(["--resume", "auto", "--output-dir", str(out),
+                                     "--total-timesteps", "2048"]))  # fmt: skip
+    assert plan.env_kwargs["observation"] == "measured" and plan.num_envs == 4
+    assert plan.args.seed == 3 and plan.hp["n_steps"] == 256
+
+
+# ------------------------------------------------------- --resume of a finished run
+def _folder_bytes(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}  # fmt: skip
+
+
+def test_resume_of_a_finished_run_changes_nothing(ppo_run, tmp_path, capsys):
+    out = _copy_run(ppo_run[0], tmp_path)
+    before = _folder_bytes(out)
+    assert len((out / "evaluations.jsonl").read_text().splitlines()) == 2
+    summary = train.train(train.parse_args(["--resume", "auto", "--output-dir", str(out),
+                                            "--no-progress"]))  # fmt: skip
+    assert summary["num_timesteps"] == 2048 and not summary["interrupted"]
+    assert "had finished at 2048 timesteps" in capsys.readouterr().out
+    assert _folder_bytes(out) == before  # no evaluation appended, no file rewritten
+
+
+def test_resume_after_a_kill_before_the_final_save_saves_it_once(ppo_run, tmp_path):
+    # killed after the final evaluation was logged, before final_model was saved
+    out = _copy_run(ppo_run[0], tmp_path)
+    for path in out.glob("final_model.*"):
+        path.unlink()
+    lines = (out / "evaluations.jsonl").read_text()
+    train.train(train.parse_args(["--resume", "auto", "--output-dir", str(out), "--no-progress"]))
+    assert (out / "evaluations.jsonl").read_text() == lines
+    final = SB3Policy.load(out / "final_model.zip")
+    assert final.meta["num_timesteps"] == 2048 and final.name == "tiny-ppo-final"

@@ -161,7 +161,8 @@ def _env_config(env_kwargs: dict[str, Any]) -> Any:
 
 # ----------------------------------------------------------------------------- train
 #: train.Args fields a study does not set: the sweep chooses them per trial.
-_TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env_kwargs")
+_TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env_kwargs",
+                 "explicit")  # fmt: skip
 
 
 def train_module() -> ModuleType:

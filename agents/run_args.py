@@ -1,0 +1,178 @@
+"""A training run's own arguments: saved with every policy ``train.py`` writes, restored by
+``--resume``, and the command that continues a run.
+
+Every save's ``.json`` holds ``args`` (:func:`run_arguments`): the arguments that make the run
+what it is. ``--resume auto`` (or ``--resume DIR``, or a checkpoint's ``.zip``) restores them
+from the checkpoint (:func:`restore_arguments`), so that the bare ``train.py --resume auto``
+continues a run made with, say, ``--env observation=measured --total-timesteps 2e6`` with that
+observation and that budget. Three kinds of arguments:
+
+- :data:`FIXED` (and the env arguments and the hyperparameters): they define the run. Restored;
+  one given again with another value is refused in one line naming the argument, both values
+  and the checkpoint.
+- :data:`ADJUSTABLE`: restored unless given again; a value given holds from then on (a longer
+  ``--total-timesteps`` trains on; the learning-rate schedule follows the new budget).
+- the others (``output_dir``, ``resume``, ``tensorboard``, ``threads``, ``progress``,
+  ``device``, ``verbose``): chosen by each process, not stored.
+
+"Given" is what the command line named (``Args.explicit``, set by the parser); for arguments
+built in code (``explicit`` None) every field that is not None counts as given. Checkpoints of
+earlier versions (no ``args``) restore what they hold: algorithm, seed, vehicles, name, the env
+arguments and the hyperparameters.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+#: Define the run: restored by ``--resume``; given again with another value, refused.
+FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length")
+#: Restored by ``--resume`` unless given again (then the given value holds).
+ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_minutes",
+              "keep_replay_buffers")  # fmt: skip
+#: Chosen by each process: written into the command that continues a run when given.
+PROCESS = ("tensorboard", "threads", "device", "verbose", "progress")
+
+
+def given_arguments(args: Any) -> set[str]:
+    """The fields of ``args`` the user gave: ``args.explicit`` (the command line's options),
+    or, for arguments built in code, every field that is not None."""
+    explicit = getattr(args, "explicit", None)
+    names = {f.name for f in dataclasses.fields(args) if f.name != "explicit"}
+    chosen = names if explicit is None else set(explicit) & names
+    return {n for n in chosen if getattr(args, n) is not None}
+
+
+def run_arguments(args: Any, total_timesteps: int, num_envs: int, name: str) -> dict:
+    """The ``args`` block saved with every policy of the run: the effective values of
+    :data:`FIXED` and :data:`ADJUSTABLE` (budget rounded to whole rollouts, vehicles, name),
+    the env arguments the user gave and the hyperparameter file."""
+    stored = {key: getattr(args, key) for key in (*FIXED, *ADJUSTABLE)}
+    stored.update(total_timesteps=int(total_timesteps), num_envs=int(num_envs), name=name,
+                  env_kwargs=dict(args.env_kwargs), hyperparams=args.hyperparams)  # fmt: skip
+    return stored
+
+
+def _option(key: str) -> str:
+    return "--" + key.replace("_", "-")
+
+
+def restore_arguments(args: Any, meta: dict, ckpt: Path) -> Any:
+    """``args`` with the run's own arguments from the checkpoint metadata ``meta`` (see the
+    module docstring). Raises ``ValueError`` (one line) for a :data:`FIXED` argument given
+    with another value than the run's; prints a note for an :data:`ADJUSTABLE` one."""
+    stored = meta.get("args")
+    if not isinstance(stored, dict):  # a checkpoint from before the args block
+        stored = {k: meta[k] for k in ("algo", "seed", "num_envs", "name") if k in meta}
+    given = given_arguments(args)
+    changes = {}
+    for key in FIXED:
+        if stored.get(key) is None:
+            continue
+        if key in given and getattr(args, key) != stored[key]:
+            raise ValueError(
+                f"--resume: {_option(key)} {getattr(args, key)!r} differs from the run's "
+                f"{stored[key]!r} ({ckpt}): leave {_option(key)} out to continue the run, or "
+                "start a new one in another --output-dir"
+            )
+        changes[key] = stored[key]
+    for key in ADJUSTABLE:
+        if stored.get(key) is None:
+            continue
+        if key not in given:
+            changes[key] = stored[key]
+        elif getattr(args, key) != stored[key]:
+            print(f"note: {_option(key)} {getattr(args, key)} replaces the run's {stored[key]}")
+    return dataclasses.replace(args, **changes)
+
+
+def _first_difference(given: Any, stored: Any, key: str = "") -> str:
+    """``key: given value / stored value`` of the first difference of two JSON-like values."""
+    if isinstance(given, dict) and isinstance(stored, dict):
+        for k in sorted(set(given) | set(stored), key=str):
+            if given.get(k, "(absent)") != stored.get(k, "(absent)"):
+                return _first_difference(given.get(k, "(absent)"), stored.get(k, "(absent)"),
+                                         f"{key}.{k}" if key else str(k))  # fmt: skip
+    return f"{key or 'the file'}: {given!r} there, {stored!r} in the run"
+
+
+def restore_hyperparams(
+    given_file: str | None, loaded: dict | None, meta: dict, ckpt: Path
+) -> dict:
+    """The run's hyperparameters (``meta["hyperparams"]``, as the run read them), checked
+    against the file given again (``given_file``, read as ``loaded``): another content is
+    refused (``ValueError`` naming the first differing key and both values)."""
+    stored = meta.get("hyperparams")
+    if not isinstance(stored, dict):  # not recorded: the file decides, as before
+        if loaded is None:
+            raise ValueError(f"--resume: {ckpt} records no hyperparameters: give --hyperparams")
+        return loaded
+    if loaded is not None:
+        as_stored = json.loads(json.dumps(loaded, default=str))
+        if as_stored != stored:
+            raise ValueError(
+                f"--resume: --hyperparams {given_file} differs from the run's hyperparameters "
+                f"({ckpt}): {_first_difference(as_stored, stored)}; leave --hyperparams out to "
+                "continue the run"
+            )
+    return dict(stored)
+
+
+def _same_env_value(stored: dict, key: str, value: Any) -> bool:
+    """Whether ``key=value`` leaves the run's env arguments ``stored`` as they are (equal, or
+    the same :class:`capsule_env.config.EnvConfig`: e.g. a key set to its default)."""
+    if key in stored:
+        return stored[key] == value
+    from capsule_env.config import EnvConfig
+
+    try:
+        return EnvConfig.from_kwargs(**stored) == EnvConfig.from_kwargs(**{**stored, key: value})
+    except (ValueError, TypeError):
+        return False
+
+
+def restore_env_kwargs(args: Any, meta: dict, ckpt: Path) -> dict:
+    """The run's env arguments (``meta["train_env_kwargs"]``); each one given again
+    (``--env``, ``--env-kwargs``) must leave them as they are, else ``ValueError`` naming
+    the key and both values."""
+    stored = dict(meta["train_env_kwargs"])
+    given = given_arguments(args) & {"env", "env_kwargs"}
+    for key, value in args.env_kwargs.items() if given else ():
+        if not _same_env_value(stored, key, value):
+            run_value = f"={stored[key]!r}" if key in stored else " (not set: the env's default)"
+            raise ValueError(
+                f"--resume: --env {key}={value!r} differs from the run's {key}{run_value} "
+                f"({ckpt}): leave it out to continue the run, or start a new one in another "
+                "--output-dir"
+            )
+    return stored
+
+
+def continue_command(args: Any, output_dir: Path) -> str:
+    """The shell command that continues the run in ``output_dir`` (``--resume auto`` restores
+    the rest), with the :data:`PROCESS` options this process was given; quoted for a POSIX
+    shell, runnable from the current folder."""
+    program = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    if program == "train.py":
+        words = ["python", sys.argv[0]]
+    elif program == "capsule-train":
+        words = ["capsule-train"]
+    else:
+        words = ["python", "-m", "capsule_env.train"]
+    words += ["--output-dir", str(output_dir), "--resume", "auto"]
+    given = given_arguments(args)
+    defaults = {f.name: f.default for f in dataclasses.fields(args)}
+    for key in PROCESS:
+        value = getattr(args, key)
+        if key not in given or value == defaults.get(key):
+            continue
+        if isinstance(value, bool):
+            words.append(_option(key) if value else f"--no-{key.replace('_', '-')}")
+        else:
+            words += [_option(key), str(value)]
+    return shlex.join(words)
