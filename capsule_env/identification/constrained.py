@@ -31,7 +31,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import optimize
 
-from capsule_env.dampers import BoucWenDamper
+from capsule_env.dampers import BoucWenDamper, DamperParams
 from capsule_env.identification.bouc_wen import BoucWenSequences, _bw_shape
 from capsule_env.identification.least_squares import lstsq, multistart_least_squares, rmse
 from capsule_env.identification.loops import Loop, check_loops, stack_loops
@@ -142,7 +142,7 @@ def fit_bouc_wen_constrained(
     )  # fmt: skip
 
 
-def rmse_at_current(damper: BoucWenDamper, loops: Sequence[Loop], current_a: float) -> float:
+def rmse_at_current(damper: DamperParams, loops: Sequence[Loop], current_a: float) -> float:
     """RMSE (N) of ``damper`` against the loops at ``current_a`` (all of them together);
     ``ValueError`` when no loop has that current."""
     chosen = [lp for lp in check_loops(loops) if math.isclose(lp.current_a, current_a)]
