@@ -57,3 +57,22 @@ def test_bad_settings_is_one_line(study, capsys, tmp_path):
     assert study.main(["--settings", "lab", "--json", str(tmp_path / "a.json")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--settings" in err[0]
+
+
+def test_page_tables_are_the_json_tables():
+    from capsule_env.sensitivity.runner import format_table
+
+    data = json.loads((ROOT / "docs/figures/paper_sensitivity.json").read_text())
+    results = list(data["results"].values())
+    want = ("**`sim` (Table 5)**\n\n" + format_table(results, "sim") + "\n**`hils` (Table 6)**\n\n"
+            + format_table(results, "hils"))  # fmt: skip
+    page = (ROOT / "docs/paper-reproduction.md").read_text()
+    start, end = "<!-- sensitivity tables: begin -->\n", "<!-- sensitivity tables: end -->"
+    assert page[page.index(start) + len(start) : page.index(end)] == want
+    # the baseline is evaluate.py's paper rows (docs/figures/evaluation.json, same seeds)
+    ev = json.loads((ROOT / "docs/figures/evaluation.json").read_text())
+    rows = ev["settings"]["sim"]["controllers"]
+    base = data["results"]["sim/baseline/today's reproduction"]
+    for side, name in (("csdc", "skyhook-csdc"), ("biexp", "skyhook-biexp")):
+        want_vre = rows[name]["vre_pct"]["body_mode1"]
+        assert base[side]["vre_body_mode1_pct"] == pytest.approx(want_vre, abs=0.01), name
