@@ -133,7 +133,8 @@ class CSDCVariant:
 class InverseSkyhook:
     """On-off Skyhook (paper eq. 15) on ideal sensors, its force through a :class:`CSDCVariant`.
 
-    ``F_d = c_max v`` when ``z_c' v > 0``, else ``c_min v`` (``v`` the stroke rate), clipped to
+    ``F_d = c_max v`` when ``z_c' v > 0``, else ``c_min v`` (``v = z_c' - z_b'``; the inverse
+    reads the measured stroke and stroke rate, as the env's force mode does), clipped to
     ``+-max_force_n`` as the env's force mode clips its action; the inverse turns it into a
     current, sent as the current-mode action ``2 i / i_max - 1``. ``env_kwargs`` run it on the
     Bouc-Wen plant with ``damper_params`` (the ``sim`` pairing: the plant is the inverted
@@ -176,7 +177,8 @@ class InverseSkyhook:
         elif episode_start is not None and np.any(episode_start):
             self.inverse.reset(stroke, np.asarray(episode_start, bool))
         body = obs[:, _COL["car_body_velocity_m_s"]]
-        f_d = np.where(body * rate > 0.0, self.c_max * rate, self.c_min * rate)
+        rel = body - obs[:, _COL["bogie_velocity_m_s"]]  # the Skyhook's v, as agents/ reads it
+        f_d = np.where(body * rel > 0.0, self.c_max * rel, self.c_min * rel)
         f_d = np.clip(f_d, -self.max_force_n, self.max_force_n)
         current = self.inverse(f_d, stroke, rate, obs[:, _COL["coil_current_a"]])
         i_max = self.inverse.damper.max_current_a

@@ -16,12 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.agents.classical import make_controller
-from capsule_env.agents.skyhook import SkyhookController
 from capsule_env.csdc_variants import CSDCVariant, InverseSkyhook
 from capsule_env.dampers import LinearDamper, make_damper
 from capsule_env.evaluation import Rollout, episode_metrics, run_episodes
 from capsule_env.sensitivity.points import Point
+from capsule_env.sensitivity.policies import ForceSkyhook, PassivePolicy
 from capsule_env.sensitivity.variable_step import variable_step_rollout
 
 __all__ = ["PAPER_GAP", "PAPER_VRE", "format_table", "plot_tornado", "run_point"]
@@ -66,7 +65,7 @@ def _pair_rollout(point: Point, side: str, seeds: Sequence[int], length_s: float
         extra = {k: val for k, val in env.items() if k != "damper_params"}
         return run_episodes(policy, {**policy.env_kwargs, **extra}, seeds=seeds,
                             episode_length_s=length_s)  # fmt: skip
-    ctrl = SkyhookController(_INVERSE[side], "on_off", c_max=spec["c_max"], c_min=0.0)
+    ctrl = ForceSkyhook(_INVERSE[side], c_max=spec["c_max"], c_min=0.0)
     return run_episodes(ctrl, {**ctrl.env_kwargs, **env}, seeds=seeds, episode_length_s=length_s)
 
 
@@ -78,7 +77,7 @@ def _passive(point: Point, seeds: Sequence[int], length_s: float, cache: dict) -
             spec = {"env": point.passive_env, "c_max": 0.0, "solver": solver}
             cache[key] = _variable_step(point, "passive", spec, seeds, length_s)
         else:
-            p = make_controller("passive")
+            p = PassivePolicy()
             env = {**p.env_kwargs, **point.passive_env, "setting": point.setting}
             cache[key] = run_episodes(p, env, seeds=seeds, episode_length_s=length_s)
     return cache[key]
