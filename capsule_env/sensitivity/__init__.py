@@ -4,6 +4,8 @@
   and why its range), for the ``sim`` and ``hils`` tables;
 - :mod:`~capsule_env.sensitivity.runner`: running a point (passive and both Skyhook pairs on
   the same evaluation-bank episodes) and its figures;
+- :mod:`~capsule_env.sensitivity.policies`: the passive and on-off Skyhook policies it runs
+  through the env's inverses;
 - :mod:`~capsule_env.sensitivity.variable_step`: the closed loop on SciPy's variable-step
   plant (the solver factor).
 
