@@ -9,6 +9,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from capsule_env.agents.algorithms import ALGORITHMS as ALGORITHM_CLASSES
+from capsule_env.agents.algorithms import algorithm_class
 from capsule_env.agents.base import Controller
 
 import capsule_env
@@ -16,7 +18,7 @@ from capsule_env.policy_files import readable_stem, sibling
 from capsule_env.safe_io import digest_mismatch
 
 PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
-ALGORITHMS = ("ppo", "sac", "td3")
+ALGORITHMS = tuple(ALGORITHM_CLASSES)
 
 
 def shipped_policy_paths() -> list[str]:
@@ -124,10 +126,8 @@ class SB3Policy(Controller):
         algo = meta.get("algo", "ppo")
         if algo not in ALGORITHMS:
             raise ValueError(f"unknown algo {algo!r} in {meta_path}; accepted: {ALGORITHMS}")
-        import stable_baselines3 as sb3
-
         try:
-            model = getattr(sb3, algo.upper()).load(str(zip_path), device="cpu")
+            model = algorithm_class(algo).load(str(zip_path), device="cpu")
         except Exception as exc:  # a corrupt zip raises many types (BadZipFile, KeyError, ...)
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ValueError(

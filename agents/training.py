@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 from capsule_env.agents import PassiveController, classical_controllers
+from capsule_env.agents.algorithms import ON_POLICY, algorithm_class
 from capsule_env.agents.checkpoints import (
     best_so_far,
     find_checkpoint,
@@ -217,8 +218,6 @@ def prepare(args: Any) -> Plan:
     the newest intact one) with the run's own arguments, the hyperparameters, the env
     arguments, the evaluation episode length and the TensorBoard folder. Raises
     ``ValueError``/``OSError``/``TypeError`` with a one-line message."""
-    import stable_baselines3 as sb3
-
     output_dir = output_dir_for(args)
     check_writable_dir(output_dir, "--output-dir")
     check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
@@ -240,11 +239,11 @@ def prepare(args: Any) -> Plan:
 
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
     total = int(args.total_timesteps or float(hp["n_timesteps"]))
-    chunk = num_envs * (algo_kwargs.get("n_steps", 2048) if args.algo == "ppo" else 1)
+    chunk = num_envs * (algo_kwargs.get("n_steps", 2048) if args.algo in ON_POLICY else 1)
     if total % chunk:
         total = (total // chunk + 1) * chunk
         print(f"total timesteps rounded up to {total} (a multiple of {chunk})")
-    algo_cls = getattr(sb3, args.algo.upper())
+    algo_cls = algorithm_class(args.algo)
     return Plan(args, output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs,
                 total, ckpt, ckpt_meta, _tensorboard_log(args.tensorboard))  # fmt: skip
 

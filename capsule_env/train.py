@@ -32,6 +32,7 @@ import torch
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
 
+from capsule_env.agents.algorithms import ON_POLICY
 from capsule_env.agents.checkpoints import logged_timesteps, resume_model, save_policy, saved_at
 from capsule_env.agents.run_args import continue_command
 from capsule_env.agents.training import Run, TrainingMonitor, make_env, prepare, run_seed_for
@@ -40,8 +41,8 @@ from capsule_env.agents.training import parse_args as parse_dataclass_args
 
 @dataclass
 class Args:
-    algo: Literal["ppo", "sac", "td3"] = "ppo"
-    """the algorithm"""
+    algo: Literal["ppo", "sac", "td3", "tqc", "crossq", "recurrentppo"] = "ppo"
+    """the algorithm (capsule_env.agents.algorithms; tqc, crossq, recurrentppo from sb3-contrib)"""
     total_timesteps: int | None = None
     """env steps, all vehicles together (default: the file's n_timesteps, or the resumed run's),
     rounded up to whole PPO rollouts (n_steps * num_envs) or vector steps"""
@@ -159,7 +160,7 @@ def _learn(run: Run, model: Any, extra_callbacks: list | None) -> bool:
                         reset_num_timesteps=plan.ckpt is None, progress_bar=args.progress,
                         tb_log_name=run.name)  # fmt: skip
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (see main): a checkpoint to resume from
-        if args.algo == "ppo":  # a rollout cut short was not learned from: count it out
+        if args.algo in ON_POLICY:  # a rollout cut short was not learned from: count it out
             model.num_timesteps = run.rollout_end_timesteps
         path = run.checkpoint(model)
         print(f"\ninterrupted at {model.num_timesteps} timesteps: checkpoint {path}\n"

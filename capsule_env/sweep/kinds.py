@@ -194,11 +194,10 @@ def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
 
 
 def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
-    import stable_baselines3 as sb3
-
+    from capsule_env.agents.algorithms import algorithm_class
     from capsule_env.agents.hyperparams import NOT_ALGORITHM_ARGUMENTS
 
-    signature = inspect.signature(getattr(sb3, algo.upper()).__init__)
+    signature = inspect.signature(algorithm_class(algo).__init__)
     taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
     return {*base, *NOT_ALGORITHM_ARGUMENTS, *(p for p in signature.parameters if p not in taken)}
 
