@@ -16,7 +16,7 @@ its batch, its position in it or the threads.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+import warnings
 
 import numpy as np
 from numba import njit, types
@@ -24,6 +24,20 @@ from numba.extending import overload
 
 from capsule_env._fastmath import BORROWED, FAST, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
+from capsule_env.env_params import (
+    CSDC_STROKE,
+    CSDC_Z,
+    EST_BODY,
+    EST_BOGIE,
+    OBS_FULL_STATE,
+    OBS_MEASURED,
+    OBS_SENSORS,
+    OBSERVATION_CODES,
+    EnvOutputs,
+    EnvParams,
+    EnvState,
+    noise_pairs,
+)
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
     BODY_DISP,
@@ -33,21 +47,9 @@ from capsule_env.layout import (
     COIL_CURRENT,
     MEAS_BODY_ACC,
     MEAS_BOGIE_ACC,
-    MEAS_COMMAND,
     MEAS_STROKE,
     MEAS_STROKE_RATE,
     N_NOISE_CHANNELS,
-    NOISE_BODY_ACC,
-    NOISE_BODY_DISP,
-    NOISE_BODY_VEL,
-    NOISE_BOGIE_ACC,
-    NOISE_BOGIE_DISP,
-    NOISE_BOGIE_VEL,
-    NOISE_CURRENT,
-    NOISE_GAP,
-    NOISE_GUIDEWAY,
-    NOISE_STROKE,
-    NOISE_STROKE_RATE,
     OUT_BODY_ACC,
     OUT_BOGIE_ACC,
     OUT_FORCE,
@@ -73,51 +75,63 @@ from capsule_env.layout import (
     SIG_STROKE,
     SIG_STROKE_RATE,
     TIME,
-    VF_APPLIED,
-    VF_CSDC_STROKE,
-    VF_CSDC_Z,
-    VF_EST_BODY_1,
-    VF_EST_BODY_2,
-    VF_EST_BOGIE_1,
-    VF_EST_BOGIE_2,
-    VF_POSITION_ERROR,
-    VF_REWARD_FILTER,
+)
+from capsule_env.observations import (
+    COLUMN_MEASUREMENTS,
+    COLUMN_NOISE,
+    COLUMN_SOURCES,
+    MEASUREMENT_NOISE,
+    MEASUREMENT_SOURCES,
+    QUANTITY_NAMES,
 )
 from capsule_env.plant.block import BLOCK, guideway_elevation, row_params
-from capsule_env.plant.params import Route
 
 __all__ = [
+    "env_commands",
+    "env_sense",
+    "env_preview",
+    "SENSE_SCRATCH_SHAPE",
+    "COMMAND_CURRENT",
+    "command_path",
+    # the named structures, from capsule_env.env_params (their home since issue 26)
     "EnvParams",
     "EnvState",
     "EnvOutputs",
+    "OBSERVATION_CODES",
     "OBS_SENSORS",
     "OBS_FULL_STATE",
     "OBS_MEASURED",
-    "OBSERVATION_CODES",
     "noise_pairs",
-    "NOISE_SCRATCH_SHAPE",
-    "COMMAND_CURRENT",
-    "command_path",
 ]
 
-#: Observation sets (``EnvParams.observation``), by the names of ``EnvConfig.observation``.
-OBS_SENSORS, OBS_FULL_STATE, OBS_MEASURED = 0, 1, 2
-OBSERVATION_CODES = {"sensors": OBS_SENSORS, "full_state": OBS_FULL_STATE, "measured": OBS_MEASURED}
-#: Noise channels each observation set reads (the rest are not drawn).
-_CHANNELS_READ = {
-    OBS_SENSORS: (NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE),
-    OBS_FULL_STATE: tuple(range(NOISE_GAP)),
-    OBS_MEASURED: (
-        NOISE_BODY_ACC,
-        NOISE_BOGIE_ACC,
-        NOISE_STROKE,
-        NOISE_STROKE_RATE,
-        NOISE_GAP,
-        NOISE_CURRENT,
-    ),  # fmt: skip
-}
-#: Shape of :func:`env_sense`'s scratch: a row per noise channel, a column per vehicle of a block.
-NOISE_SCRATCH_SHAPE = (N_NOISE_CHANNELS + 1, BLOCK)
+#: Rows of the per-vehicle quantities in :func:`env_sense`'s scratch
+#: (``observations.QUANTITY_NAMES``).
+(Q_BODY_DISP, Q_BODY_VEL, Q_BOGIE_DISP, Q_BOGIE_VEL, Q_GUIDEWAY, Q_BODY_ACC, Q_BOGIE_ACC,
+ Q_STROKE, Q_STROKE_RATE, Q_COIL_CURRENT, Q_GAP, Q_COMMAND, Q_BODY_VEL_EST,
+ Q_BOGIE_VEL_EST) = (
+    QUANTITY_NAMES.index(n)
+    for n in ("car_body_displacement_m", "car_body_velocity_m_s", "bogie_displacement_m",
+              "bogie_velocity_m_s", "guideway_elevation_m", "car_body_acceleration_m_s2",
+              "bogie_acceleration_m_s2", "stroke_m", "stroke_rate_m_s", "coil_current_a",
+              "levitation_gap_m", "last_current_command_a", "car_body_velocity_estimate_m_s",
+              "bogie_velocity_estimate_m_s")
+)  # fmt: skip
+N_QUANTITIES = len(QUANTITY_NAMES)
+#: Rows of the scratch before the quantities: one per noise channel, and one for the second
+#: member of the last Box-Muller pair when the channels are odd in number.
+_NOISE_ROWS = N_NOISE_CHANNELS + 1
+#: Shape of :func:`env_sense`'s scratch: a row per noise channel, then a row per quantity
+#: (``observations.QUANTITY_NAMES``), a column per vehicle of a block.
+SENSE_SCRATCH_SHAPE = (_NOISE_ROWS + N_QUANTITIES, BLOCK)
+#: The column maps, compile-time constants of the kernel (``observations.COLUMN_SOURCES``,
+#: ``COLUMN_NOISE``): the quantity each column of a set reads and its noise channel (-1: none).
+_SENSORS_SOURCE, _SENSORS_NOISE = COLUMN_SOURCES["sensors"], COLUMN_NOISE["sensors"]
+_FULL_SOURCE, _FULL_NOISE = COLUMN_SOURCES["full_state"], COLUMN_NOISE["full_state"]
+_MEASURED_SOURCE, _MEASURED_NOISE = COLUMN_SOURCES["measured"], COLUMN_NOISE["measured"]
+_SENSORS_MEAS = COLUMN_MEASUREMENTS["sensors"]
+_FULL_MEAS = COLUMN_MEASUREMENTS["full_state"]
+_MEASURED_MEAS = COLUMN_MEASUREMENTS["measured"]
+_MEAS_SOURCE, _MEAS_NOISE = MEASUREMENT_SOURCES, MEASUREMENT_NOISE
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
 
@@ -134,69 +148,21 @@ def command_path(current_mode: bool, inverse_code: int) -> int:
     return COMMAND_CURRENT if current_mode else int(inverse_code)
 
 
-def noise_pairs(observation: int) -> np.ndarray:
-    """The Box-Muller pairs an observation set needs drawn (pair ``c // 2`` for channel ``c``)."""
-    return np.array(sorted({c // 2 for c in _CHANNELS_READ[observation]}), dtype=np.int64)
-
-
 #: Rows of ``EnvParams.obs_bounds``.
 LOW, HIGH = 0, 1
-#: Rows of ``EnvState.delay_slots``: where this step's command is written in the delay ring,
-#: and where the command applied now is read.
-DELAY_WRITE, DELAY_READ = 0, 1
 
 
-class EnvParams(NamedTuple):
-    """What stays fixed for a batch: the env's options, as the kernel reads them."""
-
-    max_force_n: float  # force-mode scale of the action
-    i_max_a: float  # the plant damper's maximum current
-    dt_s: float  # control interval
-    reward_acceleration_weight: float
-    acceleration_scale_m_s2: float
-    reward_stroke_weight: float
-    stroke_scale_m: float
-    reward_energy_weight: float
-    reward_velocity_weight: float
-    velocity_scale_m_s: float
-    stroke_limit_m: float
-    bump_stop_penalty: float
-    current_mode: bool  # action_mode == "current"
-    inverse_code: int  # damper code of the model the controller inverts
-    observation: int  # OBS_SENSORS, OBS_FULL_STATE or OBS_MEASURED
-    noisy: bool  # any sensor noise
-    inverse_params: np.ndarray  # (N_DAMPER_PARAMS,) the inverted model's packed parameters
-    noise_std: np.ndarray  # (N_NOISE_CHANNELS,) standard deviation of each channel
-    noise_pairs: np.ndarray  # (k,) int64: the Box-Muller pairs the observation set reads
-    obs_bounds: np.ndarray  # (2, obs_dim) rows LOW, HIGH: where the sensors saturate
-    estimator: np.ndarray  # (5,) the velocity estimator's biquad, rows EST_B0 .. EST_A2
-    preview_points: int  # guideway preview columns after the observation set's (0: none)
-    preview_step_s: float  # time between preview points
-    survey_error: np.ndarray  # (K, L) the survey map's error, on the profiles' grid (m)
-    reward_filter: np.ndarray  # (S, 6) second-order sections of the reward's acceleration filter
-
-
-class EnvState(NamedTuple):
-    """What evolves, per vehicle."""
-
-    plant: np.ndarray  # (N, STATE_SIZE)
-    route: Route
-    floats: np.ndarray  # (N_VEHICLE_FLOATS, N), rows layout.VEHICLE_FLOAT_NAMES
-    step_count: np.ndarray  # (N,) int64 steps since the reset
-    noise_key: np.ndarray  # (N,) uint64 drawn at the reset
-    measured: np.ndarray  # (N_MEASUREMENTS, N), rows layout.MEASUREMENT_NAMES
-    delay: np.ndarray  # (N, control_delay_steps + 1) ring buffer of commands
-    delay_slots: np.ndarray  # (2,) int64: DELAY_WRITE, DELAY_READ
-
-
-class EnvOutputs(NamedTuple):
-    """What one step writes."""
-
-    obs: np.ndarray  # (N, obs_dim) float32
-    reward: np.ndarray  # (N,)
-    terminated: np.ndarray  # (N,) bool
-    signals: np.ndarray  # (N_SIGNALS, N + padding), rows layout.SIGNAL_NAMES
-    plant: np.ndarray  # (N, N_PLANT_OUTPUTS) the plant kernel's outputs
+def __getattr__(name: str) -> object:
+    """Deprecated names of this module (a ``DeprecationWarning``, then the new value)."""
+    if name == "NOISE_SCRATCH_SHAPE":
+        warnings.warn(
+            "env_kernel.NOISE_SCRATCH_SHAPE is deprecated: env_sense's scratch is "
+            "SENSE_SCRATCH_SHAPE (noise rows, then quantity rows)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return SENSE_SCRATCH_SHAPE
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- noise
@@ -285,7 +251,7 @@ def _env_commands(command, lo, hi, actions, params, state, out):
     cmd = command.literal_value
 
     def impl(command, lo, hi, actions, params, state, out):
-        sig, meas, vf = out.signals, state.measured, state.floats
+        sig, meas, csdc = out.signals, state.measured, state.csdc
         i_max = params.i_max_a
         f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
         if cmd == COMMAND_CURRENT:
@@ -295,9 +261,9 @@ def _env_commands(command, lo, hi, actions, params, state, out):
             for n in range(lo, hi):
                 f_d = actions[n] * params.max_force_n
                 x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
-                z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
-                vf[VF_CSDC_Z, n] = z_est
-                vf[VF_CSDC_STROKE, n] = x_m
+                z_est = csdc_z_update(inv_p, csdc[CSDC_Z, n], x_m - csdc[CSDC_STROKE, n])
+                csdc[CSDC_Z, n] = z_est
+                csdc[CSDC_STROKE, n] = x_m
                 f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
                 sig[SIG_DESIRED_FORCE, n] = f_d
                 sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
@@ -305,146 +271,216 @@ def _env_commands(command, lo, hi, actions, params, state, out):
             _inverse_lanes(cmd, params.inverse_params, actions[lo:hi],
                            meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
                            params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
-        write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
-        for n in range(lo, hi):
-            state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
-            vf[VF_APPLIED, n] = state.delay[n, read]
-            state.step_count[n] += 1
+        _delay(lo, hi, sig[SIG_CURRENT_COMMAND], state)
 
     return impl
 
 
+@njit(**FAST, **BORROWED)
+def _delay(lo, hi, command, state):
+    """The control delay, a ring of ``size = control_delay_steps + 1`` commands per vehicle
+    indexed by its step count ``k``: this step's command written at ``k mod size``, the one
+    from ``size - 1`` steps ago read at ``(k + 1) mod size`` (zero until the ring has filled
+    since the reset, which zeroes it), then the step count advanced. (No delay, and a ring of
+    a power of two, take no integer division: it cost 5 % of a batch step.)"""
+    ring, size, count, applied = (
+        state.delay,
+        state.delay.shape[1],
+        state.step_count,
+        state.applied_current,
+    )
+    if size == 1:
+        for n in range(lo, hi):
+            ring[n, 0] = applied[n] = command[n]
+            count[n] += 1
+    elif size & (size - 1) == 0:
+        mask = size - 1
+        for n in range(lo, hi):
+            k = count[n]
+            ring[n, k & mask] = command[n]
+            applied[n] = ring[n, (k + 1) & mask]
+            count[n] = k + 1
+    else:
+        for n in range(lo, hi):
+            k = count[n]
+            ring[n, k % size] = command[n]
+            applied[n] = ring[n, (k + 1) % size]
+            count[n] = k + 1
+
+
 # ----------------------------------------------------------------------------- sensing
 @njit(**FAST, **BORROWED)
-def env_sense(lo, hi, params, plant, state, out, noise):
+def env_sense(lo, hi, params, plant, state, out, scratch):
     """Vehicles ``lo .. hi-1`` (at most ``BLOCK``) after the plant step: sensor noise,
-    measurements, reward, bump stop, signals and observations (clipped to where the sensors
-    saturate; the guideway preview columns are :func:`env_preview`'s). ``noise`` is scratch
-    of :data:`NOISE_SCRATCH_SHAPE` from the caller (this function allocates nothing)."""
-    x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
-    std = params.noise_std
-    nb = hi - lo
-    # 1. sensor noise, one Box-Muller pair of channels at a time across the block
-    # rows that are read get written (their first nb columns)
+    quantities, measurements, velocity estimates, the reward's acceleration filter, reward and
+    bump stop, signals and observations (clipped to where the sensors saturate; the guideway
+    preview columns are :func:`env_preview`'s). ``scratch`` of :data:`SENSE_SCRATCH_SHAPE`
+    comes from the caller (this function allocates nothing): its noise rows, then its
+    quantity rows."""
+    noise, q = scratch[:_NOISE_ROWS], scratch[_NOISE_ROWS:]
+    _draw_noise(lo, hi, params, state, noise)
+    _quantities(lo, hi, state.plant, out, q)
+    _measure(lo, hi, params.noise_std, q, noise, state.measured)
+    _estimate_velocities(lo, hi, params.estimator, state, q, out)
+    _filter_reward_acceleration(lo, hi, params.reward_filter, state.reward_filter, out)
+    _reward(lo, hi, params, state, q, out)
+    _observe(lo, hi, params, q, noise, state.measured, out.obs)
+
+
+@njit(**FAST, **BORROWED)
+def _draw_noise(lo, hi, params, state, noise):
+    """Sensor noise of the block, one Box-Muller pair of channels at a time (only the pairs the
+    observation set reads: their rows' first ``hi - lo`` columns); all zero without noise."""
     if not params.noisy:
         noise[:] = 0.0
-    else:
-        keys, steps = state.noise_key[lo:hi], state.step_count[lo:hi]
-        for pair in params.noise_pairs:
-            _noise_lanes(keys, steps, pair, nb, noise[2 * pair], noise[2 * pair + 1])
-    # 2. sensors, reward, signals: one loop over the block (one contiguous row of meas and sig
-    # per channel; every parameter is read into a local first, so no load is conditional)
-    s_acc_c, s_acc_b = std[NOISE_BODY_ACC], std[NOISE_BOGIE_ACC]
-    s_stroke, s_rate = std[NOISE_STROKE], std[NOISE_STROKE_RATE]
+        return
+    keys, steps = state.noise_key[lo:hi], state.step_count[lo:hi]
+    for pair in params.noise_pairs:
+        _noise_lanes(keys, steps, pair, hi - lo, noise[2 * pair], noise[2 * pair + 1])
+
+
+@njit(**FAST, **BORROWED)
+def _quantities(lo, hi, x, out, q):
+    """The block's true quantities (rows ``Q_*`` of ``q``, ``observations.QUANTITIES``) from
+    the plant's state and outputs and this step's command (the estimates are
+    :func:`_estimate_velocities`'), and the physical signals of ``info`` in the same pass (a
+    pass of their own, copying ``q``, cost 6 ns a vehicle-step, 4 % of a batch step). A new
+    quantity is a line here."""
+    plant_out, sig = out.plant, out.signals
+    for n in range(lo, hi):
+        m = n - lo
+        zc, zb, zg = x[n, BODY_DISP], x[n, BOGIE_DISP], plant_out[n, OUT_GUIDEWAY]
+        vc, vb, coil = x[n, BODY_VEL], x[n, BOGIE_VEL], x[n, COIL_CURRENT]
+        acc_c, acc_b = plant_out[n, OUT_BODY_ACC], plant_out[n, OUT_BOGIE_ACC]
+        q[Q_BODY_DISP, m] = sig[SIG_BODY_DISP, n] = zc
+        q[Q_BODY_VEL, m] = sig[SIG_BODY_VEL, n] = vc
+        q[Q_BOGIE_DISP, m] = sig[SIG_BOGIE_DISP, n] = zb
+        q[Q_BOGIE_VEL, m] = sig[SIG_BOGIE_VEL, n] = vb
+        q[Q_GUIDEWAY, m] = sig[SIG_GUIDEWAY, n] = zg
+        q[Q_BODY_ACC, m] = sig[SIG_BODY_ACC, n] = acc_c
+        q[Q_BOGIE_ACC, m] = sig[SIG_BOGIE_ACC, n] = acc_b
+        q[Q_STROKE, m] = sig[SIG_STROKE, n] = zc - zb
+        q[Q_STROKE_RATE, m] = sig[SIG_STROKE_RATE, n] = vc - vb
+        q[Q_COIL_CURRENT, m] = sig[SIG_COIL_CURRENT, n] = coil
+        q[Q_GAP, m] = zb - zg
+        q[Q_COMMAND, m] = sig[SIG_CURRENT_COMMAND, n]
+        sig[SIG_FORCE, n] = plant_out[n, OUT_FORCE]
+
+
+@njit(**FAST, **BORROWED)
+def _measure(lo, hi, std, q, noise, meas):
+    """The measurements (rows of ``meas``, ``layout.MEASUREMENT_NAMES``): each its quantity
+    plus its channel's noise (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``)."""
+    for k in range(_MEAS_SOURCE.shape[0]):
+        src, c = _MEAS_SOURCE[k], _MEAS_NOISE[k]
+        row = meas[k]
+        if c < 0:
+            for n in range(lo, hi):
+                row[n] = q[src, n - lo]
+        else:
+            s = std[c]
+            for n in range(lo, hi):
+                row[n] = q[src, n - lo] + s * noise[c, n - lo]
+
+
+@njit(**FAST, **BORROWED)
+def _estimate_velocities(lo, hi, est, state, q, out):
+    """The on-board absolute velocity estimates: each accelerometer's measurement through the
+    estimator's biquad (transposed direct form II), into ``q``'s estimate rows and their
+    signals."""
+    b0, b1, b2, a1, a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
+    meas, s, sig = state.measured, state.estimator, out.signals
+    for acc_row, first, q_row, sig_row in (
+        (MEAS_BODY_ACC, EST_BODY, Q_BODY_VEL_EST, SIG_BODY_VEL_EST),
+        (MEAS_BOGIE_ACC, EST_BOGIE, Q_BOGIE_VEL_EST, SIG_BOGIE_VEL_EST),
+    ):
+        acc, s1, s2, v, v_sig = meas[acc_row], s[first], s[first + 1], q[q_row], sig[sig_row]
+        for n in range(lo, hi):
+            a = acc[n]
+            y = b0 * a + s1[n]
+            s1[n] = b1 * a - a1 * y + s2[n]
+            s2[n] = b2 * a - a2 * y
+            v[n - lo] = v_sig[n] = y
+
+
+@njit(**FAST, **BORROWED)
+def _filter_reward_acceleration(lo, hi, sos, states, out):
+    """The car-body acceleration the reward reads (signal ``reward_acceleration_m_s2``): the
+    plant's through the reward filter's second-order sections (transposed direct form II;
+    none: the acceleration itself)."""
+    acc = out.signals[SIG_REWARD_ACC]
+    for n in range(lo, hi):
+        acc[n] = out.plant[n, OUT_BODY_ACC]
+    for k in range(sos.shape[0]):
+        f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
+        s1, s2 = states[2 * k], states[2 * k + 1]
+        for n in range(lo, hi):
+            u = acc[n]
+            y = f_b0 * u + s1[n]
+            s1[n] = f_b1 * u - f_a1 * y + s2[n]
+            s2[n] = f_b2 * u - f_a2 * y
+            acc[n] = y
+
+
+@njit(**FAST, **BORROWED)
+def _reward(lo, hi, params, state, q, out):
+    """Reward, its cost terms (signals) and the bump stop. Every parameter is read into a local
+    first, so no load in the loop is conditional (``x * x``, not ``x ** 2``: numba lowers the
+    power to a slow libm call)."""
     acc_ref, stroke_ref = params.acceleration_scale_m_s2, params.stroke_scale_m
     vel_ref, i_max = params.velocity_scale_m_s, params.i_max_a
     w_acc, w_stroke = params.reward_acceleration_weight, params.reward_stroke_weight
     w_energy, w_vel = params.reward_energy_weight, params.reward_velocity_weight
     stroke_limit, penalty = params.stroke_limit_m, params.bump_stop_penalty
     has_current = i_max > 0.0
-    vf = state.floats
-    applied = vf[VF_APPLIED]
-    est = params.estimator
-    e_b0, e_b1, e_b2, e_a1, e_a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
-    # the car-body acceleration the reward reads, through the reward filter's sections
-    # (transposed direct form II; none: the acceleration itself)
-    acc_reward = sig[SIG_REWARD_ACC]
+    sig, applied, acc_reward = out.signals, state.applied_current, out.signals[SIG_REWARD_ACC]
     for n in range(lo, hi):
-        acc_reward[n] = plant_out[n, OUT_BODY_ACC]
-    sos = params.reward_filter
-    for k in range(sos.shape[0]):
-        f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
-        s1, s2 = vf[VF_REWARD_FILTER + 2 * k], vf[VF_REWARD_FILTER + 2 * k + 1]
-        for n in range(lo, hi):
-            u = acc_reward[n]
-            y = f_b0 * u + s1[n]
-            s1[n] = f_b1 * u - f_a1 * y + s2[n]
-            s2[n] = f_b2 * u - f_a2 * y
-            acc_reward[n] = y
-    for n in range(lo, hi):
-        m = n - lo
-        zc, vc = x[n, BODY_DISP], x[n, BODY_VEL]
-        zb, vb = x[n, BOGIE_DISP], x[n, BOGIE_VEL]
-        stroke = zc - zb
-        rate = vc - vb
-        force, acc_c = plant_out[n, OUT_FORCE], plant_out[n, OUT_BODY_ACC]
-        acc_b, zg = plant_out[n, OUT_BOGIE_ACC], plant_out[n, OUT_GUIDEWAY]
-        meas[MEAS_BODY_ACC, n] = acc_c + s_acc_c * noise[NOISE_BODY_ACC, m]
-        meas[MEAS_BOGIE_ACC, n] = acc_b + s_acc_b * noise[NOISE_BOGIE_ACC, m]
-        meas[MEAS_STROKE, n] = stroke + s_stroke * noise[NOISE_STROKE, m]
-        meas[MEAS_STROKE_RATE, n] = rate + s_rate * noise[NOISE_STROKE_RATE, m]
-        meas[MEAS_COMMAND, n] = sig[SIG_CURRENT_COMMAND, n]
-        # on-board velocity estimates: the accelerometers through the estimator's biquad
-        ab, s1, s2 = meas[MEAS_BODY_ACC, n], vf[VF_EST_BODY_1, n], vf[VF_EST_BODY_2, n]
-        v_body = e_b0 * ab + s1
-        vf[VF_EST_BODY_1, n] = e_b1 * ab - e_a1 * v_body + s2
-        vf[VF_EST_BODY_2, n] = e_b2 * ab - e_a2 * v_body
-        ab, s1, s2 = meas[MEAS_BOGIE_ACC, n], vf[VF_EST_BOGIE_1, n], vf[VF_EST_BOGIE_2, n]
-        v_bogie = e_b0 * ab + s1
-        vf[VF_EST_BOGIE_1, n] = e_b1 * ab - e_a1 * v_bogie + s2
-        vf[VF_EST_BOGIE_2, n] = e_b2 * ab - e_a2 * v_bogie
-        sig[SIG_BODY_VEL_EST, n] = v_body
-        sig[SIG_BOGIE_VEL_EST, n] = v_bogie
-        # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
+        stroke = q[Q_STROKE, n - lo]
         acc_rel = acc_reward[n] / acc_ref
         stroke_rel = stroke / stroke_ref
         current_rel = applied[n] / i_max if has_current else 0.0
+        vel_rel = q[Q_BODY_VEL, n - lo] / vel_ref
         c_acc = w_acc * acc_rel * acc_rel
         c_stroke = w_stroke * stroke_rel * stroke_rel
         c_energy = w_energy * current_rel * current_rel
-        vel_rel = vc / vel_ref
         c_vel = w_vel * vel_rel * vel_rel
         hit = abs(stroke) > stroke_limit
         out.terminated[n] = hit
         out.reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (penalty if hit else 0.0)
-        sig[SIG_BODY_DISP, n] = zc
-        sig[SIG_BOGIE_DISP, n] = zb
-        sig[SIG_BODY_VEL, n] = vc
-        sig[SIG_BOGIE_VEL, n] = vb
-        sig[SIG_BODY_ACC, n] = acc_c
-        sig[SIG_BOGIE_ACC, n] = acc_b
-        sig[SIG_STROKE, n] = stroke
-        sig[SIG_STROKE_RATE, n] = rate
-        sig[SIG_FORCE, n] = force
-        sig[SIG_COIL_CURRENT, n] = x[n, COIL_CURRENT]
-        sig[SIG_GUIDEWAY, n] = zg
-        sig[SIG_COST_ACC, n] = c_acc
-        sig[SIG_COST_STROKE, n] = c_stroke
-        sig[SIG_COST_ENERGY, n] = c_energy
-        sig[SIG_COST_VEL, n] = c_vel
-    # 3. observations (float32 rows; sensors saturate at the observation-space bounds)
-    obs, bounds = out.obs, params.obs_bounds
+        sig[SIG_COST_ACC, n], sig[SIG_COST_STROKE, n] = c_acc, c_stroke
+        sig[SIG_COST_ENERGY, n], sig[SIG_COST_VEL, n] = c_energy, c_vel
+
+
+@njit(**FAST, **BORROWED)
+def _observe(lo, hi, params, q, noise, meas, obs):
+    """The observation set's columns (float32; the sensors saturate at the observation-space
+    bounds): each column its measurement, or its quantity plus its channel's noise, by the
+    set's column map (compile-time constants: the branch picks them, :func:`_columns` is
+    inlined with them)."""
     if params.observation == OBS_FULL_STATE:
-        for n in range(lo, hi):
-            m = n - lo
-            obs[n, 0] = x[n, BODY_DISP] + std[NOISE_BODY_DISP] * noise[NOISE_BODY_DISP, m]
-            obs[n, 1] = x[n, BODY_VEL] + std[NOISE_BODY_VEL] * noise[NOISE_BODY_VEL, m]
-            obs[n, 2] = x[n, BOGIE_DISP] + std[NOISE_BOGIE_DISP] * noise[NOISE_BOGIE_DISP, m]
-            obs[n, 3] = x[n, BOGIE_VEL] + std[NOISE_BOGIE_VEL] * noise[NOISE_BOGIE_VEL, m]
-            obs[n, 4] = sig[SIG_GUIDEWAY, n] + std[NOISE_GUIDEWAY] * noise[NOISE_GUIDEWAY, m]
-            for j in range(MEAS_STROKE_RATE + 1):  # the same (noisy) measurements as the inverse
-                obs[n, 5 + j] = meas[j, n]
-            obs[n, 9] = x[n, COIL_CURRENT]
+        _columns(lo, hi, _FULL_MEAS, _FULL_SOURCE, _FULL_NOISE, params, q, noise, meas, obs)
     elif params.observation == OBS_MEASURED:
-        s_gap, s_current = std[NOISE_GAP], std[NOISE_CURRENT]
-        for n in range(lo, hi):
-            m = n - lo
-            for j in range(MEAS_STROKE_RATE + 1):  # accelerations, stroke and its rate
-                obs[n, j] = meas[j, n]
-            gap = x[n, BOGIE_DISP] - sig[SIG_GUIDEWAY, n]
-            obs[n, 4] = gap + s_gap * noise[NOISE_GAP, m]
-            obs[n, 5] = x[n, COIL_CURRENT] + s_current * noise[NOISE_CURRENT, m]
-            obs[n, 6] = meas[MEAS_COMMAND, n]
-            obs[n, 7] = sig[SIG_BODY_VEL_EST, n]
-            obs[n, 8] = sig[SIG_BOGIE_VEL_EST, n]
+        _columns(lo, hi, _MEASURED_MEAS, _MEASURED_SOURCE, _MEASURED_NOISE, params, q, noise,
+                 meas, obs)  # fmt: skip
     else:
-        for n in range(lo, hi):
-            for j in range(MEAS_COMMAND + 1):
-                obs[n, j] = meas[j, n]
-    # the preview columns (the last preview_points) are env_preview's
+        _columns(lo, hi, _SENSORS_MEAS, _SENSORS_SOURCE, _SENSORS_NOISE, params, q, noise,
+                 meas, obs)  # fmt: skip
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def _columns(lo, hi, measurement, source, channel, params, q, noise, meas, obs):
+    std, bounds = params.noise_std, params.obs_bounds
     for n in range(lo, hi):
-        for j in range(obs.shape[1] - params.preview_points):
-            obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
+        m = n - lo
+        for j in range(source.shape[0]):
+            if measurement[j] >= 0:
+                v = meas[measurement[j], n]
+            else:
+                v = q[source[j], m]
+                c = channel[j]
+                if c >= 0:
+                    v += std[c] * noise[c, m]
+            obs[n, j] = min(max(v, bounds[LOW, j]), bounds[HIGH, j])
 
 
 @njit(**FAST, **BORROWED)
@@ -469,10 +505,10 @@ def preview_row(n, params, plant, state, obs):
     estimated position (the true one plus its episode's position error)."""
     profiles, spacing, err = plant.profiles, plant.spacing_m, params.survey_error
     last = profiles.shape[1] - 1.0
-    route, vf = state.route, state.floats
+    route = state.route
     first = obs.shape[1] - params.preview_points
     k, g, speed = route.profile[n], route.gain[n], route.speed_mps[n]
-    here = route.start_m[n] + speed * state.plant[n, TIME] + vf[VF_POSITION_ERROR, n]
+    here = route.start_m[n] + speed * state.plant[n, TIME] + state.position_error[n]
     ref = g * guideway_elevation(profiles, k, spacing, last, here)
     ref += guideway_elevation(err, k, spacing, last, here)
     for j in range(params.preview_points):

@@ -237,7 +237,8 @@ def rest_observation(observation: str, elevation_m: float) -> np.ndarray:
     """A set's columns at a vehicle's reset (exact, no noise): the static equilibrium over the
     start elevation ``elevation_m`` (displacements and elevation equal to it, the rest 0)."""
     at_rest = {q.name: q.at_rest for q in QUANTITIES}
-    return np.array([at_rest[row.source] * elevation_m for row in observables(observation)])
+    factors = [at_rest[row.source] for row in observables(observation)]
+    return np.array([f * elevation_m if f else 0.0 for f in factors])
 
 
 # ----------------------------------------------------------------------------- kernel map
@@ -258,6 +259,14 @@ for _set in OBSERVATION_SETS:
     COLUMN_SOURCES[_set], COLUMN_NOISE[_set] = _indices(observables(_set))
 #: The same for the measurements (rows of ``EnvState.measured``).
 MEASUREMENT_SOURCES, MEASUREMENT_NOISE = _indices(MEASUREMENTS)
+#: Per set, the measurement row each column equals (-1: none), which the kernel copies
+#: instead of adding the noise again (the same bits, fewer operations).
+COLUMN_MEASUREMENTS = {
+    s: np.array([MEASUREMENTS.index(r) if r in MEASUREMENTS else -1 for r in observables(s)])
+    for s in OBSERVATION_SETS
+}
+for _a in COLUMN_MEASUREMENTS.values():
+    _a.flags.writeable = False
 
 
 def _check_table() -> None:
