@@ -50,6 +50,7 @@ from capsule_env.layout import (
     MEAS_STROKE,
     MEAS_STROKE_RATE,
     N_NOISE_CHANNELS,
+    N_SIGNALS,
     OUT_BODY_ACC,
     OUT_BOGIE_ACC,
     OUT_FORCE,
@@ -74,6 +75,7 @@ from capsule_env.layout import (
     SIG_REWARD_ACC,
     SIG_STROKE,
     SIG_STROKE_RATE,
+    SIGNAL_NAMES,
     TIME,
 )
 from capsule_env.observations import (
@@ -82,7 +84,7 @@ from capsule_env.observations import (
     COLUMN_SOURCES,
     MEASUREMENT_NOISE,
     MEASUREMENT_SOURCES,
-    QUANTITY_NAMES,
+    QUANTITIES,
 )
 from capsule_env.plant.block import BLOCK, guideway_elevation, row_params
 
@@ -104,34 +106,43 @@ __all__ = [
     "noise_pairs",
 ]
 
-#: Rows of the per-vehicle quantities in :func:`env_sense`'s scratch
-#: (``observations.QUANTITY_NAMES``).
-(Q_BODY_DISP, Q_BODY_VEL, Q_BOGIE_DISP, Q_BOGIE_VEL, Q_GUIDEWAY, Q_BODY_ACC, Q_BOGIE_ACC,
- Q_STROKE, Q_STROKE_RATE, Q_COIL_CURRENT, Q_GAP, Q_COMMAND, Q_BODY_VEL_EST,
- Q_BOGIE_VEL_EST) = (
-    QUANTITY_NAMES.index(n)
-    for n in ("car_body_displacement_m", "car_body_velocity_m_s", "bogie_displacement_m",
-              "bogie_velocity_m_s", "guideway_elevation_m", "car_body_acceleration_m_s2",
-              "bogie_acceleration_m_s2", "stroke_m", "stroke_rate_m_s", "coil_current_a",
-              "levitation_gap_m", "last_current_command_a", "car_body_velocity_estimate_m_s",
-              "bogie_velocity_estimate_m_s")
-)  # fmt: skip
-N_QUANTITIES = len(QUANTITY_NAMES)
+#: The quantities the kernel computes into its scratch (those no ``info`` signal holds), one
+#: row each after the noise rows.
+_SCRATCH_QUANTITIES = tuple(q.name for q in QUANTITIES if q.signal is None)
+Q_GAP = _SCRATCH_QUANTITIES.index("levitation_gap_m")
 #: Rows of the scratch before the quantities: one per noise channel, and one for the second
 #: member of the last Box-Muller pair when the channels are odd in number.
 _NOISE_ROWS = N_NOISE_CHANNELS + 1
-#: Shape of :func:`env_sense`'s scratch: a row per noise channel, then a row per quantity
-#: (``observations.QUANTITY_NAMES``), a column per vehicle of a block.
-SENSE_SCRATCH_SHAPE = (_NOISE_ROWS + N_QUANTITIES, BLOCK)
+#: Shape of :func:`env_sense`'s scratch: a row per noise channel, then a row per quantity of
+#: its own, a column per vehicle of a block.
+SENSE_SCRATCH_SHAPE = (_NOISE_ROWS + len(_SCRATCH_QUANTITIES), BLOCK)
+
+
+def _kernel_sources(quantities: np.ndarray) -> np.ndarray:
+    """Where the kernel reads each quantity (indices in ``observations.QUANTITY_NAMES``): its
+    ``info`` signal's row, or ``N_SIGNALS +`` its scratch row."""
+    rows = []
+    for k in quantities:
+        q = QUANTITIES[k]
+        if q.signal:
+            rows.append(SIGNAL_NAMES.index(q.signal))
+        else:
+            rows.append(N_SIGNALS + _SCRATCH_QUANTITIES.index(q.name))
+    return np.array(rows, dtype=np.int64)
+
+
 #: The column maps, compile-time constants of the kernel (``observations.COLUMN_SOURCES``,
-#: ``COLUMN_NOISE``): the quantity each column of a set reads and its noise channel (-1: none).
-_SENSORS_SOURCE, _SENSORS_NOISE = COLUMN_SOURCES["sensors"], COLUMN_NOISE["sensors"]
-_FULL_SOURCE, _FULL_NOISE = COLUMN_SOURCES["full_state"], COLUMN_NOISE["full_state"]
-_MEASURED_SOURCE, _MEASURED_NOISE = COLUMN_SOURCES["measured"], COLUMN_NOISE["measured"]
-_SENSORS_MEAS = COLUMN_MEASUREMENTS["sensors"]
-_FULL_MEAS = COLUMN_MEASUREMENTS["full_state"]
-_MEASURED_MEAS = COLUMN_MEASUREMENTS["measured"]
-_MEAS_SOURCE, _MEAS_NOISE = MEASUREMENT_SOURCES, MEASUREMENT_NOISE
+#: ``COLUMN_NOISE``, ``COLUMN_MEASUREMENTS``): where each column of a set reads its quantity
+#: (:func:`_kernel_sources`), its noise channel (-1: none) and the measurement it equals (-1:
+#: none).
+_SENSORS = (COLUMN_MEASUREMENTS["sensors"], _kernel_sources(COLUMN_SOURCES["sensors"]),
+            COLUMN_NOISE["sensors"])  # fmt: skip
+_FULL = (COLUMN_MEASUREMENTS["full_state"], _kernel_sources(COLUMN_SOURCES["full_state"]),
+         COLUMN_NOISE["full_state"])  # fmt: skip
+_MEASURED = (COLUMN_MEASUREMENTS["measured"], _kernel_sources(COLUMN_SOURCES["measured"]),
+             COLUMN_NOISE["measured"])  # fmt: skip
+#: ... and of the measurements (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``).
+_MEAS_SOURCE, _MEAS_NOISE = _kernel_sources(MEASUREMENT_SOURCES), MEASUREMENT_NOISE
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
 
@@ -281,31 +292,15 @@ def _delay(lo, hi, command, state):
     """The control delay, a ring of ``size = control_delay_steps + 1`` commands per vehicle
     indexed by its step count ``k``: this step's command written at ``k mod size``, the one
     from ``size - 1`` steps ago read at ``(k + 1) mod size`` (zero until the ring has filled
-    since the reset, which zeroes it), then the step count advanced. (No delay, and a ring of
-    a power of two, take no integer division: it cost 5 % of a batch step.)"""
-    ring, size, count, applied = (
-        state.delay,
-        state.delay.shape[1],
-        state.step_count,
-        state.applied_current,
-    )
-    if size == 1:
-        for n in range(lo, hi):
-            ring[n, 0] = applied[n] = command[n]
-            count[n] += 1
-    elif size & (size - 1) == 0:
-        mask = size - 1
-        for n in range(lo, hi):
-            k = count[n]
-            ring[n, k & mask] = command[n]
-            applied[n] = ring[n, (k + 1) & mask]
-            count[n] = k + 1
-    else:
-        for n in range(lo, hi):
-            k = count[n]
-            ring[n, k % size] = command[n]
-            applied[n] = ring[n, (k + 1) % size]
-            count[n] = k + 1
+    since the reset, which zeroes it), then the step count advanced. The kernel owns both: the
+    same commands as a ring position kept by Python, whatever the vehicle's resets."""
+    ring, size = state.delay, state.delay.shape[1]
+    count, applied = state.step_count, state.applied_current
+    for n in range(lo, hi):
+        k = count[n]
+        ring[n, k % size] = command[n]
+        applied[n] = ring[n, (k + 1) % size]
+        count[n] = k + 1
 
 
 # ----------------------------------------------------------------------------- sensing
@@ -320,11 +315,11 @@ def env_sense(lo, hi, params, plant, state, out, scratch):
     noise, q = scratch[:_NOISE_ROWS], scratch[_NOISE_ROWS:]
     _draw_noise(lo, hi, params, state, noise)
     _quantities(lo, hi, state.plant, out, q)
-    _measure(lo, hi, params.noise_std, q, noise, state.measured)
-    _estimate_velocities(lo, hi, params.estimator, state, q, out)
+    _measure(lo, hi, params.noise_std, out.signals, q, noise, state.measured)
+    _estimate_velocities(lo, hi, params.estimator, state, out)
     _filter_reward_acceleration(lo, hi, params.reward_filter, state.reward_filter, out)
-    _reward(lo, hi, params, state, q, out)
-    _observe(lo, hi, params, q, noise, state.measured, out.obs)
+    _reward(lo, hi, params, state, out)
+    _observe(lo, hi, params, out.signals, q, noise, state.measured, out.obs)
 
 
 @njit(**FAST, **BORROWED)
@@ -341,66 +336,60 @@ def _draw_noise(lo, hi, params, state, noise):
 
 @njit(**FAST, **BORROWED)
 def _quantities(lo, hi, x, out, q):
-    """The block's true quantities (rows ``Q_*`` of ``q``, ``observations.QUANTITIES``) from
-    the plant's state and outputs and this step's command (the estimates are
-    :func:`_estimate_velocities`'), and the physical signals of ``info`` in the same pass (a
-    pass of their own, copying ``q``, cost 6 ns a vehicle-step, 4 % of a batch step). A new
-    quantity is a line here."""
+    """The block's true quantities (``observations.QUANTITIES``) from the plant's state and
+    outputs: into their ``info`` signals, the others into ``q`` (the scratch's quantity rows);
+    the estimates are :func:`_estimate_velocities`', the command
+    :func:`env_commands`'. A new quantity is a line here."""
     plant_out, sig = out.plant, out.signals
     for n in range(lo, hi):
-        m = n - lo
         zc, zb, zg = x[n, BODY_DISP], x[n, BOGIE_DISP], plant_out[n, OUT_GUIDEWAY]
-        vc, vb, coil = x[n, BODY_VEL], x[n, BOGIE_VEL], x[n, COIL_CURRENT]
-        acc_c, acc_b = plant_out[n, OUT_BODY_ACC], plant_out[n, OUT_BOGIE_ACC]
-        q[Q_BODY_DISP, m] = sig[SIG_BODY_DISP, n] = zc
-        q[Q_BODY_VEL, m] = sig[SIG_BODY_VEL, n] = vc
-        q[Q_BOGIE_DISP, m] = sig[SIG_BOGIE_DISP, n] = zb
-        q[Q_BOGIE_VEL, m] = sig[SIG_BOGIE_VEL, n] = vb
-        q[Q_GUIDEWAY, m] = sig[SIG_GUIDEWAY, n] = zg
-        q[Q_BODY_ACC, m] = sig[SIG_BODY_ACC, n] = acc_c
-        q[Q_BOGIE_ACC, m] = sig[SIG_BOGIE_ACC, n] = acc_b
-        q[Q_STROKE, m] = sig[SIG_STROKE, n] = zc - zb
-        q[Q_STROKE_RATE, m] = sig[SIG_STROKE_RATE, n] = vc - vb
-        q[Q_COIL_CURRENT, m] = sig[SIG_COIL_CURRENT, n] = coil
-        q[Q_GAP, m] = zb - zg
-        q[Q_COMMAND, m] = sig[SIG_CURRENT_COMMAND, n]
+        vc, vb = x[n, BODY_VEL], x[n, BOGIE_VEL]
+        sig[SIG_BODY_DISP, n], sig[SIG_BOGIE_DISP, n], sig[SIG_GUIDEWAY, n] = zc, zb, zg
+        sig[SIG_BODY_VEL, n], sig[SIG_BOGIE_VEL, n] = vc, vb
+        sig[SIG_BODY_ACC, n] = plant_out[n, OUT_BODY_ACC]
+        sig[SIG_BOGIE_ACC, n] = plant_out[n, OUT_BOGIE_ACC]
+        sig[SIG_STROKE, n], sig[SIG_STROKE_RATE, n] = zc - zb, vc - vb
         sig[SIG_FORCE, n] = plant_out[n, OUT_FORCE]
+        sig[SIG_COIL_CURRENT, n] = x[n, COIL_CURRENT]
+        q[Q_GAP, n - lo] = zb - zg
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def _quantity(source, n, m, sig, q):
+    """Vehicle ``n``'s (block column ``m``'s) value of a quantity where the kernel reads it
+    (:func:`_kernel_sources`)."""
+    return sig[source, n] if source < N_SIGNALS else q[source - N_SIGNALS, m]
 
 
 @njit(**FAST, **BORROWED)
-def _measure(lo, hi, std, q, noise, meas):
+def _measure(lo, hi, std, sig, q, noise, meas):
     """The measurements (rows of ``meas``, ``layout.MEASUREMENT_NAMES``): each its quantity
     plus its channel's noise (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``)."""
-    for k in range(_MEAS_SOURCE.shape[0]):
-        src, c = _MEAS_SOURCE[k], _MEAS_NOISE[k]
-        row = meas[k]
-        if c < 0:
-            for n in range(lo, hi):
-                row[n] = q[src, n - lo]
-        else:
-            s = std[c]
-            for n in range(lo, hi):
-                row[n] = q[src, n - lo] + s * noise[c, n - lo]
+    for n in range(lo, hi):
+        m = n - lo
+        for k in range(_MEAS_SOURCE.shape[0]):
+            v = _quantity(_MEAS_SOURCE[k], n, m, sig, q)
+            c = _MEAS_NOISE[k]
+            if c >= 0:
+                v += std[c] * noise[c, m]
+            meas[k, n] = v
 
 
 @njit(**FAST, **BORROWED)
-def _estimate_velocities(lo, hi, est, state, q, out):
-    """The on-board absolute velocity estimates: each accelerometer's measurement through the
-    estimator's biquad (transposed direct form II), into ``q``'s estimate rows and their
-    signals."""
+def _estimate_velocities(lo, hi, est, state, out):
+    """The on-board absolute velocity estimates (their ``info`` signals): each accelerometer's
+    measurement through the estimator's biquad (transposed direct form II)."""
     b0, b1, b2, a1, a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
     meas, s, sig = state.measured, state.estimator, out.signals
-    for acc_row, first, q_row, sig_row in (
-        (MEAS_BODY_ACC, EST_BODY, Q_BODY_VEL_EST, SIG_BODY_VEL_EST),
-        (MEAS_BOGIE_ACC, EST_BOGIE, Q_BOGIE_VEL_EST, SIG_BOGIE_VEL_EST),
-    ):
-        acc, s1, s2, v, v_sig = meas[acc_row], s[first], s[first + 1], q[q_row], sig[sig_row]
+    for acc_row, first, sig_row in ((MEAS_BODY_ACC, EST_BODY, SIG_BODY_VEL_EST),
+                                    (MEAS_BOGIE_ACC, EST_BOGIE, SIG_BOGIE_VEL_EST)):  # fmt: skip
+        acc, s1, s2, v = meas[acc_row], s[first], s[first + 1], sig[sig_row]
         for n in range(lo, hi):
             a = acc[n]
             y = b0 * a + s1[n]
             s1[n] = b1 * a - a1 * y + s2[n]
             s2[n] = b2 * a - a2 * y
-            v[n - lo] = v_sig[n] = y
+            v[n] = y
 
 
 @njit(**FAST, **BORROWED)
@@ -423,7 +412,7 @@ def _filter_reward_acceleration(lo, hi, sos, states, out):
 
 
 @njit(**FAST, **BORROWED)
-def _reward(lo, hi, params, state, q, out):
+def _reward(lo, hi, params, state, out):
     """Reward, its cost terms (signals) and the bump stop. Every parameter is read into a local
     first, so no load in the loop is conditional (``x * x``, not ``x ** 2``: numba lowers the
     power to a slow libm call)."""
@@ -435,11 +424,11 @@ def _reward(lo, hi, params, state, q, out):
     has_current = i_max > 0.0
     sig, applied, acc_reward = out.signals, state.applied_current, out.signals[SIG_REWARD_ACC]
     for n in range(lo, hi):
-        stroke = q[Q_STROKE, n - lo]
+        stroke = sig[SIG_STROKE, n]
         acc_rel = acc_reward[n] / acc_ref
         stroke_rel = stroke / stroke_ref
         current_rel = applied[n] / i_max if has_current else 0.0
-        vel_rel = q[Q_BODY_VEL, n - lo] / vel_ref
+        vel_rel = sig[SIG_BODY_VEL, n] / vel_ref
         c_acc = w_acc * acc_rel * acc_rel
         c_stroke = w_stroke * stroke_rel * stroke_rel
         c_energy = w_energy * current_rel * current_rel
@@ -452,31 +441,30 @@ def _reward(lo, hi, params, state, q, out):
 
 
 @njit(**FAST, **BORROWED)
-def _observe(lo, hi, params, q, noise, meas, obs):
+def _observe(lo, hi, params, sig, q, noise, meas, obs):
     """The observation set's columns (float32; the sensors saturate at the observation-space
     bounds): each column its measurement, or its quantity plus its channel's noise, by the
     set's column map (compile-time constants: the branch picks them, :func:`_columns` is
     inlined with them)."""
     if params.observation == OBS_FULL_STATE:
-        _columns(lo, hi, _FULL_MEAS, _FULL_SOURCE, _FULL_NOISE, params, q, noise, meas, obs)
+        _columns(lo, hi, _FULL, params, sig, q, noise, meas, obs)
     elif params.observation == OBS_MEASURED:
-        _columns(lo, hi, _MEASURED_MEAS, _MEASURED_SOURCE, _MEASURED_NOISE, params, q, noise,
-                 meas, obs)  # fmt: skip
+        _columns(lo, hi, _MEASURED, params, sig, q, noise, meas, obs)
     else:
-        _columns(lo, hi, _SENSORS_MEAS, _SENSORS_SOURCE, _SENSORS_NOISE, params, q, noise,
-                 meas, obs)  # fmt: skip
+        _columns(lo, hi, _SENSORS, params, sig, q, noise, meas, obs)
 
 
 @njit(**FAST, **BORROWED, inline="always")
-def _columns(lo, hi, measurement, source, channel, params, q, noise, meas, obs):
+def _columns(lo, hi, column_map, params, sig, q, noise, meas, obs):
+    measurement, source, channel = column_map
     std, bounds = params.noise_std, params.obs_bounds
     for n in range(lo, hi):
         m = n - lo
         for j in range(source.shape[0]):
-            if measurement[j] >= 0:
+            if measurement[j] >= 0:  # the same bits as the quantity plus its noise
                 v = meas[measurement[j], n]
             else:
-                v = q[source[j], m]
+                v = _quantity(source[j], n, m, sig, q)
                 c = channel[j]
                 if c >= 0:
                     v += std[c] * noise[c, m]

@@ -20,7 +20,7 @@ table's row order is the column order of every set. Everything else is generated
   sync).
 
 Adding a signal is one row of :data:`OBSERVABLES` (and, if it reads a quantity the env does not
-compute yet, a row of :data:`QUANTITIES` and its line in ``env_kernel._measure``; a new noise
+compute yet, a row of :data:`QUANTITIES` and its line in ``env_kernel._quantities``; a new noise
 channel is appended to :data:`NOISE_CHANNELS`). A new row placed after the others appends a
 column to the sets that hold it, so that policies trained on the old columns keep their
 meaning. No numba, no Gym import.
@@ -58,6 +58,9 @@ class Quantity(NamedTuple):
 
     name: str
     what: str
+    #: The ``info`` signal that holds it (a name in ``layout.SIGNAL_NAMES``), where the kernel
+    #: reads it; None: the kernel computes it into its scratch.
+    signal: str | None
     #: Its value at a vehicle's reset (the static equilibrium over the start elevation ``z0``):
     #: ``at_rest * z0``.
     at_rest: float = 0.0
@@ -107,24 +110,30 @@ class Observable(NamedTuple):
     measured: bool = False  # kept in the measurements (the inverse and the estimators read it)
 
 
-#: What :func:`capsule_env.env_kernel.env_sense` computes for each vehicle, in the rows of its
-#: scratch (the estimates from the noisy accelerometers, the rest from the plant).
+#: What :func:`capsule_env.env_kernel.env_sense` computes for each vehicle every step (the
+#: estimates from the noisy accelerometers, the rest from the plant): most are ``info``
+#: signals, the others rows of the kernel's scratch.
 QUANTITIES = (
-    Quantity("car_body_displacement_m", "car body displacement `z_c`", 1.0),
-    Quantity("car_body_velocity_m_s", "car body velocity"),
-    Quantity("bogie_displacement_m", "bogie displacement `z_b`", 1.0),
-    Quantity("bogie_velocity_m_s", "bogie velocity"),
-    Quantity("guideway_elevation_m", "guideway elevation under the bogie `z_g`", 1.0),
-    Quantity("car_body_acceleration_m_s2", "car body vertical acceleration"),
-    Quantity("bogie_acceleration_m_s2", "bogie vertical acceleration"),
-    Quantity("stroke_m", "damper stroke `x = z_c - z_b`"),
-    Quantity("stroke_rate_m_s", "stroke rate `v`"),
-    Quantity("coil_current_a", "coil current (after the coil lag)"),
-    Quantity("levitation_gap_m", "levitation gap change `z_b - z_g`"),
-    Quantity("last_current_command_a", "last coil current command"),
-    Quantity("car_body_velocity_estimate_m_s", "car body absolute velocity estimate"),
-    Quantity("bogie_velocity_estimate_m_s", "bogie absolute velocity estimate"),
-)
+    Quantity("car_body_displacement_m", "car body displacement `z_c`",
+             "car_body_displacement_m", 1.0),
+    Quantity("car_body_velocity_m_s", "car body velocity", "car_body_velocity_m_s"),
+    Quantity("bogie_displacement_m", "bogie displacement `z_b`", "bogie_displacement_m", 1.0),
+    Quantity("bogie_velocity_m_s", "bogie velocity", "bogie_velocity_m_s"),
+    Quantity("guideway_elevation_m", "guideway elevation under the bogie `z_g`",
+             "guideway_elevation_m", 1.0),
+    Quantity("car_body_acceleration_m_s2", "car body vertical acceleration",
+             "car_body_acceleration_m_s2"),
+    Quantity("bogie_acceleration_m_s2", "bogie vertical acceleration", "bogie_acceleration_m_s2"),
+    Quantity("stroke_m", "damper stroke `x = z_c - z_b`", "stroke_m"),
+    Quantity("stroke_rate_m_s", "stroke rate `v`", "stroke_rate_m_s"),
+    Quantity("coil_current_a", "coil current (after the coil lag)", "coil_current_a"),
+    Quantity("levitation_gap_m", "levitation gap change `z_b - z_g`", None),
+    Quantity("last_current_command_a", "last coil current command", "current_command_a"),
+    Quantity("car_body_velocity_estimate_m_s", "car body absolute velocity estimate",
+             "car_body_velocity_estimate_m_s"),
+    Quantity("bogie_velocity_estimate_m_s", "bogie absolute velocity estimate",
+             "bogie_velocity_estimate_m_s"),
+)  # fmt: skip
 QUANTITY_NAMES = tuple(q.name for q in QUANTITIES)
 
 #: Sensor-noise channels in the order their normals are drawn: a channel keeps its noise
