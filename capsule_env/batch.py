@@ -31,7 +31,7 @@ from capsule_env.config import (
     check_seed,
 )
 from capsule_env.env_kernel import command_path
-from capsule_env.env_params import EnvParams, EnvState, float_groups
+from capsule_env.env_params import EnvParams, EnvState
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.guideway.params import profile_length_m
 from capsule_env.guideway.sampling import n_samples
@@ -196,7 +196,7 @@ class CapsuleBatch:
         route = Route(self.profile_index, self.start_position, self.speed, self.gain)
         delay = self.config.effective_control_delay_steps
         self._env_state = state = EnvState.allocate(n, delay, route)
-        self._vehicle_floats = state.vehicle_floats  # the block its named groups view
+        self._vehicle_floats = state.vehicle_floats  # the block of its named groups
         self._state, self._step_count = state.plant, state.step_count
         self._noise_key, self._measured, self._delay_buf = (
             state.noise_key,
@@ -446,9 +446,6 @@ class CapsuleBatch:
         # copy's buffer again (the one its kernel writes)
         self.__dict__.update(state)
         self.signals = self._signals_buf[:, : self.num_envs]
-        # ... and the named groups of env_state views of one block again (reset zeroes it)
-        block = self._vehicle_floats
-        self._env_state = self._env_state._replace(**float_groups(block))
 
     @property
     def truncated(self) -> np.ndarray:

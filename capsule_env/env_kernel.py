@@ -36,7 +36,12 @@ from capsule_env.env_params import (
     EnvOutputs,
     EnvParams,
     EnvState,
+    applied_current,
+    csdc,
+    estimator,
     noise_pairs,
+    position_error,
+    reward_filter,
 )
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
@@ -262,7 +267,7 @@ def _env_commands(command, lo, hi, actions, params, state, out):
     cmd = command.literal_value
 
     def impl(command, lo, hi, actions, params, state, out):
-        sig, meas, csdc = out.signals, state.measured, state.csdc
+        sig, meas, csdc_state = out.signals, state.measured, csdc(state)
         i_max = params.i_max_a
         f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
         if cmd == COMMAND_CURRENT:
@@ -272,9 +277,11 @@ def _env_commands(command, lo, hi, actions, params, state, out):
             for n in range(lo, hi):
                 f_d = actions[n] * params.max_force_n
                 x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
-                z_est = csdc_z_update(inv_p, csdc[CSDC_Z, n], x_m - csdc[CSDC_STROKE, n])
-                csdc[CSDC_Z, n] = z_est
-                csdc[CSDC_STROKE, n] = x_m
+                z_est = csdc_z_update(
+                    inv_p, csdc_state[CSDC_Z, n], x_m - csdc_state[CSDC_STROKE, n]
+                )
+                csdc_state[CSDC_Z, n] = z_est
+                csdc_state[CSDC_STROKE, n] = x_m
                 f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
                 sig[SIG_DESIRED_FORCE, n] = f_d
                 sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
@@ -295,7 +302,7 @@ def _delay(lo, hi, command, state):
     since the reset, which zeroes it), then the step count advanced. The kernel owns both: the
     same commands as a ring position kept by Python, whatever the vehicle's resets."""
     ring, size = state.delay, state.delay.shape[1]
-    count, applied = state.step_count, state.applied_current
+    count, applied = state.step_count, applied_current(state)
     for n in range(lo, hi):
         k = count[n]
         ring[n, k % size] = command[n]
@@ -317,7 +324,7 @@ def env_sense(lo, hi, params, plant, state, out, scratch):
     _quantities(lo, hi, state.plant, out, q)
     _measure(lo, hi, params.noise_std, out.signals, q, noise, state.measured)
     _estimate_velocities(lo, hi, params.estimator, state, out)
-    _filter_reward_acceleration(lo, hi, params.reward_filter, state.reward_filter, out)
+    _filter_reward_acceleration(lo, hi, params.reward_filter, reward_filter(state), out)
     _reward(lo, hi, params, state, out)
     _observe(lo, hi, params, out.signals, q, noise, state.measured, out.obs)
 
@@ -380,7 +387,7 @@ def _estimate_velocities(lo, hi, est, state, out):
     """The on-board absolute velocity estimates (their ``info`` signals): each accelerometer's
     measurement through the estimator's biquad (transposed direct form II)."""
     b0, b1, b2, a1, a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
-    meas, s, sig = state.measured, state.estimator, out.signals
+    meas, s, sig = state.measured, estimator(state), out.signals
     for acc_row, first, sig_row in ((MEAS_BODY_ACC, EST_BODY, SIG_BODY_VEL_EST),
                                     (MEAS_BOGIE_ACC, EST_BOGIE, SIG_BOGIE_VEL_EST)):  # fmt: skip
         acc, s1, s2, v = meas[acc_row], s[first], s[first + 1], sig[sig_row]
@@ -422,7 +429,7 @@ def _reward(lo, hi, params, state, out):
     w_energy, w_vel = params.reward_energy_weight, params.reward_velocity_weight
     stroke_limit, penalty = params.stroke_limit_m, params.bump_stop_penalty
     has_current = i_max > 0.0
-    sig, applied, acc_reward = out.signals, state.applied_current, out.signals[SIG_REWARD_ACC]
+    sig, applied, acc_reward = out.signals, applied_current(state), out.signals[SIG_REWARD_ACC]
     for n in range(lo, hi):
         stroke = sig[SIG_STROKE, n]
         acc_rel = acc_reward[n] / acc_ref
@@ -456,6 +463,10 @@ def _observe(lo, hi, params, sig, q, noise, meas, obs):
 
 @njit(**FAST, **BORROWED, inline="always")
 def _columns(lo, hi, column_map, params, sig, q, noise, meas, obs):
+    """The columns of one set's ``column_map`` ``(measurement, source, channel)`` (constant
+    arrays: once inlined, each column's branches are decided at compile time), clipped; the
+    clip in float64 before the float32 store gives the bits of a clip after it (rounding is
+    monotonic and the bounds are float32 values)."""
     measurement, source, channel = column_map
     std, bounds = params.noise_std, params.obs_bounds
     for n in range(lo, hi):
@@ -496,7 +507,7 @@ def preview_row(n, params, plant, state, obs):
     route = state.route
     first = obs.shape[1] - params.preview_points
     k, g, speed = route.profile[n], route.gain[n], route.speed_mps[n]
-    here = route.start_m[n] + speed * state.plant[n, TIME] + state.position_error[n]
+    here = route.start_m[n] + speed * state.plant[n, TIME] + position_error(state)[n]
     ref = g * guideway_elevation(profiles, k, spacing, last, here)
     ref += guideway_elevation(err, k, spacing, last, here)
     for j in range(params.preview_points):

@@ -5,7 +5,8 @@
 :class:`EnvState` holds what evolves per vehicle, each group of per-vehicle floats under a
 name of its own (the applied current, the CSDC inverse's state, the velocity estimators', the
 position error, the reward filter's) as views of one block, so that a vehicle's reset zeroes
-them in one assignment (:meth:`EnvState.allocate`). :class:`EnvOutputs` holds what a step
+them in one assignment: properties of :class:`EnvState` in Python, functions of the same names
+in compiled code. :class:`EnvOutputs` holds what a step
 writes. Their arrays have the layouts of :mod:`capsule_env.layout`; the kernel is
 :mod:`capsule_env.env_kernel`. The kernel owns the step count and the control-delay ring: it
 advances both (Python only zeroes them at a reset).
@@ -17,7 +18,9 @@ import warnings
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from numba import njit
 
+from capsule_env._fastmath import BORROWED, FAST
 from capsule_env.layout import (
     N_MEASUREMENTS,
     N_VEHICLE_FLOATS,
@@ -39,7 +42,11 @@ __all__ = [
     "OBS_MEASURED",
     "OBSERVATION_CODES",
     "noise_pairs",
-    "float_groups",
+    "applied_current",
+    "csdc",
+    "estimator",
+    "position_error",
+    "reward_filter",
     "CSDC_Z",
     "CSDC_STROKE",
     "EST_BODY",
@@ -73,17 +80,54 @@ _GROUPS = {
 }
 
 
-def float_groups(block: np.ndarray) -> dict[str, np.ndarray]:
-    """The named groups of :class:`EnvState`'s per-vehicle floats as views of ``block``
-    ((N_VEHICLE_FLOATS, N), rows ``layout.VEHICLE_FLOAT_NAMES``), by field name
-    (``EnvState(..., **float_groups(block))``, ``state._replace(**float_groups(block))``)."""
-    groups = {}
-    for name, rows in _GROUPS.items():
-        first = VEHICLE_FLOAT_NAMES.index(rows[0])
-        assert VEHICLE_FLOAT_NAMES[first : first + len(rows)] == rows
-        view = block[first : first + len(rows)]
-        groups[name] = view[0] if len(rows) == 1 else view
-    return groups
+def _rows(group: str) -> tuple[int, int]:
+    """``(first, stop)`` rows of a group of ``layout.VEHICLE_FLOAT_NAMES``, checked contiguous."""
+    names = _GROUPS[group]
+    first = VEHICLE_FLOAT_NAMES.index(names[0])
+    assert VEHICLE_FLOAT_NAMES[first : first + len(names)] == names, group
+    return first, first + len(names)
+
+
+_APPLIED = _rows("applied_current")[0]
+_CSDC, _CSDC_STOP = _rows("csdc")
+_EST, _EST_STOP = _rows("estimator")
+_POSITION_ERROR = _rows("position_error")[0]
+_REWARD_FILTER, _REWARD_FILTER_STOP = _rows("reward_filter")
+
+
+# The named groups of EnvState.vehicle_floats as the kernel reads them (views; inlined, so
+# they cost nothing; EnvState's properties of the same names give the same views to Python).
+# One array in EnvState rather than five keeps the per-call cost of the kernel's structures
+# down (each array read from them is reference-counted at every call of the serial kernel).
+@njit(**FAST, **BORROWED, inline="always")
+def applied_current(state):
+    """(N,) the command applied this step, after the control delay (A)."""
+    return state.vehicle_floats[_APPLIED]
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def csdc(state):
+    """(2, N) the CSDC inverse's state, rows :data:`CSDC_Z`, :data:`CSDC_STROKE`."""
+    return state.vehicle_floats[_CSDC:_CSDC_STOP]
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def estimator(state):
+    """(4, N) the velocity estimators' states, two each from :data:`EST_BODY`,
+    :data:`EST_BOGIE`."""
+    return state.vehicle_floats[_EST:_EST_STOP]
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def position_error(state):
+    """(N,) the error of each vehicle's own estimate of its position (m)."""
+    return state.vehicle_floats[_POSITION_ERROR]
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def reward_filter(state):
+    """(2 MAX_REWARD_FILTER_SECTIONS, N) the reward filter's states, two per section."""
+    return state.vehicle_floats[_REWARD_FILTER:_REWARD_FILTER_STOP]
 
 
 def noise_pairs(observation: int) -> np.ndarray:
@@ -161,8 +205,19 @@ class EnvParams(NamedTuple):
         )
 
 
+def _group_view(group: str, doc: str | None) -> property:
+    """A read-only property: the view of ``vehicle_floats`` that is ``group`` (the Python side
+    of the compiled accessor of the same name, whose docstring it takes)."""
+    first, stop = _rows(group)
+    rows = first if stop - first == 1 else slice(first, stop)
+    return property(lambda self: self.vehicle_floats[rows], doc=doc)
+
+
 class EnvState(NamedTuple):
-    """What evolves, per vehicle (one contiguous row per quantity for the SIMD loops)."""
+    """What evolves, per vehicle (one contiguous row per quantity for the SIMD loops). The
+    per-vehicle floats are one block whose groups have names: the properties
+    :attr:`applied_current`, :attr:`csdc`, :attr:`estimator`, :attr:`position_error`,
+    :attr:`reward_filter` (views; in compiled code the functions of the same names)."""
 
     plant: np.ndarray  # (N, STATE_SIZE)
     route: Route
@@ -170,16 +225,11 @@ class EnvState(NamedTuple):
     noise_key: np.ndarray  # (N,) uint64 drawn at the reset
     measured: np.ndarray  # (N_MEASUREMENTS, N), rows layout.MEASUREMENT_NAMES
     delay: np.ndarray  # (N, control_delay_steps + 1) ring buffer of commands (the kernel's)
-    applied_current: np.ndarray  # (N,) the command applied this step, after the delay (A)
-    csdc: np.ndarray  # (2, N) rows CSDC_Z, CSDC_STROKE
-    estimator: np.ndarray  # (4, N) the velocity estimators' states, rows from EST_BODY, EST_BOGIE
-    position_error: np.ndarray  # (N,) the error of the vehicle's own position estimate (m)
-    reward_filter: np.ndarray  # (2 MAX_REWARD_FILTER_SECTIONS, N) two per filter section
+    vehicle_floats: np.ndarray  # (N_VEHICLE_FLOATS, N), rows layout.VEHICLE_FLOAT_NAMES
 
     @classmethod
     def allocate(cls, num_envs: int, delay_steps: int, route: Route) -> EnvState:
-        """A zero state of ``num_envs`` vehicles with a ring of ``delay_steps + 1`` commands;
-        the per-vehicle floats are views of one block (:func:`float_groups`)."""
+        """A zero state of ``num_envs`` vehicles with a ring of ``delay_steps + 1`` commands."""
         return cls(
             plant=np.zeros((num_envs, STATE_SIZE)),
             route=route,
@@ -187,14 +237,14 @@ class EnvState(NamedTuple):
             noise_key=np.zeros(num_envs, dtype=np.uint64),
             measured=np.zeros((N_MEASUREMENTS, num_envs)),
             delay=np.zeros((num_envs, delay_steps + 1)),
-            **float_groups(np.zeros((N_VEHICLE_FLOATS, num_envs))),
+            vehicle_floats=np.zeros((N_VEHICLE_FLOATS, num_envs)),
         )
 
-    @property
-    def vehicle_floats(self) -> np.ndarray:
-        """(N_VEHICLE_FLOATS, N) every per-vehicle float, rows ``layout.VEHICLE_FLOAT_NAMES``:
-        the block the named groups are views of."""
-        return self.csdc.base
+    applied_current = _group_view("applied_current", applied_current.__doc__)
+    csdc = _group_view("csdc", csdc.__doc__)
+    estimator = _group_view("estimator", estimator.__doc__)
+    position_error = _group_view("position_error", position_error.__doc__)
+    reward_filter = _group_view("reward_filter", reward_filter.__doc__)
 
     @property
     def floats(self) -> np.ndarray:

@@ -61,6 +61,7 @@ from capsule_env.env_kernel import (
     env_preview,
     env_sense,
 )
+from capsule_env.env_params import applied_current
 from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_scratch, block_step
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.scalar import scalar_step
@@ -183,7 +184,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 env_commands(command, b, e, actions, params, state, out)
-                x, i_cmd, route = state.plant, state.applied_current, state.route
+                x, i_cmd, route = state.plant, applied_current(state), state.route
                 if mode == KERNEL_SCALAR:
                     scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
                 else:
