@@ -16,6 +16,7 @@ on the batch size, the batch position or threading.
 from __future__ import annotations
 
 import math
+import warnings
 from operator import attrgetter
 from typing import Any
 
@@ -23,25 +24,14 @@ import numpy as np
 from numba import njit
 
 from capsule_env.config import (
-    INVERSE_CODES,
-    SENSOR_NOISE_STD,
     SURVEY_NOISE_BAND_M,
     SURVEY_OFFSET_BAND_M,
     EnvConfig,
     check_num_envs,
     check_seed,
-    observation_bounds,
 )
-from capsule_env.env_kernel import (
-    DELAY_READ,
-    DELAY_WRITE,
-    OBS_FULL_STATE,
-    OBSERVATION_CODES,
-    EnvParams,
-    EnvState,
-    command_path,
-    noise_pairs,
-)
+from capsule_env.env_kernel import command_path
+from capsule_env.env_params import EnvParams, EnvState
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.guideway.params import profile_length_m
 from capsule_env.guideway.sampling import n_samples
@@ -49,17 +39,13 @@ from capsule_env.kernels import ENV, BatchedKernel, env_args
 from capsule_env.layout import (
     BODY_DISP,
     BOGIE_DISP,
-    N_MEASUREMENTS,
     N_PLANT_OUTPUTS,
     N_SIGNALS,
-    N_VEHICLE_FLOATS,
     SIG_BODY_DISP,
     SIG_BOGIE_DISP,
     SIG_GUIDEWAY,
-    STATE_SIZE,
-    VF_APPLIED,
-    VF_POSITION_ERROR,
 )
+from capsule_env.observations import rest_observation
 from capsule_env.plant.block import block_constants, block_kernel_mode
 from capsule_env.plant.params import PlantParams, Route
 
@@ -143,7 +129,6 @@ class CapsuleBatch:
     profile_index = _bound("profile_index", "(N,) int64 each vehicle's profile in the bank")
     start_position = _bound("start_position", "(N,) each vehicle's start on its profile (m)")
     gain = _bound("gain", "(N,) each vehicle's profile scale")
-    floats = _bound("floats", "(N_VEHICLE_FLOATS, N) rows layout.VEHICLE_FLOAT_NAMES")
     step_count = _bound("step_count", "(N,) int64 steps since each vehicle's reset")
     noise_key = _bound("noise_key", "(N,) uint64 each episode's sensor-noise key")
     measured = _bound("measured", "(N_MEASUREMENTS, N) rows layout.MEASUREMENT_NAMES")
@@ -164,43 +149,28 @@ class CapsuleBatch:
         self.dt = config.dt_s
         self.max_steps = config.max_episode_steps
         self.obs_dim = len(config.observation_names)
-        self.guideway = gw = config.guideway_spec
-        self.spacing = gw.spacing_m
+        self.guideway = config.guideway_spec
+        self.spacing = self.guideway.spacing_m
         self._profiles = self._build_bank()
         self.rngs = vehicle_streams(None, n)
         self._nominal_vehicle = self.vehicle.as_array()
         self._fresh_signals = bool(fresh_signals)
+        # the columns equal to the start elevation in a reset observation (the rest are 0)
+        self._rest_columns = np.flatnonzero(rest_observation(config.observation, 1.0))
+        self._params = EnvParams.from_config(config, self._build_survey_error())
+        self._build_plant()
+        self._build_state()
+        self._build_outputs()
+        self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
+        self._kernel = BatchedKernel(
+            ENV, self.plant.code, self.kernel_mode, n,
+            command_path(self.params.current_mode, self.params.inverse_code),
+            preview=config.preview_points > 0,
+        )  # fmt: skip
 
-        # What stays fixed: the options as the kernel reads them.
-        noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
-        self._params = EnvParams(
-            max_force_n=float(config.max_force_n),
-            i_max_a=float(self.i_max),
-            dt_s=float(self.dt),
-            reward_acceleration_weight=float(config.reward_acceleration_weight),
-            acceleration_scale_m_s2=float(config.acceleration_scale_m_s2),
-            reward_stroke_weight=float(config.reward_stroke_weight),
-            stroke_scale_m=float(config.stroke_scale_m),
-            reward_energy_weight=float(config.reward_energy_weight),
-            reward_velocity_weight=float(config.reward_velocity_weight),
-            velocity_scale_m_s=float(config.velocity_scale_m_s),
-            stroke_limit_m=float(config.stroke_limit_m),
-            bump_stop_penalty=float(config.bump_stop_penalty),
-            current_mode=config.action_mode == "current",
-            inverse_code=int(INVERSE_CODES[config.inverse_model]),
-            observation=OBSERVATION_CODES[config.observation],
-            noisy=bool(np.any(noise_std > 0.0)),
-            inverse_params=self.inverse.as_array(),
-            noise_std=noise_std,
-            noise_pairs=noise_pairs(OBSERVATION_CODES[config.observation]),
-            obs_bounds=np.array(observation_bounds(config, self.i_max), dtype=np.float64),
-            estimator=config.velocity_estimator_coefficients(),
-            preview_points=int(config.preview_points),
-            preview_step_s=float(config.preview_horizon_s / max(config.preview_points, 1)),
-            survey_error=self._build_survey_error(),
-            reward_filter=config.reward_filter_sos(),
-        )
-        # What each vehicle's plant is made of (vehicles may differ, after their resets).
+    def _build_plant(self) -> None:
+        """What each vehicle's plant is made of (vehicles may differ, after their resets)."""
+        config, n = self.config, self.num_envs
         self._damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
         self._vehicle_params = np.ascontiguousarray(np.tile(self._nominal_vehicle, (n, 1)))
         self._speed = np.full(n, config.speed_kmh / 3.6)
@@ -216,25 +186,27 @@ class CapsuleBatch:
             self.damper_params, self.vehicle_params, self.sub_table, self.block_constants,
             self.profiles, float(self.spacing),
         )  # fmt: skip
-        # What evolves, per vehicle (one contiguous row per quantity for the SIMD loops).
-        self._state = np.zeros((n, STATE_SIZE))
+
+    def _build_state(self) -> None:
+        """What evolves, per vehicle (one contiguous row per quantity for the SIMD loops)."""
+        n = self.num_envs
         self._profile_index = np.zeros(n, dtype=np.int64)
         self._start_position = np.zeros(n)
         self._gain = np.ones(n)
-        self._floats = np.zeros((N_VEHICLE_FLOATS, n))
-        self._step_count = np.zeros(n, dtype=np.int64)
-        self._noise_key = np.zeros(n, dtype=np.uint64)
-        self._measured = np.zeros((N_MEASUREMENTS, n))
-        self._delay_buf = np.zeros((n, config.effective_control_delay_steps + 1))
-        self._delay_slots = np.zeros(2, dtype=np.int64)
-        self._delay_pos = 0
-        self._env_state = EnvState(
-            self.state,
-            Route(self.profile_index, self.start_position, self.speed, self.gain),
-            self.floats, self.step_count, self.noise_key, self.measured, self.delay_buf,
-            self._delay_slots,
-        )  # fmt: skip
-        # What a step writes.
+        route = Route(self.profile_index, self.start_position, self.speed, self.gain)
+        delay = self.config.effective_control_delay_steps
+        self._env_state = state = EnvState.allocate(n, delay, route)
+        self._vehicle_floats = state.vehicle_floats  # the block of its named groups
+        self._state, self._step_count = state.plant, state.step_count
+        self._noise_key, self._measured, self._delay_buf = (
+            state.noise_key,
+            state.measured,
+            state.delay,
+        )
+
+    def _build_outputs(self) -> None:
+        """What a step writes."""
+        n = self.num_envs
         self._obs = np.zeros((n, self.obs_dim), dtype=np.float32)
         self._reward = np.zeros(n)
         self._terminated = np.zeros(n, dtype=bool)
@@ -242,18 +214,24 @@ class CapsuleBatch:
         self._new_signals(np.zeros)
         self._action_buf = np.zeros(n)
         self._env_args: Any = None  # the kernel's EnvArgs, made at the first step (_run)
-        self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
-        self._kernel = BatchedKernel(
-            ENV, self.plant.code, self.kernel_mode, n,
-            command_path(self.params.current_mode, self.params.inverse_code),
-            preview=config.preview_points > 0,
-        )  # fmt: skip
 
     @property
     def applied_current(self) -> np.ndarray:
-        """(N,) the current command applied this step, after the control delay (A): a view of
-        ``floats``."""
-        return self._floats[VF_APPLIED]
+        """(N,) the current command applied this step, after the control delay (A)."""
+        return self._env_state.applied_current
+
+    @property
+    def floats(self) -> np.ndarray:
+        """Deprecated: ``env_state``'s named groups (``applied_current``, ``csdc``,
+        ``estimator``, ``position_error``, ``reward_filter``), or ``env_state.vehicle_floats``
+        for all of them, rows ``layout.VEHICLE_FLOAT_NAMES``."""
+        warnings.warn(
+            "CapsuleBatch.floats is deprecated: use env_state's named groups (applied_current, "
+            "csdc, estimator, position_error, reward_filter) or env_state.vehicle_floats",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self._vehicle_floats
 
     @property
     def params(self) -> EnvParams:
@@ -391,7 +369,7 @@ class CapsuleBatch:
             self.state[n, BODY_DISP] = zg0  # static equilibrium over the start elevation
             self.state[n, BOGIE_DISP] = zg0
             self.step_count[n] = 0
-            self.floats[:, n] = 0.0
+            self._vehicle_floats[:, n] = 0.0
             self.measured[:, n] = 0.0
             self.delay_buf[n] = 0.0
             self.terminated[n] = False
@@ -399,12 +377,11 @@ class CapsuleBatch:
             self.signals[SIG_BODY_DISP, n] = self.signals[SIG_BOGIE_DISP, n] = zg0
             self.signals[SIG_GUIDEWAY, n] = zg0
             self.obs[n] = 0.0
-            if self.params.observation == OBS_FULL_STATE:  # displacements and elevation
-                self.obs[n, 0] = self.obs[n, 2] = self.obs[n, 4] = zg0
+            self.obs[n, self._rest_columns] = zg0  # observations.rest_observation
             if cfg.preview_points:  # from the episode's noise key: the vehicle's own stream
                 # gives the same episodes with or without preview
                 draw = np.random.default_rng(int(self.noise_key[n])).standard_normal()
-                self.floats[VF_POSITION_ERROR, n] = cfg.position_error_m * draw
+                self.env_state.position_error[n] = cfg.position_error_m * draw
                 self._reset_preview(n)
         if cfg.randomizes_substeps:
             rows = np.fromiter(ids, dtype=np.int64)
@@ -450,11 +427,6 @@ class CapsuleBatch:
             # envs hand its rows out as ``info`` arrays without copying them, so infos kept
             # from earlier steps keep their values (for any number of vehicles, one included).
             self._new_signals(np.empty)
-        # ring buffer of delay + 1 commands: write this step's, apply the oldest
-        self._delay_pos += 1
-        n_buf = self.delay_buf.shape[1]
-        self._delay_slots[DELAY_WRITE] = self._delay_pos % n_buf
-        self._delay_slots[DELAY_READ] = (self._delay_pos + 1) % n_buf
         args = self._env_args
         if args is None:  # boxed once: a call then unboxes one object (kernels.EnvArgs)
             args = self._env_args = env_args(

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from capsule_env import observations as _observations
 from capsule_env._validation import (
     UnexpectedArgumentError,
     available_memory_bytes,
@@ -64,56 +65,27 @@ __all__ = [
 
 ACTION_MODES = ("force", "current")
 SETTINGS = ("sim", "hils")
-OBSERVATION_SETS = ("sensors", "full_state", "measured")
+OBSERVATION_SETS = _observations.OBSERVATION_SETS
 PLANT_DAMPERS = ("reference", "bouc_wen", "bi_exponential", "tanh", "passive")
 #: The plant damper of the ``sim`` setting: the model the controller inverts
 #: (docs/model.md, section 8).
 SIM_PLANT_FOR_INVERSE = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}
 
-SENSOR_NAMES = (
-    "car_body_acceleration_m_s2",
-    "bogie_acceleration_m_s2",
-    "stroke_m",
-    "stroke_rate_m_s",
-    "last_current_command_a",
-)
-FULL_STATE_NAMES = (
-    "car_body_displacement_m",
-    "car_body_velocity_m_s",
-    "bogie_displacement_m",
-    "bogie_velocity_m_s",
-    "guideway_elevation_m",
-    "car_body_acceleration_m_s2",
-    "bogie_acceleration_m_s2",
-    "stroke_m",
-    "stroke_rate_m_s",
-    "coil_current_a",
-)
+#: The column names of each observation set, from the one table
+#: (:data:`capsule_env.observations.OBSERVABLES`).
+OBSERVATION_NAMES = _observations.OBSERVATION_NAMES
+#: The ``sensors`` set: what a real vehicle measures (with noise in ``hils``).
+SENSOR_NAMES = OBSERVATION_NAMES["sensors"]
+#: The ``full_state`` set: every state (with noise where ``sensor_noise`` > 0).
+FULL_STATE_NAMES = OBSERVATION_NAMES["full_state"]
 #: The ``measured`` set: what a capsule's own sensors read (with noise in ``hils``) and the
 #: on-board estimates of the absolute velocities (:meth:`EnvConfig.velocity_estimator_coefficients`).
-MEASURED_NAMES = (
-    "car_body_acceleration_m_s2",  # accelerometer on the car body
-    "bogie_acceleration_m_s2",  # accelerometer on the bogie
-    "stroke_m",  # LVDT across the damper
-    "stroke_rate_m_s",  # its rate
-    "levitation_gap_m",  # gap sensor, bogie to guideway: z_b - z_g (its change from rest)
-    "coil_current_a",  # the MR driver's current measurement
-    "last_current_command_a",
-    "car_body_velocity_estimate_m_s",  # band-limited integral of the body accelerometer
-    "bogie_velocity_estimate_m_s",  # band-limited integral of the bogie accelerometer
-)
-OBSERVATION_NAMES = {
-    "sensors": SENSOR_NAMES,
-    "full_state": FULL_STATE_NAMES,
-    "measured": MEASURED_NAMES,
-}
+MEASURED_NAMES = OBSERVATION_NAMES["measured"]
 #: Standard deviation of the measurement noise at ``sensor_noise=1`` [reconstructed: a few per
 #: cent of each channel's typical level on the default guideway; the HILS default], one per
-#: ``layout.NOISE_CHANNEL_NAMES``: car body and bogie acceleration (m/s^2), stroke (m), stroke
-#: rate (m/s), then for the ``full_state`` set: car body displacement (m), car body velocity
-#: (m/s), bogie displacement (m), bogie velocity (m/s), guideway elevation (m); then for the
-#: ``measured`` set: levitation gap (m, like the LVDT's) and coil current (A, 0.7 % of 1.5 A).
-SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 1e-4, 0.01])
+#: ``layout.NOISE_CHANNEL_NAMES``, read by name from
+#: :data:`capsule_env.observations.NOISE_CHANNELS`.
+SENSOR_NOISE_STD = _observations.SENSOR_NOISE_STD
 #: Damper code of the model each ``inverse_model`` inverts.
 INVERSE_CODES = {"bi_exponential": BI_EXPONENTIAL, "tanh": TANH, "csdc": BOUC_WEN}
 #: Filters of the car-body acceleration in the reward (``reward_acceleration_filter``).
@@ -489,17 +461,9 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
     """``(low, high)`` of the observation space: generous physical limits at which the sensors
     saturate (accelerations 100 m/s^2, stroke 2 x the bump stop, rates and velocities 10 m/s,
     displacements, the gap and the preview 1 m, commanded current [0, i_max], measured current
-    [-0.5, i_max + 0.5] A so that its noise is not clipped on one side)."""
-    x_lim = 2.0 * config.stroke_limit_m
-    if config.observation == "sensors":
-        high = [100.0, 100.0, x_lim, 10.0, i_max]
-        low = [-100.0, -100.0, -x_lim, -10.0, 0.0]
-    elif config.observation == "full_state":
-        high = [1.0, 10.0, 1.0, 10.0, 1.0, 100.0, 100.0, x_lim, 10.0, i_max]
-        low = [-1.0, -10.0, -1.0, -10.0, -1.0, -100.0, -100.0, -x_lim, -10.0, 0.0]
-    else:
-        high = [100.0, 100.0, x_lim, 10.0, 1.0, i_max + 0.5, i_max, 10.0, 10.0]
-        low = [-100.0, -100.0, -x_lim, -10.0, -1.0, -0.5, 0.0, -10.0, -10.0]
+    [-0.5, i_max + 0.5] A so that its noise is not clipped on one side): each column's
+    ``low`` and ``high`` in :data:`capsule_env.observations.OBSERVABLES`, then the preview's."""
+    low, high = _observations.bounds(config.observation, config.stroke_limit_m, i_max)
     high += [1.0] * config.preview_points
     low += [-1.0] * config.preview_points
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)

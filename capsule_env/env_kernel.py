@@ -16,7 +16,7 @@ its batch, its position in it or the threads.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+import warnings
 
 import numpy as np
 from numba import njit, types
@@ -24,6 +24,25 @@ from numba.extending import overload
 
 from capsule_env._fastmath import BORROWED, FAST, fast_cos_2pi, fast_log
 from capsule_env.dampers import BOUC_WEN
+from capsule_env.env_params import (
+    CSDC_STROKE,
+    CSDC_Z,
+    EST_BODY,
+    EST_BOGIE,
+    OBS_FULL_STATE,
+    OBS_MEASURED,
+    OBS_SENSORS,
+    OBSERVATION_CODES,
+    EnvOutputs,
+    EnvParams,
+    EnvState,
+    applied_current,
+    csdc,
+    estimator,
+    noise_pairs,
+    position_error,
+    reward_filter,
+)
 from capsule_env.inverse import affine_in_current, csdc_z_update, invert_affine
 from capsule_env.layout import (
     BODY_DISP,
@@ -33,21 +52,10 @@ from capsule_env.layout import (
     COIL_CURRENT,
     MEAS_BODY_ACC,
     MEAS_BOGIE_ACC,
-    MEAS_COMMAND,
     MEAS_STROKE,
     MEAS_STROKE_RATE,
     N_NOISE_CHANNELS,
-    NOISE_BODY_ACC,
-    NOISE_BODY_DISP,
-    NOISE_BODY_VEL,
-    NOISE_BOGIE_ACC,
-    NOISE_BOGIE_DISP,
-    NOISE_BOGIE_VEL,
-    NOISE_CURRENT,
-    NOISE_GAP,
-    NOISE_GUIDEWAY,
-    NOISE_STROKE,
-    NOISE_STROKE_RATE,
+    N_SIGNALS,
     OUT_BODY_ACC,
     OUT_BOGIE_ACC,
     OUT_FORCE,
@@ -72,52 +80,74 @@ from capsule_env.layout import (
     SIG_REWARD_ACC,
     SIG_STROKE,
     SIG_STROKE_RATE,
+    SIGNAL_NAMES,
     TIME,
-    VF_APPLIED,
-    VF_CSDC_STROKE,
-    VF_CSDC_Z,
-    VF_EST_BODY_1,
-    VF_EST_BODY_2,
-    VF_EST_BOGIE_1,
-    VF_EST_BOGIE_2,
-    VF_POSITION_ERROR,
-    VF_REWARD_FILTER,
+)
+from capsule_env.observations import (
+    COLUMN_MEASUREMENTS,
+    COLUMN_NOISE,
+    COLUMN_SOURCES,
+    MEASUREMENT_NOISE,
+    MEASUREMENT_SOURCES,
+    QUANTITIES,
 )
 from capsule_env.plant.block import BLOCK, guideway_elevation, row_params
-from capsule_env.plant.params import Route
 
 __all__ = [
+    "env_commands",
+    "env_sense",
+    "env_preview",
+    "SENSE_SCRATCH_SHAPE",
+    "COMMAND_CURRENT",
+    "command_path",
+    # the named structures, from capsule_env.env_params (their home since issue 26)
     "EnvParams",
     "EnvState",
     "EnvOutputs",
+    "OBSERVATION_CODES",
     "OBS_SENSORS",
     "OBS_FULL_STATE",
     "OBS_MEASURED",
-    "OBSERVATION_CODES",
     "noise_pairs",
-    "NOISE_SCRATCH_SHAPE",
-    "COMMAND_CURRENT",
-    "command_path",
 ]
 
-#: Observation sets (``EnvParams.observation``), by the names of ``EnvConfig.observation``.
-OBS_SENSORS, OBS_FULL_STATE, OBS_MEASURED = 0, 1, 2
-OBSERVATION_CODES = {"sensors": OBS_SENSORS, "full_state": OBS_FULL_STATE, "measured": OBS_MEASURED}
-#: Noise channels each observation set reads (the rest are not drawn).
-_CHANNELS_READ = {
-    OBS_SENSORS: (NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE),
-    OBS_FULL_STATE: tuple(range(NOISE_GAP)),
-    OBS_MEASURED: (
-        NOISE_BODY_ACC,
-        NOISE_BOGIE_ACC,
-        NOISE_STROKE,
-        NOISE_STROKE_RATE,
-        NOISE_GAP,
-        NOISE_CURRENT,
-    ),  # fmt: skip
-}
-#: Shape of :func:`env_sense`'s scratch: a row per noise channel, a column per vehicle of a block.
-NOISE_SCRATCH_SHAPE = (N_NOISE_CHANNELS + 1, BLOCK)
+#: The quantities the kernel computes into its scratch (those no ``info`` signal holds), one
+#: row each after the noise rows.
+_SCRATCH_QUANTITIES = tuple(q.name for q in QUANTITIES if q.signal is None)
+Q_GAP = _SCRATCH_QUANTITIES.index("levitation_gap_m")
+#: Rows of the scratch before the quantities: one per noise channel, and one for the second
+#: member of the last Box-Muller pair when the channels are odd in number.
+_NOISE_ROWS = N_NOISE_CHANNELS + 1
+#: Shape of :func:`env_sense`'s scratch: a row per noise channel, then a row per quantity of
+#: its own, a column per vehicle of a block.
+SENSE_SCRATCH_SHAPE = (_NOISE_ROWS + len(_SCRATCH_QUANTITIES), BLOCK)
+
+
+def _kernel_sources(quantities: np.ndarray) -> np.ndarray:
+    """Where the kernel reads each quantity (indices in ``observations.QUANTITY_NAMES``): its
+    ``info`` signal's row, or ``N_SIGNALS +`` its scratch row."""
+    rows = []
+    for k in quantities:
+        q = QUANTITIES[k]
+        if q.signal:
+            rows.append(SIGNAL_NAMES.index(q.signal))
+        else:
+            rows.append(N_SIGNALS + _SCRATCH_QUANTITIES.index(q.name))
+    return np.array(rows, dtype=np.int64)
+
+
+#: The column maps, compile-time constants of the kernel (``observations.COLUMN_SOURCES``,
+#: ``COLUMN_NOISE``, ``COLUMN_MEASUREMENTS``): where each column of a set reads its quantity
+#: (:func:`_kernel_sources`), its noise channel (-1: none) and the measurement it equals (-1:
+#: none).
+_SENSORS = (COLUMN_MEASUREMENTS["sensors"], _kernel_sources(COLUMN_SOURCES["sensors"]),
+            COLUMN_NOISE["sensors"])  # fmt: skip
+_FULL = (COLUMN_MEASUREMENTS["full_state"], _kernel_sources(COLUMN_SOURCES["full_state"]),
+         COLUMN_NOISE["full_state"])  # fmt: skip
+_MEASURED = (COLUMN_MEASUREMENTS["measured"], _kernel_sources(COLUMN_SOURCES["measured"]),
+             COLUMN_NOISE["measured"])  # fmt: skip
+#: ... and of the measurements (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``).
+_MEAS_SOURCE, _MEAS_NOISE = _kernel_sources(MEASUREMENT_SOURCES), MEASUREMENT_NOISE
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
 EST_B0, EST_B1, EST_B2, EST_A1, EST_A2 = range(5)
 
@@ -134,69 +164,21 @@ def command_path(current_mode: bool, inverse_code: int) -> int:
     return COMMAND_CURRENT if current_mode else int(inverse_code)
 
 
-def noise_pairs(observation: int) -> np.ndarray:
-    """The Box-Muller pairs an observation set needs drawn (pair ``c // 2`` for channel ``c``)."""
-    return np.array(sorted({c // 2 for c in _CHANNELS_READ[observation]}), dtype=np.int64)
-
-
 #: Rows of ``EnvParams.obs_bounds``.
 LOW, HIGH = 0, 1
-#: Rows of ``EnvState.delay_slots``: where this step's command is written in the delay ring,
-#: and where the command applied now is read.
-DELAY_WRITE, DELAY_READ = 0, 1
 
 
-class EnvParams(NamedTuple):
-    """What stays fixed for a batch: the env's options, as the kernel reads them."""
-
-    max_force_n: float  # force-mode scale of the action
-    i_max_a: float  # the plant damper's maximum current
-    dt_s: float  # control interval
-    reward_acceleration_weight: float
-    acceleration_scale_m_s2: float
-    reward_stroke_weight: float
-    stroke_scale_m: float
-    reward_energy_weight: float
-    reward_velocity_weight: float
-    velocity_scale_m_s: float
-    stroke_limit_m: float
-    bump_stop_penalty: float
-    current_mode: bool  # action_mode == "current"
-    inverse_code: int  # damper code of the model the controller inverts
-    observation: int  # OBS_SENSORS, OBS_FULL_STATE or OBS_MEASURED
-    noisy: bool  # any sensor noise
-    inverse_params: np.ndarray  # (N_DAMPER_PARAMS,) the inverted model's packed parameters
-    noise_std: np.ndarray  # (N_NOISE_CHANNELS,) standard deviation of each channel
-    noise_pairs: np.ndarray  # (k,) int64: the Box-Muller pairs the observation set reads
-    obs_bounds: np.ndarray  # (2, obs_dim) rows LOW, HIGH: where the sensors saturate
-    estimator: np.ndarray  # (5,) the velocity estimator's biquad, rows EST_B0 .. EST_A2
-    preview_points: int  # guideway preview columns after the observation set's (0: none)
-    preview_step_s: float  # time between preview points
-    survey_error: np.ndarray  # (K, L) the survey map's error, on the profiles' grid (m)
-    reward_filter: np.ndarray  # (S, 6) second-order sections of the reward's acceleration filter
-
-
-class EnvState(NamedTuple):
-    """What evolves, per vehicle."""
-
-    plant: np.ndarray  # (N, STATE_SIZE)
-    route: Route
-    floats: np.ndarray  # (N_VEHICLE_FLOATS, N), rows layout.VEHICLE_FLOAT_NAMES
-    step_count: np.ndarray  # (N,) int64 steps since the reset
-    noise_key: np.ndarray  # (N,) uint64 drawn at the reset
-    measured: np.ndarray  # (N_MEASUREMENTS, N), rows layout.MEASUREMENT_NAMES
-    delay: np.ndarray  # (N, control_delay_steps + 1) ring buffer of commands
-    delay_slots: np.ndarray  # (2,) int64: DELAY_WRITE, DELAY_READ
-
-
-class EnvOutputs(NamedTuple):
-    """What one step writes."""
-
-    obs: np.ndarray  # (N, obs_dim) float32
-    reward: np.ndarray  # (N,)
-    terminated: np.ndarray  # (N,) bool
-    signals: np.ndarray  # (N_SIGNALS, N + padding), rows layout.SIGNAL_NAMES
-    plant: np.ndarray  # (N, N_PLANT_OUTPUTS) the plant kernel's outputs
+def __getattr__(name: str) -> object:
+    """Deprecated names of this module (a ``DeprecationWarning``, then the new value)."""
+    if name == "NOISE_SCRATCH_SHAPE":
+        warnings.warn(
+            "env_kernel.NOISE_SCRATCH_SHAPE is deprecated: env_sense's scratch is "
+            "SENSE_SCRATCH_SHAPE (noise rows, then quantity rows)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return SENSE_SCRATCH_SHAPE
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- noise
@@ -285,7 +267,7 @@ def _env_commands(command, lo, hi, actions, params, state, out):
     cmd = command.literal_value
 
     def impl(command, lo, hi, actions, params, state, out):
-        sig, meas, vf = out.signals, state.measured, state.floats
+        sig, meas, csdc_state = out.signals, state.measured, csdc(state)
         i_max = params.i_max_a
         f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
         if cmd == COMMAND_CURRENT:
@@ -295,9 +277,11 @@ def _env_commands(command, lo, hi, actions, params, state, out):
             for n in range(lo, hi):
                 f_d = actions[n] * params.max_force_n
                 x_m, v_m = meas[MEAS_STROKE, n], meas[MEAS_STROKE_RATE, n]
-                z_est = csdc_z_update(inv_p, vf[VF_CSDC_Z, n], x_m - vf[VF_CSDC_STROKE, n])
-                vf[VF_CSDC_Z, n] = z_est
-                vf[VF_CSDC_STROKE, n] = x_m
+                z_est = csdc_z_update(
+                    inv_p, csdc_state[CSDC_Z, n], x_m - csdc_state[CSDC_STROKE, n]
+                )
+                csdc_state[CSDC_Z, n] = z_est
+                csdc_state[CSDC_STROKE, n] = x_m
                 f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
                 sig[SIG_DESIRED_FORCE, n] = f_d
                 sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
@@ -305,146 +289,197 @@ def _env_commands(command, lo, hi, actions, params, state, out):
             _inverse_lanes(cmd, params.inverse_params, actions[lo:hi],
                            meas[MEAS_STROKE, lo:hi], meas[MEAS_STROKE_RATE, lo:hi],
                            params.max_force_n, i_max, i_command, f_desired)  # fmt: skip
-        write, read = state.delay_slots[DELAY_WRITE], state.delay_slots[DELAY_READ]
-        for n in range(lo, hi):
-            state.delay[n, write] = sig[SIG_CURRENT_COMMAND, n]
-            vf[VF_APPLIED, n] = state.delay[n, read]
-            state.step_count[n] += 1
+        _delay(lo, hi, sig[SIG_CURRENT_COMMAND], state)
 
     return impl
 
 
+@njit(**FAST, **BORROWED)
+def _delay(lo, hi, command, state):
+    """The control delay, a ring of ``size = control_delay_steps + 1`` commands per vehicle
+    indexed by its step count ``k``: this step's command written at ``k mod size``, the one
+    from ``size - 1`` steps ago read at ``(k + 1) mod size`` (zero until the ring has filled
+    since the reset, which zeroes it), then the step count advanced. The kernel owns both: the
+    same commands as a ring position kept by Python, whatever the vehicle's resets."""
+    ring, size = state.delay, state.delay.shape[1]
+    count, applied = state.step_count, applied_current(state)
+    for n in range(lo, hi):
+        k = count[n]
+        ring[n, k % size] = command[n]
+        applied[n] = ring[n, (k + 1) % size]
+        count[n] = k + 1
+
+
 # ----------------------------------------------------------------------------- sensing
 @njit(**FAST, **BORROWED)
-def env_sense(lo, hi, params, plant, state, out, noise):
+def env_sense(lo, hi, params, plant, state, out, scratch):
     """Vehicles ``lo .. hi-1`` (at most ``BLOCK``) after the plant step: sensor noise,
-    measurements, reward, bump stop, signals and observations (clipped to where the sensors
-    saturate; the guideway preview columns are :func:`env_preview`'s). ``noise`` is scratch
-    of :data:`NOISE_SCRATCH_SHAPE` from the caller (this function allocates nothing)."""
-    x, meas, sig, plant_out = state.plant, state.measured, out.signals, out.plant
-    std = params.noise_std
-    nb = hi - lo
-    # 1. sensor noise, one Box-Muller pair of channels at a time across the block
-    # rows that are read get written (their first nb columns)
+    quantities, measurements, velocity estimates, the reward's acceleration filter, reward and
+    bump stop, signals and observations (clipped to where the sensors saturate; the guideway
+    preview columns are :func:`env_preview`'s). ``scratch`` of :data:`SENSE_SCRATCH_SHAPE`
+    comes from the caller (this function allocates nothing): its noise rows, then its
+    quantity rows."""
+    noise, q = scratch[:_NOISE_ROWS], scratch[_NOISE_ROWS:]
+    _draw_noise(lo, hi, params, state, noise)
+    _quantities(lo, hi, state.plant, out, q)
+    _measure(lo, hi, params.noise_std, out.signals, q, noise, state.measured)
+    _estimate_velocities(lo, hi, params.estimator, state, out)
+    _filter_reward_acceleration(lo, hi, params.reward_filter, reward_filter(state), out)
+    _reward(lo, hi, params, state, out)
+    _observe(lo, hi, params, out.signals, q, noise, state.measured, out.obs)
+
+
+@njit(**FAST, **BORROWED)
+def _draw_noise(lo, hi, params, state, noise):
+    """Sensor noise of the block, one Box-Muller pair of channels at a time (only the pairs the
+    observation set reads: their rows' first ``hi - lo`` columns); all zero without noise."""
     if not params.noisy:
         noise[:] = 0.0
-    else:
-        keys, steps = state.noise_key[lo:hi], state.step_count[lo:hi]
-        for pair in params.noise_pairs:
-            _noise_lanes(keys, steps, pair, nb, noise[2 * pair], noise[2 * pair + 1])
-    # 2. sensors, reward, signals: one loop over the block (one contiguous row of meas and sig
-    # per channel; every parameter is read into a local first, so no load is conditional)
-    s_acc_c, s_acc_b = std[NOISE_BODY_ACC], std[NOISE_BOGIE_ACC]
-    s_stroke, s_rate = std[NOISE_STROKE], std[NOISE_STROKE_RATE]
+        return
+    keys, steps = state.noise_key[lo:hi], state.step_count[lo:hi]
+    for pair in params.noise_pairs:
+        _noise_lanes(keys, steps, pair, hi - lo, noise[2 * pair], noise[2 * pair + 1])
+
+
+@njit(**FAST, **BORROWED)
+def _quantities(lo, hi, x, out, q):
+    """The block's true quantities (``observations.QUANTITIES``) from the plant's state and
+    outputs: into their ``info`` signals, the others into ``q`` (the scratch's quantity rows);
+    the estimates are :func:`_estimate_velocities`', the command
+    :func:`env_commands`'. A new quantity is a line here."""
+    plant_out, sig = out.plant, out.signals
+    for n in range(lo, hi):
+        zc, zb, zg = x[n, BODY_DISP], x[n, BOGIE_DISP], plant_out[n, OUT_GUIDEWAY]
+        vc, vb = x[n, BODY_VEL], x[n, BOGIE_VEL]
+        sig[SIG_BODY_DISP, n], sig[SIG_BOGIE_DISP, n], sig[SIG_GUIDEWAY, n] = zc, zb, zg
+        sig[SIG_BODY_VEL, n], sig[SIG_BOGIE_VEL, n] = vc, vb
+        sig[SIG_BODY_ACC, n] = plant_out[n, OUT_BODY_ACC]
+        sig[SIG_BOGIE_ACC, n] = plant_out[n, OUT_BOGIE_ACC]
+        sig[SIG_STROKE, n], sig[SIG_STROKE_RATE, n] = zc - zb, vc - vb
+        sig[SIG_FORCE, n] = plant_out[n, OUT_FORCE]
+        sig[SIG_COIL_CURRENT, n] = x[n, COIL_CURRENT]
+        q[Q_GAP, n - lo] = zb - zg
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def _quantity(source, n, m, sig, q):
+    """Vehicle ``n``'s (block column ``m``'s) value of a quantity where the kernel reads it
+    (:func:`_kernel_sources`)."""
+    return sig[source, n] if source < N_SIGNALS else q[source - N_SIGNALS, m]
+
+
+@njit(**FAST, **BORROWED)
+def _measure(lo, hi, std, sig, q, noise, meas):
+    """The measurements (rows of ``meas``, ``layout.MEASUREMENT_NAMES``): each its quantity
+    plus its channel's noise (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``)."""
+    for n in range(lo, hi):
+        m = n - lo
+        for k in range(_MEAS_SOURCE.shape[0]):
+            v = _quantity(_MEAS_SOURCE[k], n, m, sig, q)
+            c = _MEAS_NOISE[k]
+            if c >= 0:
+                v += std[c] * noise[c, m]
+            meas[k, n] = v
+
+
+@njit(**FAST, **BORROWED)
+def _estimate_velocities(lo, hi, est, state, out):
+    """The on-board absolute velocity estimates (their ``info`` signals): each accelerometer's
+    measurement through the estimator's biquad (transposed direct form II)."""
+    b0, b1, b2, a1, a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
+    meas, s, sig = state.measured, estimator(state), out.signals
+    for acc_row, first, sig_row in ((MEAS_BODY_ACC, EST_BODY, SIG_BODY_VEL_EST),
+                                    (MEAS_BOGIE_ACC, EST_BOGIE, SIG_BOGIE_VEL_EST)):  # fmt: skip
+        acc, s1, s2, v = meas[acc_row], s[first], s[first + 1], sig[sig_row]
+        for n in range(lo, hi):
+            a = acc[n]
+            y = b0 * a + s1[n]
+            s1[n] = b1 * a - a1 * y + s2[n]
+            s2[n] = b2 * a - a2 * y
+            v[n] = y
+
+
+@njit(**FAST, **BORROWED)
+def _filter_reward_acceleration(lo, hi, sos, states, out):
+    """The car-body acceleration the reward reads (signal ``reward_acceleration_m_s2``): the
+    plant's through the reward filter's second-order sections (transposed direct form II;
+    none: the acceleration itself)."""
+    acc = out.signals[SIG_REWARD_ACC]
+    for n in range(lo, hi):
+        acc[n] = out.plant[n, OUT_BODY_ACC]
+    for k in range(sos.shape[0]):
+        f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
+        s1, s2 = states[2 * k], states[2 * k + 1]
+        for n in range(lo, hi):
+            u = acc[n]
+            y = f_b0 * u + s1[n]
+            s1[n] = f_b1 * u - f_a1 * y + s2[n]
+            s2[n] = f_b2 * u - f_a2 * y
+            acc[n] = y
+
+
+@njit(**FAST, **BORROWED)
+def _reward(lo, hi, params, state, out):
+    """Reward, its cost terms (signals) and the bump stop. Every parameter is read into a local
+    first, so no load in the loop is conditional (``x * x``, not ``x ** 2``: numba lowers the
+    power to a slow libm call)."""
     acc_ref, stroke_ref = params.acceleration_scale_m_s2, params.stroke_scale_m
     vel_ref, i_max = params.velocity_scale_m_s, params.i_max_a
     w_acc, w_stroke = params.reward_acceleration_weight, params.reward_stroke_weight
     w_energy, w_vel = params.reward_energy_weight, params.reward_velocity_weight
     stroke_limit, penalty = params.stroke_limit_m, params.bump_stop_penalty
     has_current = i_max > 0.0
-    vf = state.floats
-    applied = vf[VF_APPLIED]
-    est = params.estimator
-    e_b0, e_b1, e_b2, e_a1, e_a2 = est[EST_B0], est[EST_B1], est[EST_B2], est[EST_A1], est[EST_A2]
-    # the car-body acceleration the reward reads, through the reward filter's sections
-    # (transposed direct form II; none: the acceleration itself)
-    acc_reward = sig[SIG_REWARD_ACC]
+    sig, applied, acc_reward = out.signals, applied_current(state), out.signals[SIG_REWARD_ACC]
     for n in range(lo, hi):
-        acc_reward[n] = plant_out[n, OUT_BODY_ACC]
-    sos = params.reward_filter
-    for k in range(sos.shape[0]):
-        f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
-        s1, s2 = vf[VF_REWARD_FILTER + 2 * k], vf[VF_REWARD_FILTER + 2 * k + 1]
-        for n in range(lo, hi):
-            u = acc_reward[n]
-            y = f_b0 * u + s1[n]
-            s1[n] = f_b1 * u - f_a1 * y + s2[n]
-            s2[n] = f_b2 * u - f_a2 * y
-            acc_reward[n] = y
-    for n in range(lo, hi):
-        m = n - lo
-        zc, vc = x[n, BODY_DISP], x[n, BODY_VEL]
-        zb, vb = x[n, BOGIE_DISP], x[n, BOGIE_VEL]
-        stroke = zc - zb
-        rate = vc - vb
-        force, acc_c = plant_out[n, OUT_FORCE], plant_out[n, OUT_BODY_ACC]
-        acc_b, zg = plant_out[n, OUT_BOGIE_ACC], plant_out[n, OUT_GUIDEWAY]
-        meas[MEAS_BODY_ACC, n] = acc_c + s_acc_c * noise[NOISE_BODY_ACC, m]
-        meas[MEAS_BOGIE_ACC, n] = acc_b + s_acc_b * noise[NOISE_BOGIE_ACC, m]
-        meas[MEAS_STROKE, n] = stroke + s_stroke * noise[NOISE_STROKE, m]
-        meas[MEAS_STROKE_RATE, n] = rate + s_rate * noise[NOISE_STROKE_RATE, m]
-        meas[MEAS_COMMAND, n] = sig[SIG_CURRENT_COMMAND, n]
-        # on-board velocity estimates: the accelerometers through the estimator's biquad
-        ab, s1, s2 = meas[MEAS_BODY_ACC, n], vf[VF_EST_BODY_1, n], vf[VF_EST_BODY_2, n]
-        v_body = e_b0 * ab + s1
-        vf[VF_EST_BODY_1, n] = e_b1 * ab - e_a1 * v_body + s2
-        vf[VF_EST_BODY_2, n] = e_b2 * ab - e_a2 * v_body
-        ab, s1, s2 = meas[MEAS_BOGIE_ACC, n], vf[VF_EST_BOGIE_1, n], vf[VF_EST_BOGIE_2, n]
-        v_bogie = e_b0 * ab + s1
-        vf[VF_EST_BOGIE_1, n] = e_b1 * ab - e_a1 * v_bogie + s2
-        vf[VF_EST_BOGIE_2, n] = e_b2 * ab - e_a2 * v_bogie
-        sig[SIG_BODY_VEL_EST, n] = v_body
-        sig[SIG_BOGIE_VEL_EST, n] = v_bogie
-        # reward (x * x, not x ** 2: numba lowers the power to a slow libm call)
+        stroke = sig[SIG_STROKE, n]
         acc_rel = acc_reward[n] / acc_ref
         stroke_rel = stroke / stroke_ref
         current_rel = applied[n] / i_max if has_current else 0.0
+        vel_rel = sig[SIG_BODY_VEL, n] / vel_ref
         c_acc = w_acc * acc_rel * acc_rel
         c_stroke = w_stroke * stroke_rel * stroke_rel
         c_energy = w_energy * current_rel * current_rel
-        vel_rel = vc / vel_ref
         c_vel = w_vel * vel_rel * vel_rel
         hit = abs(stroke) > stroke_limit
         out.terminated[n] = hit
         out.reward[n] = -(c_acc + c_stroke + c_energy + c_vel) - (penalty if hit else 0.0)
-        sig[SIG_BODY_DISP, n] = zc
-        sig[SIG_BOGIE_DISP, n] = zb
-        sig[SIG_BODY_VEL, n] = vc
-        sig[SIG_BOGIE_VEL, n] = vb
-        sig[SIG_BODY_ACC, n] = acc_c
-        sig[SIG_BOGIE_ACC, n] = acc_b
-        sig[SIG_STROKE, n] = stroke
-        sig[SIG_STROKE_RATE, n] = rate
-        sig[SIG_FORCE, n] = force
-        sig[SIG_COIL_CURRENT, n] = x[n, COIL_CURRENT]
-        sig[SIG_GUIDEWAY, n] = zg
-        sig[SIG_COST_ACC, n] = c_acc
-        sig[SIG_COST_STROKE, n] = c_stroke
-        sig[SIG_COST_ENERGY, n] = c_energy
-        sig[SIG_COST_VEL, n] = c_vel
-    # 3. observations (float32 rows; sensors saturate at the observation-space bounds)
-    obs, bounds = out.obs, params.obs_bounds
+        sig[SIG_COST_ACC, n], sig[SIG_COST_STROKE, n] = c_acc, c_stroke
+        sig[SIG_COST_ENERGY, n], sig[SIG_COST_VEL, n] = c_energy, c_vel
+
+
+@njit(**FAST, **BORROWED)
+def _observe(lo, hi, params, sig, q, noise, meas, obs):
+    """The observation set's columns (float32; the sensors saturate at the observation-space
+    bounds): each column its measurement, or its quantity plus its channel's noise, by the
+    set's column map (compile-time constants: the branch picks them, :func:`_columns` is
+    inlined with them)."""
     if params.observation == OBS_FULL_STATE:
-        for n in range(lo, hi):
-            m = n - lo
-            obs[n, 0] = x[n, BODY_DISP] + std[NOISE_BODY_DISP] * noise[NOISE_BODY_DISP, m]
-            obs[n, 1] = x[n, BODY_VEL] + std[NOISE_BODY_VEL] * noise[NOISE_BODY_VEL, m]
-            obs[n, 2] = x[n, BOGIE_DISP] + std[NOISE_BOGIE_DISP] * noise[NOISE_BOGIE_DISP, m]
-            obs[n, 3] = x[n, BOGIE_VEL] + std[NOISE_BOGIE_VEL] * noise[NOISE_BOGIE_VEL, m]
-            obs[n, 4] = sig[SIG_GUIDEWAY, n] + std[NOISE_GUIDEWAY] * noise[NOISE_GUIDEWAY, m]
-            for j in range(MEAS_STROKE_RATE + 1):  # the same (noisy) measurements as the inverse
-                obs[n, 5 + j] = meas[j, n]
-            obs[n, 9] = x[n, COIL_CURRENT]
+        _columns(lo, hi, _FULL, params, sig, q, noise, meas, obs)
     elif params.observation == OBS_MEASURED:
-        s_gap, s_current = std[NOISE_GAP], std[NOISE_CURRENT]
-        for n in range(lo, hi):
-            m = n - lo
-            for j in range(MEAS_STROKE_RATE + 1):  # accelerations, stroke and its rate
-                obs[n, j] = meas[j, n]
-            gap = x[n, BOGIE_DISP] - sig[SIG_GUIDEWAY, n]
-            obs[n, 4] = gap + s_gap * noise[NOISE_GAP, m]
-            obs[n, 5] = x[n, COIL_CURRENT] + s_current * noise[NOISE_CURRENT, m]
-            obs[n, 6] = meas[MEAS_COMMAND, n]
-            obs[n, 7] = sig[SIG_BODY_VEL_EST, n]
-            obs[n, 8] = sig[SIG_BOGIE_VEL_EST, n]
+        _columns(lo, hi, _MEASURED, params, sig, q, noise, meas, obs)
     else:
-        for n in range(lo, hi):
-            for j in range(MEAS_COMMAND + 1):
-                obs[n, j] = meas[j, n]
-    # the preview columns (the last preview_points) are env_preview's
+        _columns(lo, hi, _SENSORS, params, sig, q, noise, meas, obs)
+
+
+@njit(**FAST, **BORROWED, inline="always")
+def _columns(lo, hi, column_map, params, sig, q, noise, meas, obs):
+    """The columns of one set's ``column_map`` ``(measurement, source, channel)`` (constant
+    arrays: once inlined, each column's branches are decided at compile time), clipped; the
+    clip in float64 before the float32 store gives the bits of a clip after it (rounding is
+    monotonic and the bounds are float32 values)."""
+    measurement, source, channel = column_map
+    std, bounds = params.noise_std, params.obs_bounds
     for n in range(lo, hi):
-        for j in range(obs.shape[1] - params.preview_points):
-            obs[n, j] = min(max(obs[n, j], bounds[LOW, j]), bounds[HIGH, j])
+        m = n - lo
+        for j in range(source.shape[0]):
+            if measurement[j] >= 0:  # the same bits as the quantity plus its noise
+                v = meas[measurement[j], n]
+            else:
+                v = _quantity(source[j], n, m, sig, q)
+                c = channel[j]
+                if c >= 0:
+                    v += std[c] * noise[c, m]
+            obs[n, j] = min(max(v, bounds[LOW, j]), bounds[HIGH, j])
 
 
 @njit(**FAST, **BORROWED)
@@ -469,10 +504,10 @@ def preview_row(n, params, plant, state, obs):
     estimated position (the true one plus its episode's position error)."""
     profiles, spacing, err = plant.profiles, plant.spacing_m, params.survey_error
     last = profiles.shape[1] - 1.0
-    route, vf = state.route, state.floats
+    route = state.route
     first = obs.shape[1] - params.preview_points
     k, g, speed = route.profile[n], route.gain[n], route.speed_mps[n]
-    here = route.start_m[n] + speed * state.plant[n, TIME] + vf[VF_POSITION_ERROR, n]
+    here = route.start_m[n] + speed * state.plant[n, TIME] + position_error(state)[n]
     ref = g * guideway_elevation(profiles, k, spacing, last, here)
     ref += guideway_elevation(err, k, spacing, last, here)
     for j in range(params.preview_points):

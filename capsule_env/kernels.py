@@ -55,13 +55,13 @@ from numba.experimental import structref
 from numba.extending import overload
 
 from capsule_env.env_kernel import (
-    NOISE_SCRATCH_SHAPE,
+    SENSE_SCRATCH_SHAPE,
     EnvOutputs,
     env_commands,
     env_preview,
     env_sense,
 )
-from capsule_env.layout import VF_APPLIED
+from capsule_env.env_params import applied_current
 from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_scratch, block_step
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.scalar import scalar_step
@@ -179,12 +179,12 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
             params, plant, state = args.params, args.plant, args.state
             out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
             # scratch of env_sense and block_step, one per call (they allocate nothing)
-            noise = np.empty(NOISE_SCRATCH_SHAPE)
+            sense = np.empty(SENSE_SCRATCH_SHAPE)
             lanes, counts = block_scratch()
             for b in range(lo, hi, BLOCK):
                 e = min(hi, b + BLOCK)
                 env_commands(command, b, e, actions, params, state, out)
-                x, i_cmd, route = state.plant, state.floats[VF_APPLIED], state.route
+                x, i_cmd, route = state.plant, applied_current(state), state.route
                 if mode == KERNEL_SCALAR:
                     scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
                 else:
@@ -192,7 +192,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
                         model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
                         lanes, counts,
                     )  # fmt: skip
-                env_sense(b, e, params, plant, state, out, noise)
+                env_sense(b, e, params, plant, state, out, sense)
                 if preview:
                     env_preview(b, e, params, plant, state, out.obs)
 

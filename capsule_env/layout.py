@@ -29,6 +29,8 @@ those constants.
 
 from __future__ import annotations
 
+from capsule_env import observations as _observations
+
 __all__ = [
     "STATE_NAMES",
     "VEHICLE_PARAM_NAMES",
@@ -159,17 +161,13 @@ N_SIGNALS = len(SIGNAL_NAMES)
 
 # --------------------------------------------------------------------------- measurements
 #: What the vehicle's sensors read this step (with noise), one row each: what the inverse
-#: model and the observations use.
-MEASUREMENT_NAMES = (
-    "car_body_acceleration_m_s2",
-    "bogie_acceleration_m_s2",
-    "stroke_m",
-    "stroke_rate_m_s",
-    "last_current_command_a",
-)
+#: model and the observations use (the rows of the observation table flagged ``measured``).
+MEASUREMENT_NAMES = _observations.MEASUREMENT_NAMES
 MEAS_BODY_ACC, MEAS_BOGIE_ACC, MEAS_STROKE, MEAS_STROKE_RATE, MEAS_COMMAND = (
-    MEASUREMENT_NAMES.index(n) for n in MEASUREMENT_NAMES
-)
+    MEASUREMENT_NAMES.index(n)
+    for n in ("car_body_acceleration_m_s2", "bogie_acceleration_m_s2", "stroke_m",
+              "stroke_rate_m_s", "last_current_command_a")
+)  # fmt: skip
 N_MEASUREMENTS = len(MEASUREMENT_NAMES)
 
 # --------------------------------------------------------------------------- env per vehicle
@@ -199,21 +197,16 @@ N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)
 # --------------------------------------------------------------------------- sensor noise
 #: Sensor-noise channels, in the order their standard normals are drawn (channel ``c`` is
 #: member ``c % 2`` of Box-Muller pair ``c // 2``): a channel keeps its noise whatever other
-#: channels an observation set reads; new channels are appended.
-NOISE_CHANNEL_NAMES = (
-    "car_body_acceleration_m_s2",
-    "bogie_acceleration_m_s2",
-    "stroke_m",
-    "stroke_rate_m_s",
-    "car_body_displacement_m",
-    "car_body_velocity_m_s",
-    "bogie_displacement_m",
-    "bogie_velocity_m_s",
-    "guideway_elevation_m",
-    "levitation_gap_m",
-    "coil_current_a",
-)
+#: channels an observation set reads; new channels are appended
+#: (:data:`capsule_env.observations.NOISE_CHANNELS`).
+NOISE_CHANNEL_NAMES = _observations.NOISE_CHANNEL_NAMES
 (NOISE_BODY_ACC, NOISE_BOGIE_ACC, NOISE_STROKE, NOISE_STROKE_RATE, NOISE_BODY_DISP,
  NOISE_BODY_VEL, NOISE_BOGIE_DISP, NOISE_BOGIE_VEL, NOISE_GUIDEWAY, NOISE_GAP,
- NOISE_CURRENT) = range(len(NOISE_CHANNEL_NAMES))  # fmt: skip
+ NOISE_CURRENT) = (
+    NOISE_CHANNEL_NAMES.index(n)
+    for n in ("car_body_acceleration_m_s2", "bogie_acceleration_m_s2", "stroke_m",
+              "stroke_rate_m_s", "car_body_displacement_m", "car_body_velocity_m_s",
+              "bogie_displacement_m", "bogie_velocity_m_s", "guideway_elevation_m",
+              "levitation_gap_m", "coil_current_a")
+)  # fmt: skip
 N_NOISE_CHANNELS = len(NOISE_CHANNEL_NAMES)

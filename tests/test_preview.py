@@ -14,7 +14,7 @@ import pytest
 from capsule_env.batch import CapsuleBatch
 from capsule_env.config import SURVEY_NOISE_BAND_M, SURVEY_OFFSET_BAND_M, EnvConfig
 from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
-from capsule_env.layout import SIGNAL_NAMES, VF_POSITION_ERROR
+from capsule_env.layout import SIGNAL_NAMES
 
 GUIDEWAY = SIGNAL_NAMES.index("guideway_elevation_m")
 PERFECT = {"survey_offset_m": 0.0, "survey_noise_m": 0.0, "position_error_m": 0.0}
@@ -48,7 +48,7 @@ def test_a_position_error_shifts_the_lookup_by_that_distance():
     batch.seed(2)
     batch.reset()
     batch.step(np.zeros(3))
-    offsets = batch.floats[VF_POSITION_ERROR]  # drawn with std position_error_m
+    offsets = batch.env_state.position_error  # drawn with std position_error_m
     assert np.all(offsets != 0.0)
     for n in range(3):
         prof = batch.profiles[batch.profile_index[n]] * batch.gain[n]
