@@ -1,0 +1,184 @@
+"""One vehicle's semi-active MPC problem, solved by OSQP (:mod:`capsule_env.agents.mpc`).
+
+Variables ``y = [w (W blocked moves); eps (N slacks)]``, forces scaled by ``force_scale_n``.
+At each interval ``j`` of the horizon, with ``sigma_j`` the sign of the reference stroke rate
+``vbar_j`` (the measured rate at ``j = 0``; the previous plan's prediction after):
+
+- dissipative: ``sigma_j u_j >= 0`` (hard);
+- in the band the damper can make at the predicted rate ``v_j``, each edge
+  (``F(v, 0)``, ``F(v, i_max)`` of the inverted model) linearised at ``vbar_j``:
+  ``lower(vbar) + g_lo (v_j - vbar_j) - eps_j <= u_j <= upper(vbar) + g_hi (v_j - vbar_j) + eps_j``;
+  where ``v_j`` does not depend on the plan (``j <= delay``) the edges are exact constants;
+- the slack ``eps_j >= 0`` costs ``rho_1 eps + rho_2 eps^2`` (an exact penalty: zero whenever
+  the band can be met), so the problem is always feasible.
+
+Fixing the sign pattern makes the non-convex set (the band flips with the rate's sign) convex;
+:meth:`BandQP.plan` re-solves with the new pattern while the plan's predicted signs differ
+from the assumed ones (at most ``max_passes`` solves).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import osqp
+from capsule_env.agents.mpc_qp import CondensedQP, band_edges
+from scipy import sparse
+
+__all__ = ["SolverOptions", "BandQP", "PlanResult"]
+
+SOLVED = osqp.constant("OSQP_SOLVED")
+TIME_LIMIT = osqp.constant("OSQP_TIME_LIMIT_REACHED")
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """OSQP's settings for the MPC (see :class:`capsule_env.agents.mpc.MPCController`)."""
+
+    eps_abs: float = 1e-6
+    eps_rel: float = 1e-6
+    max_iter: int = 4000
+    time_limit_s: float = 0.0  # 0: none (results then do not depend on the machine's load)
+    polish: bool = True
+    max_passes: int = 2  # solves per step while the sign pattern changes
+
+    def check(self) -> None:
+        """Raise ``ValueError`` naming a bad option."""
+        for name in ("eps_abs", "eps_rel"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 < value <= 1.0):
+                raise ValueError(f"{name} must be in (0, 1], got {value!r}")
+        if not (isinstance(self.max_iter, int) and 1 <= self.max_iter <= 10**6):
+            raise ValueError(f"max_iter must be an integer in [1, 1e6], got {self.max_iter!r}")
+        if not (isinstance(self.time_limit_s, (int, float)) and 0.0 <= self.time_limit_s <= 10):
+            raise ValueError(f"time_limit_s must be in [0, 10] s, got {self.time_limit_s!r}")
+        if not (isinstance(self.max_passes, int) and 1 <= self.max_passes <= 20):
+            raise ValueError(f"max_passes must be an integer in [1, 20], got {self.max_passes!r}")
+
+
+@dataclass
+class PlanResult:
+    """A plan: the moves ``u`` (N, newtons), the predicted stroke rate and stroke at the start
+    of each interval, the solves it took, and its status (``"solved"``, ``"failed"`` or
+    ``"time_limit"``; not solved: ``u`` is None)."""
+
+    u: np.ndarray | None
+    rate_m_s: np.ndarray | None
+    stroke_m: np.ndarray | None
+    solves: int
+    status: str
+
+
+class BandQP:
+    """The QP of one vehicle (module docstring), set up once, updated and warm-started each
+    step."""
+
+    def __init__(
+        self, qp: CondensedQP, damper: Any, force_scale_n: float, options: SolverOptions
+    ) -> None:
+        self.qp, self.damper, self.scale = qp, damper, float(force_scale_n)
+        self.options = options
+        n_steps, n_moves = qp.blocking.shape
+        self.n_steps, self.n_moves = n_steps, n_moves
+        h = qp.h * self.scale**2
+        w = float(np.max(np.diag(h)))
+        self.rho1 = 1e4 * w  # slack penalty, linear (exact) and a little quadratic
+        p = sparse.block_diag([sparse.csc_matrix(h), 1e-2 * w * sparse.eye(n_steps)])
+        csc = sparse.csc_matrix(self._pattern())
+        self.rows = csc.indices.copy()
+        self.cols = np.repeat(np.arange(csc.shape[1]), np.diff(csc.indptr))
+        self.fixed = np.all(qp.rate_w == 0.0, axis=1)  # intervals whose rate the plan cannot move
+        self.solver = osqp.OSQP()
+        self.solver.setup(
+            P=sparse.triu(p, format="csc"), q=np.zeros(n_moves + n_steps),
+            A=sparse.csc_matrix((self._constraints(np.zeros(n_steps), np.zeros(n_steps))
+                                 [self.rows, self.cols], self.rows, csc.indptr), shape=csc.shape),
+            l=np.full(4 * n_steps, -np.inf), u=np.full(4 * n_steps, np.inf),
+            eps_abs=options.eps_abs, eps_rel=options.eps_rel, max_iter=options.max_iter,
+            time_limit=options.time_limit_s or 1e10, polishing=options.polish, verbose=False,
+            warm_starting=True,
+        )  # fmt: skip
+
+    def _pattern(self) -> np.ndarray:
+        """Every entry the constraint matrix may use (dense in the band rows)."""
+        n, m = self.n_steps, self.n_moves
+        mask = np.zeros((4 * n, m + n), dtype=bool)
+        mask[:n, :m] = self.qp.blocking != 0
+        mask[n : 3 * n, :m] = True
+        idx = np.arange(n)
+        mask[n + idx, m + idx] = mask[2 * n + idx, m + idx] = mask[3 * n + idx, m + idx] = True
+        return mask
+
+    def _constraints(self, g_lo: np.ndarray, g_hi: np.ndarray) -> np.ndarray:
+        """The dense constraint matrix for edge slopes ``g_lo``, ``g_hi`` (N s/m)."""
+        n, m, t = self.n_steps, self.n_moves, self.qp.blocking
+        a = np.zeros((4 * n, m + n))
+        a[:n, :m] = t
+        a[n : 2 * n, :m] = t - g_lo[:, None] * self.qp.rate_w
+        a[2 * n : 3 * n, :m] = t - g_hi[:, None] * self.qp.rate_w
+        a[n : 2 * n, m:] = np.eye(n)
+        a[2 * n : 3 * n, m:] = -np.eye(n)
+        a[3 * n :, m:] = np.eye(n)
+        return a
+
+    def _solve(self, free_rate, free_stroke, ref_rate, ref_stroke, linear):
+        """One solve with the sign pattern and linearisation of ``ref_rate``, ``ref_stroke``.
+        ``free_*``: the predicted rate/stroke with ``w = 0``."""
+        n, m = self.n_steps, self.n_moves
+        edges = band_edges(self.damper, ref_stroke, ref_rate) / self.scale
+        sigma = np.where(ref_rate >= 0.0, 1.0, -1.0)
+        pos = sigma > 0  # lower edge: 0 A when moving out, i_max when moving in
+        lo = np.where(pos, edges[0], edges[1])
+        hi = np.where(pos, edges[1], edges[0])
+        g_lo = np.where(pos, edges[2], edges[3]) * self.scale
+        g_hi = np.where(pos, edges[3], edges[2]) * self.scale
+        g_lo[self.fixed], g_hi[self.fixed] = 0.0, 0.0  # exact constants there
+        shift = (free_rate - ref_rate) / self.scale
+        lower = np.concatenate([np.where(pos, 0.0, -np.inf), lo + g_lo * shift,
+                                np.full(n, -np.inf), np.zeros(n)])  # fmt: skip
+        upper = np.concatenate([np.where(pos, np.inf, 0.0), np.full(n, np.inf),
+                                hi + g_hi * shift, np.full(n, np.inf)])  # fmt: skip
+        q = np.concatenate([linear * self.scale, np.full(n, self.rho1)])
+        ax = self._constraints(g_lo, g_hi)[self.rows, self.cols]
+        self.solver.update(q=q, l=lower, u=upper, Ax=ax)
+        res = self.solver.solve(raise_error=False)
+        status = res.info.status_val
+        if status != SOLVED:
+            return None, "time_limit" if status == TIME_LIMIT else "failed"
+        return res.x[:m], "solved"
+
+    def plan(
+        self,
+        z0: np.ndarray,
+        rises: np.ndarray,
+        rate_now_m_s: float,
+        stroke_now_m: float,
+        reference_rate_m_s: np.ndarray,
+        reference_stroke_m: np.ndarray,
+    ) -> PlanResult:
+        """The plan from state ``z0`` with ``rises`` (R,) ahead; the band at interval 0 at the
+        measured ``rate_now_m_s`` and ``stroke_now_m``; ``reference_*``: the previous plan's
+        predictions (N,) for the sign pattern and the linearisation of the later intervals."""
+        qp = self.qp
+        linear = qp.f_z @ z0 + qp.f_d @ rises
+        free_rate = qp.rate_z @ z0 + qp.rate_d @ rises
+        free_stroke = qp.stroke_z @ z0 + qp.stroke_d @ rises
+        ref_rate = np.where(self.fixed, free_rate, reference_rate_m_s)
+        ref_stroke = np.where(self.fixed, free_stroke, reference_stroke_m)
+        ref_rate[0], ref_stroke[0] = rate_now_m_s, stroke_now_m
+        free_rate = free_rate.copy()
+        free_rate[0] = rate_now_m_s
+        for solves in range(1, self.options.max_passes + 1):
+            w, status = self._solve(free_rate, free_stroke, ref_rate, ref_stroke, linear)
+            if w is None:
+                return PlanResult(None, None, None, solves, status)
+            w = w * self.scale
+            rate = free_rate + qp.rate_w @ w
+            stroke = free_stroke + qp.stroke_w @ w
+            same = np.array_equal(rate[1:] >= 0.0, ref_rate[1:] >= 0.0)
+            ref_rate[1:], ref_stroke[1:] = rate[1:], stroke[1:]
+            if same:
+                break
+        return PlanResult(qp.blocking @ w, rate, stroke, solves, "solved")
