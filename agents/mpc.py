@@ -69,8 +69,10 @@ _WEIGHTS = ("q_stroke", "q_levitation", "r_force")
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (
-        low <= value <= high
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not (low <= value <= high)
     ):
         raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
     return int(value)
@@ -153,9 +155,11 @@ class MPCController(ForceLaw):
         if blocks is None:
             return None
         blocks = tuple(blocks)
-        if not blocks or any(_check_int("move_blocks", b, 1, 200) < 1 for b in blocks) or sum(
-            blocks
-        ) != self.horizon_steps:
+        if (
+            not blocks
+            or any(_check_int("move_blocks", b, 1, 200) < 1 for b in blocks)
+            or sum(blocks) != self.horizon_steps
+        ):
             raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
                              f"({self.horizon_steps}), got {blocks!r}")  # fmt: skip
         return blocks
@@ -177,9 +181,12 @@ class MPCController(ForceLaw):
         given = {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force}
         self._set_gains(units, given, fallback)
         w = np.broadcast_arrays(self.q_stroke, self.q_levitation, self.r_force)
-        if not all(np.all(np.isfinite(a)) for a in w) or np.any(w[0] < 0) or np.any(
-            w[1] < 0
-        ) or np.any(w[2] <= 0):
+        if (
+            not all(np.all(np.isfinite(a)) for a in w)
+            or np.any(w[0] < 0)
+            or np.any(w[1] < 0)
+            or np.any(w[2] <= 0)
+        ):
             raise ValueError("q_stroke and q_levitation must be finite and >= 0, r_force "
                              "finite and > 0")  # fmt: skip
 

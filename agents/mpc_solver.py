@@ -23,26 +23,32 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import osqp
 from capsule_env.agents.mpc_qp import CondensedQP, band_edges
 from scipy import sparse
 
 __all__ = ["SolverOptions", "BandQP", "PlanResult"]
 
-SOLVED = osqp.constant("OSQP_SOLVED")
-TIME_LIMIT = osqp.constant("OSQP_TIME_LIMIT_REACHED")
+
+def _osqp() -> Any:
+    """OSQP, imported when a problem is first set up (the ``mpc`` extra)."""
+    try:
+        import osqp
+    except ImportError:  # pragma: no cover - the dev extra installs it
+        raise ImportError("the MPC controllers need OSQP: pip install 'capsule-env[mpc]'") from None
+    return osqp
 
 
 @dataclass(frozen=True)
 class SolverOptions:
     """OSQP's settings for the MPC (see :class:`capsule_env.agents.mpc.MPCController`)."""
 
-    eps_abs: float = 1e-6
-    eps_rel: float = 1e-6
+    eps_abs: float = 1e-3  # on forces scaled by max_force_n; polishing refines the active set
+    eps_rel: float = 1e-3
     max_iter: int = 4000
     time_limit_s: float = 0.0  # 0: none (results then do not depend on the machine's load)
     polish: bool = True
     max_passes: int = 2  # solves per step while the sign pattern changes
+    constrained_steps: int = 3  # intervals of the horizon under the band (0: all)
 
     def check(self) -> None:
         """Raise ``ValueError`` naming a bad option."""
@@ -56,6 +62,9 @@ class SolverOptions:
             raise ValueError(f"time_limit_s must be in [0, 10] s, got {self.time_limit_s!r}")
         if not (isinstance(self.max_passes, int) and 1 <= self.max_passes <= 20):
             raise ValueError(f"max_passes must be an integer in [1, 20], got {self.max_passes!r}")
+        if not (isinstance(self.constrained_steps, int) and 0 <= self.constrained_steps <= 200):
+            raise ValueError(f"constrained_steps must be an integer in [0, 200], got "
+                             f"{self.constrained_steps!r}")  # fmt: skip
 
 
 @dataclass
@@ -89,7 +98,13 @@ class BandQP:
         csc = sparse.csc_matrix(self._pattern())
         self.rows = csc.indices.copy()
         self.cols = np.repeat(np.arange(csc.shape[1]), np.diff(csc.indptr))
+        self.unconstrained = np.flatnonzero(
+            np.arange(n_steps) >= (options.constrained_steps or n_steps)
+        )
         self.fixed = np.all(qp.rate_w == 0.0, axis=1)  # intervals whose rate the plan cannot move
+        osqp = _osqp()
+        self._solved = int(osqp.SolverStatus.OSQP_SOLVED)
+        self._time_limit = int(osqp.SolverStatus.OSQP_TIME_LIMIT_REACHED)
         self.solver = osqp.OSQP()
         self.solver.setup(
             P=sparse.triu(p, format="csc"), q=np.zeros(n_moves + n_steps),
@@ -140,13 +155,20 @@ class BandQP:
                                 np.full(n, -np.inf), np.zeros(n)])  # fmt: skip
         upper = np.concatenate([np.where(pos, np.inf, 0.0), np.full(n, np.inf),
                                 hi + g_hi * shift, np.full(n, np.inf)])  # fmt: skip
+        free = self.unconstrained  # intervals left outside the band
+        lower[free], upper[free], lower[n + free], upper[2 * n + free] = (
+            -np.inf,
+            np.inf,
+            -np.inf,
+            np.inf,
+        )
         q = np.concatenate([linear * self.scale, np.full(n, self.rho1)])
         ax = self._constraints(g_lo, g_hi)[self.rows, self.cols]
         self.solver.update(q=q, l=lower, u=upper, Ax=ax)
         res = self.solver.solve(raise_error=False)
         status = res.info.status_val
-        if status != SOLVED:
-            return None, "time_limit" if status == TIME_LIMIT else "failed"
+        if status != self._solved:
+            return None, "time_limit" if status == self._time_limit else "failed"
         return res.x[:m], "solved"
 
     def plan(

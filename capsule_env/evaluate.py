@@ -70,6 +70,10 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "lqr-clipped-biexp-meas",
     "preview-lq-biexp-meas",
     "preview-lq-biexp",
+    "mpc-biexp-meas",
+    "preview-mpc-biexp-meas",
+    "mpc-biexp",
+    "preview-mpc-biexp",
 ]
 #: The tables' groups, in order: the observation set a controller reads (its header says
 #: what the group may read: ``capsule_env.agents.base.OBSERVATION_GROUPS``).
