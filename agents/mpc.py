@@ -95,6 +95,9 @@ class MPCController(ForceLaw):
     delay_steps : control delay planned for (the ``hils`` 1), 0 to 10.
     coil_time_constant_s : coil lag planned for (default the ``hils`` 1/190 s; 0: none).
     dt_s : the control interval (the env's default 5 ms).
+    wk_cost : weight the cost's car-body acceleration by ISO 2631-1 Wk (the metric the tables
+        report), the filter's state run on the measured acceleration; False: the plain
+        acceleration of the clipped LQR's and preview LQ's cost.
     solver : OSQP options, keys of :class:`~capsule_env.agents.mpc_solver.SolverOptions`
         (``eps_abs``, ``eps_rel``, ``max_iter``, ``time_limit_s`` (0: none, the default, so
         that a result does not depend on the machine's load), ``polish``, ``max_passes``).
@@ -120,6 +123,7 @@ class MPCController(ForceLaw):
         coil_time_constant_s: float = HILS_COIL_TIME_CONSTANT_S,
         dt_s: float = 0.005,
         solver: dict[str, Any] | None = None,
+        wk_cost: bool = False,
     ) -> None:
         if inverse_model not in ("bi_exponential", "tanh"):
             raise ValueError(f"inverse_model must be 'bi_exponential' or 'tanh' (a stateless "
@@ -145,8 +149,13 @@ class MPCController(ForceLaw):
         if preview:
             self._set_preview(preview_points, preview_horizon_s)
         self._set_weights(q_stroke, q_levitation, r_force)
+        if not isinstance(wk_cost, bool):
+            raise ValueError(f"wk_cost must be True or False, got {wk_cost!r}")
+        self.wk_cost = wk_cost
+        if wk_cost:  # the filter runs on the measured car-body acceleration
+            self.SIGNALS = (*type(self).SIGNALS, "body_acceleration")
         self.model = prediction_model(vehicle or VehicleParams(), self.dt_s, self.delay_steps,
-                                      self.coil_time_constant_s)  # fmt: skip
+                                      self.coil_time_constant_s, wk_cost)  # fmt: skip
         self.damper = EnvConfig(inverse_model=inverse_model).inverse_damper
         self._qps: list[BandQP] = []
         self.reset_counters()
@@ -211,6 +220,7 @@ class MPCController(ForceLaw):
         if episode_start is not None and self._qps:
             start = np.asarray(episode_start, dtype=bool)
             self._in_flight[start] = 0.0
+            self._wk_state[start] = 0.0
             self._ref_rate[start] = np.nan
         return super().predict(observation, state, episode_start, deterministic)
 
@@ -226,6 +236,7 @@ class MPCController(ForceLaw):
             self._qps.append(BandQP(cache[triple], self.damper, self.max_force_n,
                                     self.solver_options))  # fmt: skip
         self._in_flight = np.zeros((n, self.delay_steps))
+        self._wk_state = np.zeros((n, self.model.wk_states.stop - self.model.wk_states.start))
         self._ref_rate = np.full((n, self.horizon_steps), np.nan)
         self._ref_stroke = np.zeros((n, self.horizon_steps))
 
@@ -238,6 +249,11 @@ class MPCController(ForceLaw):
             edges = band_edges(self.damper, x[:, 0], self.signal(obs, "relative_velocity"))
             frac = np.clip(current / self.damper.max_current_a, 0.0, 1.0)
             parts.append((edges[0] + frac * (edges[1] - edges[0]))[:, None])
+        if self.wk_cost:  # the Wk filter's state, then advanced by this step's measurement
+            parts.append(self._wk_state)
+            a_w, b_w = self.model.wk_discrete
+            acc = self.signal(obs, "body_acceleration")
+            self._wk_state = self._wk_state @ a_w.T + acc[:, None] * b_w[:, 0]
         parts.append(self._in_flight)
         n = obs.shape[0]
         if self.preview_points:
@@ -297,7 +313,7 @@ class MPCController(ForceLaw):
 
     def gains(self) -> dict:
         out = super().gains()
-        out.update({"horizon_s": self.horizon_steps * self.dt_s,
+        out.update({"horizon_s": self.horizon_steps * self.dt_s, "wk_cost": self.wk_cost,
                     "planned_delay_s": self.delay_steps * self.dt_s,
                     "planned_coil_time_constant_s": self.coil_time_constant_s})  # fmt: skip
         if self.preview_points:

@@ -25,12 +25,12 @@ stroke at the start of each interval are affine in ``(z_0, w, D)``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from capsule_env.agents.preview_lq import plant_matrices
 from numba import njit
 from scipy.linalg import expm, solve_discrete_are
+from scipy.signal import tf2ss
 
 from capsule_env.inverse import affine_in_current
 from capsule_env.vehicle import VehicleParams
@@ -40,8 +40,11 @@ __all__ = ["PredictionModel", "CondensedQP", "prediction_model", "condense", "ba
 
 @dataclass(frozen=True)
 class PredictionModel:
-    """``z_{k+1} = A z_k + B u_k + E d_k``; ``a_c = c.z + d u``; stroke ``= z[0]``, stroke rate
-    ``= z[1] - z[3]``; ``lag``: whether ``z[4]`` is the acting force."""
+    """``z_{k+1} = A z_k + B u_k + E d_k``; the cost's acceleration ``y = c.z + d u`` (the
+    car body's, or its Wk-weighted value); stroke ``= z[0]``, stroke rate ``= z[1] - z[3]``;
+    ``lag``: whether ``z[4]`` is the acting force; ``wk_states``: where the Wk filter's states
+    are (an empty slice without it); ``wk_discrete``: that filter alone, ``(A_w, B_w)``,
+    sampled with the acceleration held, to run on the measured acceleration."""
 
     a: np.ndarray
     b: np.ndarray
@@ -50,6 +53,8 @@ class PredictionModel:
     d: float
     lag: bool
     delay_steps: int
+    wk_states: slice = field(default_factory=lambda: slice(0, 0))
+    wk_discrete: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
@@ -62,26 +67,75 @@ class PredictionModel:
         return row
 
 
-def prediction_model(
-    vehicle: VehicleParams, dt_s: float, delay_steps: int, coil_time_constant_s: float
-) -> PredictionModel:
-    """The augmented prediction model (see the module docstring)."""
-    a4, b4, e4, c4, d4 = plant_matrices(vehicle, dt_s)
-    nd = int(delay_steps)
-    if coil_time_constant_s > 0.0:  # [x; F_act] driven by the applied request, exactly sampled
-        mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-        ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
-        m = np.zeros((7, 7))
-        m[:4, :4] = [[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]]
-        m[:4, 4] = [0.0, -1.0 / mc, 0.0, 1.0 / mb]  # the acting force
-        m[4, 4], m[4, 5] = -1.0 / coil_time_constant_s, 1.0 / coil_time_constant_s
-        m[2, 6] = -1.0  # the guideway's velocity lowers the gap
-        phi = expm(m * dt_s)
-        base_a, base_b, base_e = phi[:5, :5], phi[:5, 5], phi[:5, 6] / dt_s
-        base_c, base_d = np.append(c4, d4), 0.0
+def wk_state_space() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, C)`` of the ISO 2631-1 Wk weighting's acceleration-velocity transition and
+    upward step (:func:`capsule_env.metrics.wk_weighting`, 4th order, strictly proper); its
+    band limits (0.4 Hz high-pass, 100 Hz low-pass) are left out of the cost."""
+    w3, w4, q4 = 2 * np.pi * 12.5, 2 * np.pi * 12.5, 0.63
+    w5, q5, w6, q6 = 2 * np.pi * 2.37, 0.91, 2 * np.pi * 3.35, 0.91
+    num = np.polymul([1.0 / w3, 1.0], [1.0, w5 / q5, w5 * w5])
+    den = np.polymul([1.0 / w4**2, 1.0 / (q4 * w4), 1.0], [1.0, w6 / q6, w6 * w6])
+    a, b, c, d = tf2ss(num, den)
+    if abs(d[0, 0]) > 0.0:  # pragma: no cover - the transition makes it strictly proper
+        raise AssertionError("the Wk state space has a direct term")
+    return a, b[:, 0], c[0]
+
+
+def _continuous(vehicle: VehicleParams, tau_s: float, wk: bool):
+    """The continuous ``(A, B, E, c, d, wk slice)`` on ``[x; F_act (lag); w (Wk)]``, inputs
+    the applied request and the guideway's velocity."""
+    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
+    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
+    lag = tau_s > 0.0
+    n = 4 + int(lag) + (4 if wk else 0)
+    a, b, e = np.zeros((n, n)), np.zeros(n), np.zeros(n)
+    a[:4, :4] = [[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]]
+    force_col = np.array([0.0, -1.0 / mc, 0.0, 1.0 / mb])
+    e[2] = -1.0  # the guideway's velocity lowers the gap
+    acc = np.zeros(n)  # a_c = acc.z + acc_d u
+    acc[0] = -ks / mc
+    if lag:  # tau F_act' = u - F_act
+        a[:4, 4], a[4, 4], b[4], acc[4], acc_d = force_col, -1.0 / tau_s, 1.0 / tau_s, -1 / mc, 0.0
     else:
-        base_a, base_b, base_e, base_c, base_d = a4, b4, e4, c4, d4
-    nb = base_a.shape[0]
+        b[:4], acc_d = force_col, -1.0 / mc
+    if not wk:
+        return a, b, e, acc, acc_d, slice(0, 0)
+    aw, bw, cw = wk_state_space()
+    ws = slice(n - 4, n)
+    a[ws, ws] = aw
+    a[ws, :] += np.outer(bw, acc)
+    b[ws] += bw * acc_d
+    cost = np.zeros(n)
+    cost[ws] = cw
+    return a, b, e, cost, 0.0, ws
+
+
+def _zoh(a: np.ndarray, inputs: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold sampling: ``(Ad, Bd)`` of ``x' = A x + B u``."""
+    n, m = a.shape[0], inputs.shape[1]
+    big = np.zeros((n + m, n + m))
+    big[:n, :n], big[:n, n:] = a, inputs
+    phi = expm(big * dt_s)
+    return phi[:n, :n], phi[:n, n:]
+
+
+def prediction_model(
+    vehicle: VehicleParams,
+    dt_s: float,
+    delay_steps: int,
+    coil_time_constant_s: float,
+    wk_cost: bool = False,
+) -> PredictionModel:
+    """The augmented prediction model (see the module docstring); ``wk_cost``: the cost's
+    acceleration is Wk-weighted (the filter's states are appended to the plant's)."""
+    a_c, b_c, e_c, base_c, base_d, ws = _continuous(vehicle, coil_time_constant_s, wk_cost)
+    base_a, inputs = _zoh(a_c, np.stack([b_c, e_c], axis=1), dt_s)
+    base_b, base_e = inputs[:, 0], inputs[:, 1] / dt_s  # a rise d over the interval: d / dt
+    wk_discrete = None
+    if wk_cost:
+        aw, bw, _ = wk_state_space()
+        wk_discrete = _zoh(aw, bw[:, None], dt_s)
+    nd, nb = int(delay_steps), base_a.shape[0]
     size = nb + nd
     a, b, e, c = np.zeros((size, size)), np.zeros(size), np.zeros(size), np.zeros(size)
     a[:nb, :nb], e[:nb], c[:nb] = base_a, base_e, base_c
@@ -90,11 +144,11 @@ def prediction_model(
         a[:nb, size - 1] = base_b
         a[nb + 1 : size, nb : size - 1] = np.eye(nd - 1)
         b[nb] = 1.0
-        if nb == 4:  # without a lag the applied force enters the acceleration directly
-            c[size - 1], d = base_d, 0.0
+        c[size - 1], d = base_d, 0.0  # a direct term is the applied force's
     else:
         b[:nb] = base_b
-    return PredictionModel(a, b, e, c, float(d), nb == 5, nd)
+    lag = coil_time_constant_s > 0.0
+    return PredictionModel(a, b, e, c, float(d), lag, nd, ws, wk_discrete)
 
 
 def lq_terms(
@@ -226,12 +280,14 @@ def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):
         out[2, j], out[3, j] = (lob - lo) / (sign * step_m_s), (hib - hi) / (sign * step_m_s)
 
 
-def band_edges(damper, stroke_m: np.ndarray, rate_m_s: np.ndarray) -> np.ndarray:
+def band_edges(
+    damper, stroke_m: np.ndarray, rate_m_s: np.ndarray, secant_m_s: float = 1e-4
+) -> np.ndarray:
     """``(4, N)``: the force at 0 A and at ``i_max`` of the inverted model at each stroke and
-    stroke rate, and their slopes in the rate (N s/m; a one-sided difference of 1e-4 m/s away
-    from 0, so that the slope is that of the side of the rate's sign)."""
+    stroke rate, and their slopes in the rate (N s/m): the secant to the rate ``secant_m_s``
+    further from 0 (the side of the rate's sign; 1e-4 m/s: the tangent)."""
     out = np.empty((4, len(rate_m_s)))
     _edges(damper.code, damper.as_array(), float(damper.max_current_a),
            np.ascontiguousarray(stroke_m, dtype=float),
-           np.ascontiguousarray(rate_m_s, dtype=float), 1e-4, out)  # fmt: skip
+           np.ascontiguousarray(rate_m_s, dtype=float), float(secant_m_s), out)  # fmt: skip
     return out

@@ -49,6 +49,7 @@ class SolverOptions:
     polish: bool = True
     max_passes: int = 2  # solves per step while the sign pattern changes
     constrained_steps: int = 3  # intervals of the horizon under the band (0: all)
+    secant_m_s: float = 1e-4  # the band edges' slope: the secant over this rate (1e-4: tangent)
 
     def check(self) -> None:
         """Raise ``ValueError`` naming a bad option."""
@@ -60,6 +61,8 @@ class SolverOptions:
             raise ValueError(f"max_iter must be an integer in [1, 1e6], got {self.max_iter!r}")
         if not (isinstance(self.time_limit_s, (int, float)) and 0.0 <= self.time_limit_s <= 10):
             raise ValueError(f"time_limit_s must be in [0, 10] s, got {self.time_limit_s!r}")
+        if not (isinstance(self.secant_m_s, (int, float)) and 1e-6 <= self.secant_m_s <= 1.0):
+            raise ValueError(f"secant_m_s must be in [1e-6, 1] m/s, got {self.secant_m_s!r}")
         if not (isinstance(self.max_passes, int) and 1 <= self.max_passes <= 20):
             raise ValueError(f"max_passes must be an integer in [1, 20], got {self.max_passes!r}")
         if not (isinstance(self.constrained_steps, int) and 0 <= self.constrained_steps <= 200):
@@ -142,7 +145,8 @@ class BandQP:
         """One solve with the sign pattern and linearisation of ``ref_rate``, ``ref_stroke``.
         ``free_*``: the predicted rate/stroke with ``w = 0``."""
         n, m = self.n_steps, self.n_moves
-        edges = band_edges(self.damper, ref_stroke, ref_rate) / self.scale
+        edges = band_edges(self.damper, ref_stroke, ref_rate, self.options.secant_m_s)
+        edges /= self.scale
         sigma = np.where(ref_rate >= 0.0, 1.0, -1.0)
         pos = sigma > 0  # lower edge: 0 A when moving out, i_max when moving in
         lo = np.where(pos, edges[0], edges[1])
