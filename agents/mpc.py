@@ -185,7 +185,7 @@ class MPCController(ForceLaw):
     def _set_weights(self, q_stroke: Any, q_levitation: Any, r_force: Any) -> None:
         twin = tuned_gains(LINEAR_TWIN.get(self.name, "")) or {}
         fallback = {"q_stroke": 1.0e3, "q_levitation": 1.0e3, "r_force": 1.0e-9}
-        units = {"q_stroke": "1_s4", "q_levitation": "1_s4", "r_force": "1_kg2"}
+        units = {"r_force": "1_kg2", "q_stroke": "1_s4", "q_levitation": "1_s4"}  # searched first
         fallback = {g: float(twin.get(f"{g}_{units[g]}", v)) for g, v in fallback.items()}
         given = {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force}
         self._set_gains(units, given, fallback)
@@ -313,7 +313,7 @@ class MPCController(ForceLaw):
 
     def gains(self) -> dict:
         out = super().gains()
-        out.update({"horizon_s": self.horizon_steps * self.dt_s, "wk_cost": self.wk_cost,
+        out.update({"horizon_s": self.horizon_steps * self.dt_s,
                     "planned_delay_s": self.delay_steps * self.dt_s,
                     "planned_coil_time_constant_s": self.coil_time_constant_s})  # fmt: skip
         if self.preview_points:
