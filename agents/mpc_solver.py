@@ -26,7 +26,14 @@ import numpy as np
 from capsule_env.agents.mpc_qp import CondensedQP, band_edges
 from scipy import sparse
 
-__all__ = ["SolverOptions", "BandQP", "PlanResult"]
+__all__ = ["SolverOptions", "BandQP", "PlanResult", "osqp_available"]
+
+
+def osqp_available() -> bool:
+    """Whether OSQP (the ``mpc`` extra) is installed."""
+    import importlib.util
+
+    return importlib.util.find_spec("osqp") is not None
 
 
 def _osqp() -> Any:

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_mpc.py                   # the table (about 5 minutes)
     python benchmarks/bench_mpc.py --json out.json   # and the JSON
-    python benchmarks/bench_mpc.py --quick           # a smoke test (seconds)
+    python benchmarks/bench_mpc.py --quick           # a smoke test (seconds; 3 rows timed)
 
 Measures, on this machine, in ``hils`` on the evaluation bank's first episodes:
 
@@ -74,15 +74,16 @@ def step_times(name: str, episodes: int, length_s: float) -> dict[str, Any]:
     return out
 
 
-def evaluation_time(episodes: int, length_s: float) -> dict[str, float]:
-    """Seconds of each default classical controller's run (``hils``), and the totals."""
+def evaluation_time(episodes: int, length_s: float, names: list[str]) -> dict[str, Any]:
+    """Seconds of each controller's run (``hils``; ``names`` or [] for the default
+    evaluation's classical controllers), and the totals with and without the MPC rows."""
     from capsule_env.agents.classical import make_controller
 
     from capsule_env.evaluate import DEFAULT_CONTROLLERS
     from capsule_env.evaluation import run_episodes
 
     per: dict[str, float] = {}
-    for name in dict.fromkeys(["passive", *DEFAULT_CONTROLLERS]):
+    for name in dict.fromkeys(["passive", *(names or DEFAULT_CONTROLLERS)]):
         ctrl = make_controller(name)
         t0 = time.perf_counter()
         run_episodes(ctrl, {**ctrl.env_kwargs, "setting": "hils"}, episodes, 1000, length_s)
@@ -132,7 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     res: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d"), "step": {}}
     for name in LAWS:
         res["step"][name] = step_times(name, 1 if args.quick else 5, length_s)
-    res["evaluation"] = evaluation_time(episodes, length_s)
+    quick_rows = ["lqr-clipped-biexp-meas", "mpc-biexp-meas"] if args.quick else []
+    res["evaluation"] = evaluation_time(episodes, length_s, quick_rows)
     print(report(res))
     if args.json is not None:
         from capsule_env.safe_io import atomic_write_text

@@ -164,6 +164,7 @@ def build_controllers(
     ``policies`` (after the shipped one when ``shipped``), each under a unique name
     (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
     available = classical_controllers()
+    implicit = names in (["all"], DEFAULT_CONTROLLERS)  # not named one by one
     if names == ["all"]:
         names = list(available)
     unknown = [n for n in names if n not in available]
@@ -171,6 +172,7 @@ def build_controllers(
         raise ValueError(
             f"unknown controller(s) {unknown}; accepted: {', '.join(available)} or 'all'"
         )
+    names = _without_missing_solver(names, implicit)
     ctrls = {n: available[n] for n in names}
     if "passive" not in ctrls:
         ctrls = {"passive": available["passive"], **ctrls}  # VRE needs the passive run
@@ -193,6 +195,21 @@ def build_controllers(
         policy.name = unique_name(str(policy.name), ctrls)
         ctrls[policy.name] = policy
     return ctrls
+
+
+def _without_missing_solver(names: list[str], implicit: bool) -> list[str]:
+    """``names`` without the MPC rows when OSQP (the ``mpc`` extra) is not installed: dropped
+    from the default run and from ``all`` (``implicit``) with a warning, refused when named."""
+    from capsule_env.agents.mpc_solver import osqp_available
+
+    mpc = [n for n in names if "mpc" in n.split("-")]
+    if not mpc or osqp_available():
+        return names
+    if not implicit:
+        raise ValueError(f"{', '.join(mpc)} need OSQP: pip install 'capsule-env[mpc]'")
+    print(f"evaluate.py: warning: {', '.join(mpc)} left out: OSQP is not installed "
+          "(pip install 'capsule-env[mpc]')", file=sys.stderr)  # fmt: skip
+    return [n for n in names if n not in mpc]
 
 
 def check_controllers(ctrls: dict, settings: list[str], episode_length_s: float) -> None:

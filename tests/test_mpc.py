@@ -195,3 +195,42 @@ def test_move_blocking_holds_the_moves() -> None:
     qp = condense(model, WEIGHTS, 6, 0, blocks=(1, 2, 3))
     assert qp.h.shape == (3, 3)
     np.testing.assert_array_equal(qp.blocking @ np.array([1.0, 2.0, 3.0]), [1, 2, 2, 3, 3, 3])
+
+
+def test_evaluate_without_osqp_drops_or_refuses_the_mpc_rows(monkeypatch, capsys) -> None:
+    import capsule_env.agents.mpc_solver as mpc_solver
+
+    from capsule_env.evaluate import DEFAULT_CONTROLLERS, build_controllers
+
+    monkeypatch.setattr(mpc_solver, "osqp_available", lambda: False)
+    ctrls = build_controllers(list(DEFAULT_CONTROLLERS), [], shipped=False)
+    assert "mpc-biexp-meas" in DEFAULT_CONTROLLERS and not [n for n in ctrls if "mpc" in n]
+    assert "OSQP is not installed" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="mpc-biexp-meas need OSQP"):
+        build_controllers(["passive", "mpc-biexp-meas"], [], shipped=False)
+
+
+@pytest.mark.slow
+def test_bench_mpc_quick_reports_consistent_figures(tmp_path) -> None:
+    """The benchmark's arithmetic (no speed is asserted: the machine decides it)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "bench.json"
+    done = subprocess.run([sys.executable, "benchmarks/bench_mpc.py", "--quick", "--json",
+                           str(out)], cwd=root, capture_output=True, text=True)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    data = json.loads(out.read_text())
+    for name, row in data["step"].items():
+        assert 0 < row["median_ms"] <= row["p99_ms"] <= row["max_ms"], name
+        assert 0.0 <= row["over_budget_rel"] <= 1.0 and row["steps"] == 80
+    assert data["step"]["mpc-biexp-meas"]["solves_per_step"] >= 1.0
+    per = data["evaluation"]["per_controller_s"]
+    assert set(per) == {"passive", "lqr-clipped-biexp-meas", "mpc-biexp-meas"}
+    assert data["evaluation"]["with_mpc_s"] == pytest.approx(sum(per.values()))
+    assert data["evaluation"]["without_mpc_s"] == pytest.approx(
+        per["passive"] + per["lqr-clipped-biexp-meas"]
+    )
