@@ -21,11 +21,13 @@ intervals by a quadratic programme (:mod:`capsule_env.agents.mpc_qp`,
 - **state**: as the clipped LQR's: the four measured states (LVDT stroke, on-board velocity
   estimates, gap sensor) or the true ones (``full_state``), the acting force from the measured
   coil current through the inverted model, and the law's own requests in flight;
-- **solver**: OSQP (an ADMM QP solver with a C core, warm-started, sparse, that updates the
-  problem's vectors and matrix values in place and returns a status rather than raising:
-  the usual choice of embedded MPC, and a small pip wheel); a failed or time-limited solve
-  falls back to the unconstrained LQ law (clipped by the env's inverse like the clipped
-  LQR), counted in :attr:`MPCController.counters`.
+- **solver**: DAQP (a dual active-set solver for the small dense QPs of embedded MPC: the
+  exact optimum in about 20 us here, warm-started from the previous plan), or OSQP (ADMM,
+  updated in place and warm-started; approximate to its tolerances, about 10 x slower here;
+  ``solver={"backend": "osqp"}``), both from the ``mpc`` extra
+  (:mod:`capsule_env.agents.mpc_solver`). A failed or time-limited solve falls back to the
+  unconstrained LQ law (clipped by the env's inverse like the clipped LQR), counted in
+  :attr:`MPCController.counters`.
 
 What it gives up: the global optimum of the non-convex problem (a hybrid MIQP would find it):
 the sign pattern is a local choice, and the linearised edges are exact only at the reference
@@ -98,9 +100,13 @@ class MPCController(ForceLaw):
     wk_cost : weight the cost's car-body acceleration by ISO 2631-1 Wk (the metric the tables
         report), the filter's state run on the measured acceleration; False: the plain
         acceleration of the clipped LQR's and preview LQ's cost.
-    solver : OSQP options, keys of :class:`~capsule_env.agents.mpc_solver.SolverOptions`
-        (``eps_abs``, ``eps_rel``, ``max_iter``, ``time_limit_s`` (0: none, the default, so
-        that a result does not depend on the machine's load), ``polish``, ``max_passes``).
+    solver : solver options, keys of :class:`~capsule_env.agents.mpc_solver.SolverOptions`:
+        ``backend`` (``"daqp"``, default, or ``"osqp"``), ``max_iter``, ``time_limit_s`` (0:
+        none, the default, so that a result does not depend on the machine's load),
+        ``max_passes`` (solves per step while the sign pattern changes, default 2),
+        ``constrained_steps`` (the intervals under the band, default the first 3; 0: all),
+        ``secant_m_s`` (the band edges' slope: the secant over this rate; default 1e-4 m/s,
+        the tangent); OSQP's ``eps_abs``, ``eps_rel`` (1e-3), ``polish``.
     """
 
     SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity", "relative_velocity")

@@ -198,16 +198,17 @@ def build_controllers(
 
 
 def _without_missing_solver(names: list[str], implicit: bool) -> list[str]:
-    """``names`` without the MPC rows when OSQP (the ``mpc`` extra) is not installed: dropped
+    """``names`` without the MPC rows when their QP solver (DAQP, the ``mpc`` extra) is not
+    installed: dropped
     from the default run and from ``all`` (``implicit``) with a warning, refused when named."""
-    from capsule_env.agents.mpc_solver import osqp_available
+    from capsule_env.agents.mpc_solver import solver_available
 
     mpc = [n for n in names if "mpc" in n.split("-")]
-    if not mpc or osqp_available():
+    if not mpc or solver_available():
         return names
     if not implicit:
-        raise ValueError(f"{', '.join(mpc)} need OSQP: pip install 'capsule-env[mpc]'")
-    print(f"evaluate.py: warning: {', '.join(mpc)} left out: OSQP is not installed "
+        raise ValueError(f"{', '.join(mpc)} need a QP solver: pip install 'capsule-env[mpc]'")
+    print(f"evaluate.py: warning: {', '.join(mpc)} left out: DAQP is not installed "
           "(pip install 'capsule-env[mpc]')", file=sys.stderr)  # fmt: skip
     return [n for n in names if n not in mpc]
 

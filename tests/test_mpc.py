@@ -1,7 +1,8 @@
 """The semi-active MPC (agents/mpc.py) against independent facts: Giorgetti et al. (2006)'s
 one-step result (the MPC is the clipped LQR), the unconstrained LQ optimum (Tomizuka's preview
 law of agents/preview_lq.py, a separate derivation), the band of the damper written out by
-hand, a QP solved by SciPy, the fallback, determinism and bad input."""
+hand, a QP solved by SciPy, the fallback, determinism and bad input; with both QP solvers
+(DAQP, active set; OSQP, ADMM)."""
 
 from __future__ import annotations
 
@@ -49,15 +50,16 @@ def measured_obs(rng: np.random.Generator, n: int) -> np.ndarray:
     return obs
 
 
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
 @pytest.mark.parametrize("delay_steps", [0, 1])
-def test_one_step_horizon_is_clipped_lqr(delay_steps: int) -> None:
+def test_one_step_horizon_is_clipped_lqr(delay_steps: int, backend: str) -> None:
     """Giorgetti et al. 2006: with a one-step horizon and the LQ cost-to-go as terminal cost
     the semi-active MPC is the LQR force clipped to the dissipative band."""
     rng = np.random.default_rng(3)
     obs = measured_obs(rng, 60)
     ctrl = MPCController(q_stroke=WEIGHTS[0], q_levitation=WEIGHTS[1], r_force=WEIGHTS[2],
                          horizon_steps=1, delay_steps=delay_steps, coil_time_constant_s=0.0,
-                         solver=TIGHT)  # fmt: skip
+                         solver={**TIGHT, "backend": backend})  # fmt: skip
     force = ctrl.desired_force(obs)
     gains = preview_lq_gains(VehicleParams(), 0.005, 0, *WEIGHTS, delay_steps=delay_steps)
     x = obs[:, [COL["stroke_m"], COL["car_body_velocity_estimate_m_s"], COL["levitation_gap_m"],
@@ -71,7 +73,8 @@ def test_one_step_horizon_is_clipped_lqr(delay_steps: int) -> None:
         if lo > hi:  # no dissipative force in the band: the slack's compromise, not checked
             continue
         expected = np.clip(np.clip(lqr[k], lo, hi), -8000.0, 8000.0)  # and the env's scale
-        assert force[k] == pytest.approx(expected, abs=0.5)  # OSQP's tolerance: 1e-7 x 8 kN
+        # DAQP: exact; OSQP: its tolerance, 1e-7 x 8 kN
+        assert force[k] == pytest.approx(expected, abs=0.5 if backend == "osqp" else 1e-6)
         checked += 1
     assert checked >= 50
     assert ctrl.counters["fallback_steps"] == 0
@@ -93,13 +96,14 @@ def test_unconstrained_plan_is_the_preview_lq_law() -> None:
         assert w[0] == pytest.approx(expected, rel=1e-7, abs=1e-6)
 
 
-def test_osqp_plan_agrees_with_scipy() -> None:
-    """A 3-step plan, the band on the first move: OSQP's plan is SciPy's bounded minimum of
-    the same quadratic (L-BFGS-B)."""
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
+def test_plan_agrees_with_scipy(backend: str) -> None:
+    """A 3-step plan, the band on the first move: each solver's plan is SciPy's bounded
+    minimum of the same quadratic (L-BFGS-B)."""
     model = prediction_model(VehicleParams(), 0.005, 0, 0.0)
     qp = condense(model, WEIGHTS, 3, 0)
     solver = BandQP(qp, EnvConfig().inverse_damper, 8000.0,
-                    SolverOptions(constrained_steps=1, **TIGHT))  # fmt: skip
+                    SolverOptions(constrained_steps=1, backend=backend, **TIGHT))  # fmt: skip
     z0 = np.array([8e-3, 0.02, -5e-3, 0.0])  # the LQ force pulls, the rate opens: 0 A's edge
     rate, stroke = 0.02, 8e-3
     plan = solver.plan(z0, np.zeros(3), rate, stroke, np.full(3, rate), np.full(3, stroke))
@@ -143,12 +147,13 @@ def test_plans_stay_in_the_band_on_the_hils_plant() -> None:
     assert ctrl.counters["fallback_steps"] == 0
 
 
-def test_fallback_is_counted_and_is_the_lq_law() -> None:
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
+def test_fallback_is_counted_and_is_the_lq_law(backend: str) -> None:
     """A solver stopped after one iteration fails: the law falls back to the LQ force and
     counts it."""
     obs = measured_obs(np.random.default_rng(1), 4)
     ctrl = MPCController(coil_time_constant_s=0.0, delay_steps=0, max_force_n=1e6,
-                         solver={"max_iter": 1, "polish": False})  # fmt: skip
+                         solver={"max_iter": 1, "polish": False, "backend": backend})  # fmt: skip
     force = ctrl.desired_force(obs)
     assert ctrl.counters["failed_solves"] == 4 and ctrl.counters["fallback_steps"] == 4
     gains = preview_lq_gains(VehicleParams(), 0.005, 0, ctrl.q_stroke, ctrl.q_levitation,
@@ -179,6 +184,7 @@ def test_same_seed_same_trajectory() -> None:
         ({"solver": {"max_iter": 0}}, "max_iter"),
         ({"solver": {"time_limit_s": -1.0}}, "time_limit_s"),
         ({"solver": {"warp": 1}}, "warp"),
+        ({"solver": {"backend": "cvxopt"}}, "backend"),
         ({"horizon_steps": 4, "move_blocks": (2, 1)}, "move_blocks"),
         ({"delay_steps": -1}, "delay_steps"),
         ({"inverse_model": "csdc"}, "inverse_model"),
@@ -197,16 +203,16 @@ def test_move_blocking_holds_the_moves() -> None:
     np.testing.assert_array_equal(qp.blocking @ np.array([1.0, 2.0, 3.0]), [1, 2, 2, 3, 3, 3])
 
 
-def test_evaluate_without_osqp_drops_or_refuses_the_mpc_rows(monkeypatch, capsys) -> None:
+def test_evaluate_without_the_solver_drops_or_refuses_the_mpc_rows(monkeypatch, capsys) -> None:
     import capsule_env.agents.mpc_solver as mpc_solver
 
     from capsule_env.evaluate import DEFAULT_CONTROLLERS, build_controllers
 
-    monkeypatch.setattr(mpc_solver, "osqp_available", lambda: False)
+    monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
     ctrls = build_controllers(list(DEFAULT_CONTROLLERS), [], shipped=False)
     assert "mpc-biexp-meas" in DEFAULT_CONTROLLERS and not [n for n in ctrls if "mpc" in n]
-    assert "OSQP is not installed" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="mpc-biexp-meas need OSQP"):
+    assert "DAQP is not installed" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="mpc-biexp-meas need a QP solver"):
         build_controllers(["passive", "mpc-biexp-meas"], [], shipped=False)
 
 
