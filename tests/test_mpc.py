@@ -240,3 +240,28 @@ def test_bench_mpc_quick_reports_consistent_figures(tmp_path) -> None:
     assert data["evaluation"]["without_mpc_s"] == pytest.approx(
         per["passive"] + per["lqr-clipped-biexp-meas"]
     )
+
+
+def test_wk_cost_filter_is_the_metric_weighting() -> None:
+    """The cost's Wk filter is the metric's weighting without its band limits (0.4 Hz
+    high-pass, 100 Hz low-pass): compared as complex responses with capsule_env.metrics."""
+    from capsule_env.agents.mpc_qp import wk_state_space
+
+    from capsule_env.metrics import wk_weighting
+
+    a, b, c = wk_state_space()
+    f = np.array([0.5, 1.3, 2.37, 4.0, 5.4, 8.0, 12.5, 20.0])
+    s = 2j * np.pi * f
+    ours = np.array([c @ np.linalg.solve(x * np.eye(4) - a, b) for x in s])
+    q = 1 / np.sqrt(2)
+    w1, w2 = 2 * np.pi * 0.4, 2 * np.pi * 100.0
+    band = (s**2 / (s**2 + w1 / q * s + w1**2)) * (w2**2 / (s**2 + w2 / q * s + w2**2))
+    np.testing.assert_allclose(ours, wk_weighting(f) / band, rtol=1e-10)
+
+
+def test_wk_cost_runs_on_the_measured_acceleration() -> None:
+    ctrl = MPCController(wk_cost=True)
+    assert "car_body_acceleration_m_s2" in ctrl.signals_read
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, "setting": "hils"}, 1, 3, 0.3)
+    assert np.all(np.isfinite(roll.signals["car_body_acceleration_m_s2"]))
+    assert ctrl.counters["fallback_steps"] == 0 and ctrl.counters["vehicle_steps"] == 60
