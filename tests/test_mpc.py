@@ -265,3 +265,16 @@ def test_wk_cost_runs_on_the_measured_acceleration() -> None:
     roll = run_episodes(ctrl, {**ctrl.env_kwargs, "setting": "hils"}, 1, 3, 0.3)
     assert np.all(np.isfinite(roll.signals["car_body_acceleration_m_s2"]))
     assert ctrl.counters["fallback_steps"] == 0 and ctrl.counters["vehicle_steps"] == 60
+
+
+def test_variants_experiment_runs_every_variant(tmp_path) -> None:
+    import json
+
+    from conftest import load_script
+
+    script = load_script("experiments/mpc_variants.py")
+    out = tmp_path / "variants.json"
+    assert script.main(["--episodes", "1", "--length", "0.5", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["rows"]
+    assert set(rows) == {"lqr-clipped-biexp-meas", *script.VARIANTS}
+    assert all(r["fallback_steps"] == 0 for k, r in rows.items() if k in script.VARIANTS)
