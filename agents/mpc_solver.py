@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from capsule_env.agents.mpc_qp import CondensedQP, band_edges
+from capsule_env.agents.mpc_qp import CondensedQP, _edges
 from scipy import sparse
 
 __all__ = ["SolverOptions", "BandQP", "PlanResult", "solver_available"]
@@ -119,6 +119,7 @@ class BandQP:
         self, qp: CondensedQP, damper: Any, force_scale_n: float, options: SolverOptions
     ) -> None:
         self.qp, self.damper, self.scale = qp, damper, float(force_scale_n)
+        self._params, self._i_max = damper.as_array(), float(damper.max_current_a)
         self.options = options
         n_steps, n_moves = qp.blocking.shape
         self.n_steps, self.n_moves = n_steps, n_moves
@@ -168,20 +169,25 @@ class BandQP:
     def _constraints(self, g_lo: np.ndarray, g_hi: np.ndarray) -> np.ndarray:
         """The dense constraint matrix for edge slopes ``g_lo``, ``g_hi`` (N s/m)."""
         n, m, t = self.n_steps, self.n_moves, self.qp.blocking
-        a = np.zeros((4 * n, m + n))
-        a[:n, :m] = t
+        if getattr(self, "_fixed_rows", None) is None:  # the rows that never change
+            a = np.zeros((4 * n, m + n))
+            a[:n, :m] = t
+            a[n : 2 * n, m:] = np.eye(n)
+            a[2 * n : 3 * n, m:] = -np.eye(n)
+            a[3 * n :, m:] = np.eye(n)
+            self._fixed_rows = a
+        a = self._fixed_rows.copy()
         a[n : 2 * n, :m] = t - g_lo[:, None] * self.qp.rate_w
         a[2 * n : 3 * n, :m] = t - g_hi[:, None] * self.qp.rate_w
-        a[n : 2 * n, m:] = np.eye(n)
-        a[2 * n : 3 * n, m:] = -np.eye(n)
-        a[3 * n :, m:] = np.eye(n)
         return a
 
     def _solve(self, free_rate, free_stroke, ref_rate, ref_stroke, linear):
         """One solve with the sign pattern and linearisation of ``ref_rate``, ``ref_stroke``.
         ``free_*``: the predicted rate/stroke with ``w = 0``."""
         n = self.n_steps
-        edges = band_edges(self.damper, ref_stroke, ref_rate, self.options.secant_m_s)
+        edges = np.empty((4, n))
+        _edges(self.damper.code, self._params, self._i_max, ref_stroke, ref_rate,
+               self.options.secant_m_s, edges)  # fmt: skip
         edges /= self.scale
         sigma = np.where(ref_rate >= 0.0, 1.0, -1.0)
         pos = sigma > 0  # lower edge: 0 A when moving out, i_max when moving in
