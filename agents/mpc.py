@@ -160,7 +160,7 @@ class MPCController(ForceLaw):
         self.wk_cost = wk_cost
         if wk_cost:  # the filter runs on the measured car-body acceleration
             self.SIGNALS = (*type(self).SIGNALS, "body_acceleration")
-        self.model = prediction_model(vehicle or VehicleParams(), self.dt_s, self.delay_steps,
+        self.prediction = prediction_model(vehicle or VehicleParams(), self.dt_s, self.delay_steps,
                                       self.coil_time_constant_s, wk_cost)  # fmt: skip
         self.damper = EnvConfig(inverse_model=inverse_model).inverse_damper
         self._qps: list[BandQP] = []
@@ -208,7 +208,7 @@ class MPCController(ForceLaw):
     @property
     def signals_read(self) -> tuple[str, ...]:
         ahead = tuple(f"preview_ahead_{k}" for k in range(1, self.preview_points + 1))
-        lag = ("coil_current_a",) if self.model.lag else ()
+        lag = ("coil_current_a",) if self.prediction.lag else ()
         return (*super().signals_read, *lag, *ahead)
 
     def reset_counters(self) -> None:
@@ -237,12 +237,12 @@ class MPCController(ForceLaw):
         self._qps = []
         for triple in zip(*(w.tolist() for w in weights)):
             if triple not in cache:
-                cache[triple] = condense(self.model, triple, self.horizon_steps, self.n_rises,
+                cache[triple] = condense(self.prediction, triple, self.horizon_steps, self.n_rises,
                                          self.move_blocks)  # fmt: skip
             self._qps.append(BandQP(cache[triple], self.damper, self.max_force_n,
                                     self.solver_options))  # fmt: skip
         self._in_flight = np.zeros((n, self.delay_steps))
-        self._wk_state = np.zeros((n, self.model.wk_states.stop - self.model.wk_states.start))
+        self._wk_state = np.zeros((n, self.prediction.wk_states.stop - self.prediction.wk_states.start))
         self._ref_rate = np.full((n, self.horizon_steps), np.nan)
         self._ref_stroke = np.zeros((n, self.horizon_steps))
 
@@ -250,14 +250,14 @@ class MPCController(ForceLaw):
         """The prediction model's state ``z`` (n, size) and the guideway rises read (n, R)."""
         x = np.stack([self.signal(obs, s) for s in self.SIGNALS[:4]], axis=1)
         parts = [x]
-        if self.model.lag:  # the acting force: the measured current through the model
+        if self.prediction.lag:  # the acting force: the measured current through the model
             current = obs[:, self._columns["coil_current_a"]]
             edges = band_edges(self.damper, x[:, 0], self.signal(obs, "relative_velocity"))
             frac = np.clip(current / self.damper.max_current_a, 0.0, 1.0)
             parts.append((edges[0] + frac * (edges[1] - edges[0]))[:, None])
         if self.wk_cost:  # the Wk filter's state, then advanced by this step's measurement
             parts.append(self._wk_state)
-            a_w, b_w = self.model.wk_discrete
+            a_w, b_w = self.prediction.wk_discrete
             acc = self.signal(obs, "body_acceleration")
             self._wk_state = self._wk_state @ a_w.T + acc[:, None] * b_w[:, 0]
         parts.append(self._in_flight)

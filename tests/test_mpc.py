@@ -278,3 +278,19 @@ def test_variants_experiment_runs_every_variant(tmp_path) -> None:
     rows = json.loads(out.read_text())["rows"]
     assert set(rows) == {"lqr-clipped-biexp-meas", *script.VARIANTS}
     assert all(r["fallback_steps"] == 0 for k, r in rows.items() if k in script.VARIANTS)
+
+
+def test_evaluate_runs_the_mpc_rows(tmp_path) -> None:
+    import json
+
+    from capsule_env import evaluate
+
+    out = tmp_path / "eval.json"
+    argv = ["--setting", "hils", "--episodes", "1", "--episode-length", "1", "--json", str(out),
+            "--controllers", "passive,mpc-biexp-meas,preview-mpc-biexp-meas",
+            "--no-shipped-policy"]  # fmt: skip
+    assert evaluate.main(argv) == 0
+    rows = json.loads(out.read_text())["settings"]["hils"]["controllers"]
+    assert rows["mpc-biexp-meas"]["observation"] == "measured"
+    assert rows["preview-mpc-biexp-meas"]["preview"] is True
+    assert rows["mpc-biexp-meas"]["gains"]["horizon_s"] == pytest.approx(0.05)
