@@ -94,11 +94,12 @@ def evaluation_time(episodes: int, length_s: float, names: list[str]) -> dict[st
 
 
 def machine() -> dict[str, Any]:
-    import osqp
+    from importlib.metadata import version
 
     return {"platform": platform.platform(), "processor": platform.processor(),
-            "python": platform.python_version(), "osqp": osqp.__version__,
-            "cpus": __import__("os").cpu_count()}  # fmt: skip
+            "python": platform.python_version(), "daqp": version("daqp"),
+            "osqp": version("osqp"), "cpus": __import__("os").cpu_count(),
+            "load_average_1min": __import__("os").getloadavg()[0]}  # fmt: skip
 
 
 def report(res: dict[str, Any]) -> str:
