@@ -242,7 +242,9 @@ class MPCController(ForceLaw):
             self._qps.append(BandQP(cache[triple], self.damper, self.max_force_n,
                                     self.solver_options))  # fmt: skip
         self._in_flight = np.zeros((n, self.delay_steps))
-        self._wk_state = np.zeros((n, self.prediction.wk_states.stop - self.prediction.wk_states.start))
+        self._wk_state = np.zeros(
+            (n, self.prediction.wk_states.stop - self.prediction.wk_states.start)
+        )
         self._ref_rate = np.full((n, self.horizon_steps), np.nan)
         self._ref_stroke = np.zeros((n, self.horizon_steps))
 
