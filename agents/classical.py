@@ -12,7 +12,9 @@ Open loop (read no signal): ``passive`` (the linear damper c_s), ``mr-0A`` and `
   ``lqr-clipped-biexp-meas``. A force law keeps its inverse model's tag; a two-state law
   (current mode) has none;
 - with guideway preview (the surveyed elevations ahead, :mod:`capsule_env.agents.preview_lq`):
-  ``preview-lq-biexp-meas`` (measured signals) and ``preview-lq-biexp`` (ideal sensors).
+  ``preview-lq-biexp-meas`` (measured signals) and ``preview-lq-biexp`` (ideal sensors);
+- semi-active model predictive control (:mod:`capsule_env.agents.mpc`): ``mpc-biexp-meas``,
+  ``preview-mpc-biexp-meas`` and their ideal-sensor twins ``mpc-biexp``, ``preview-mpc-biexp``.
 
 Gains: every feedback law takes its defaults from ``agents/tuned_gains.json`` (the search of
 :mod:`capsule_env.agents.tuning`), except the paper-reproduction on-off Skyhooks (:data:`PAPER_FIXED`).
@@ -26,6 +28,7 @@ from functools import partial
 import numpy as np
 from capsule_env.agents.base import Controller
 from capsule_env.agents.lqr import ClippedOptimalController
+from capsule_env.agents.mpc import MPCController
 from capsule_env.agents.preview_lq import PreviewLQController
 from capsule_env.agents.skyhook import INVERSE_TAG, HybridController, SkyhookController
 from capsule_env.agents.two_state import (
@@ -99,6 +102,13 @@ FACTORIES.update(
             PreviewLQController, "bi_exponential", observation="full_state"
         ),
         "preview-lq-biexp-meas": partial(PreviewLQController, "bi_exponential"),
+        # semi-active MPC (capsule_env.agents.mpc), without and with the guideway preview
+        "mpc-biexp-meas": partial(MPCController, "bi_exponential"),
+        "preview-mpc-biexp-meas": partial(MPCController, "bi_exponential", preview=True),
+        "mpc-biexp": partial(MPCController, "bi_exponential", observation="full_state"),
+        "preview-mpc-biexp": partial(
+            MPCController, "bi_exponential", observation="full_state", preview=True
+        ),
     }
 )
 

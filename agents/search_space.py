@@ -94,6 +94,10 @@ _LQR = SearchSpace(
     ),
     sweep="r_force",
 )
+#: The MPC: only ``r_force`` is searched (a modest budget: a plan per vehicle per step costs
+#: about a millisecond), the state weights kept at the linear twin's tuned values
+#: (``capsule_env.agents.mpc.LINEAR_TWIN``), over two decades either side of them.
+_MPC = SearchSpace((Param("r_force", 1.0e-10, 1.0e-6),))
 
 #: The search space of every tuned controller, by name.
 SEARCH_SPACES: dict[str, SearchSpace] = {
@@ -114,4 +118,8 @@ SEARCH_SPACES: dict[str, SearchSpace] = {
     # guideway preview
     "preview-lq-biexp": _LQR,
     "preview-lq-biexp-meas": _LQR,
+    "mpc-biexp-meas": _MPC,
+    "preview-mpc-biexp-meas": _MPC,
+    "mpc-biexp": _MPC,
+    "preview-mpc-biexp": _MPC,
 }

@@ -71,6 +71,10 @@ DEFAULT_CONTROLLERS = PAPER_CONTROLLERS + [
     "lqr-clipped-biexp-meas",
     "preview-lq-biexp-meas",
     "preview-lq-biexp",
+    "mpc-biexp-meas",
+    "preview-mpc-biexp-meas",
+    "mpc-biexp",
+    "preview-mpc-biexp",
 ]
 #: The tables' groups, in order: the observation set a controller reads (its header says
 #: what the group may read: ``capsule_env.agents.base.OBSERVATION_GROUPS``).
@@ -154,6 +158,7 @@ def build_controllers(
     ``policies`` (after the shipped one when ``shipped``), each under a unique name
     (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
     available = classical_controllers()
+    implicit = names in (["all"], DEFAULT_CONTROLLERS)  # not named one by one
     if names == ["all"]:
         names = list(available)
     unknown = [n for n in names if n not in available]
@@ -161,6 +166,7 @@ def build_controllers(
         raise ValueError(
             f"unknown controller(s) {unknown}; accepted: {', '.join(available)} or 'all'"
         )
+    names = _without_missing_solver(names, implicit)
     ctrls = {n: available[n] for n in names}
     if "passive" not in ctrls:
         ctrls = {"passive": available["passive"], **ctrls}  # VRE needs the passive run
@@ -183,6 +189,22 @@ def build_controllers(
         policy.name = unique_name(str(policy.name), ctrls)
         ctrls[policy.name] = policy
     return ctrls
+
+
+def _without_missing_solver(names: list[str], implicit: bool) -> list[str]:
+    """``names`` without the MPC rows when their QP solver (DAQP, the ``mpc`` extra) is not
+    installed: dropped
+    from the default run and from ``all`` (``implicit``) with a warning, refused when named."""
+    from capsule_env.agents.mpc_solver import solver_available
+
+    mpc = [n for n in names if "mpc" in n.split("-")]
+    if not mpc or solver_available():
+        return names
+    if not implicit:
+        raise ValueError(f"{', '.join(mpc)} need a QP solver: pip install 'capsule-env[mpc]'")
+    print(f"evaluate.py: warning: {', '.join(mpc)} left out: DAQP is not installed "
+          "(pip install 'capsule-env[mpc]')", file=sys.stderr)  # fmt: skip
+    return [n for n in names if n not in mpc]
 
 
 def check_controllers(ctrls: dict, settings: list[str], episode_length_s: float) -> None:

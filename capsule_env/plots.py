@@ -287,6 +287,8 @@ _FAMILIES = {
     "sh-add": ("mixed Skyhook-ADD", "tab:purple"),
     "lqr-clipped": ("clipped-optimal LQR", "tab:brown"),
     "preview-lq": ("LQ optimal preview", "tab:pink"),
+    "mpc": ("semi-active MPC", "tab:olive"),
+    "preview-mpc": ("semi-active preview MPC", "tab:cyan"),
 }
 #: The swept gains in words, with the unit of their range in the legend.
 _GAIN_WORDS = {

@@ -35,6 +35,11 @@ DESCRIPTIONS = {
     "Bi-exp. inverse",
     "preview-lq-biexp-meas": "LQ optimal preview: LQR with the guideway 1 s ahead, Bi-exp. inverse",
     "preview-lq-biexp": "LQ optimal preview: LQR with the guideway 1 s ahead, Bi-exp. inverse",
+    "mpc-biexp-meas": "semi-active MPC: 50 ms plan inside the damper's band, on the LQR's "
+    "signals, Bi-exp. inverse",
+    "mpc-biexp": "semi-active MPC: 50 ms plan inside the damper's band, Bi-exp. inverse",
+    "preview-mpc-biexp-meas": "semi-active MPC with the guideway 1 s ahead, Bi-exp. inverse",
+    "preview-mpc-biexp": "semi-active MPC with the guideway 1 s ahead, Bi-exp. inverse",
     "oracle": "clairvoyant bound: current searched knowing the guideway, no noise or delay",
 }
 
