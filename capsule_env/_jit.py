@@ -12,12 +12,22 @@ folder in the temporary directory and says so once (:class:`NumbaCacheWarning`).
 
 from __future__ import annotations
 
+import functools
+import inspect
 import os
 import tempfile
 import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-__all__ = ["NumbaCacheWarning", "ensure_cache_location", "fallback_cache_dir"]
+__all__ = [
+    "KERNEL_OPTIONS",
+    "NumbaCacheWarning",
+    "ensure_cache_location",
+    "fallback_cache_dir",
+    "specialised",
+]
 
 
 class NumbaCacheWarning(UserWarning):
@@ -62,3 +72,71 @@ def ensure_cache_location() -> None:
 
 
 ensure_cache_location()
+
+# Numba is imported after the cache location is settled (the decorators below read it).
+from numba import types  # noqa: E402
+from numba.extending import overload  # noqa: E402
+
+from capsule_env._fastmath import BORROWED, FAST  # noqa: E402
+
+# --------------------------------------------------------------------------- specialisation
+#: Decorator options of a compiled function inside the kernels: no CPython or C wrapper
+#: (only numba calls it) and no reference counting (it allocates nothing; see
+#: :data:`capsule_env._fastmath.BORROWED`), numpy's error model (no division check, so that
+#: loops vectorise).
+KERNEL_OPTIONS: dict[str, Any] = {**FAST, **BORROWED}
+
+
+def specialised(
+    *literal: str, plain: tuple[str, ...] = (), inline: str = "never", **jit_options: Any
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Compile a function once per value of its ``literal`` arguments (a damper model's code,
+    a kernel variant), choosing the code to compile in Python, at typing.
+
+    The decorated function is a *factory*: numba calls it with the values of the ``literal``
+    arguments (Python ints or bools) and the numba types of the others, and it returns the
+    implementation (a plain function of the same arguments) or ``None`` when it has none. It
+    is called from compiled code only; calling it from Python raises ``NotImplementedError``.
+
+    Why: a plain numba function specialised on a literal argument still types, lowers and
+    optimises every branch of ``if model == ...`` (numba prunes branches on constants and
+    closure variables, not on literal arguments): with every damper law behind such branches,
+    a kernel compiled the code of every model. A literal argument must be given as a constant
+    (a global, a closure variable, a literal value) by the caller.
+
+    Parameters
+    ----------
+    literal : names of the arguments to specialise on.
+    plain : names of arguments that must not be literal: a call typing one of them as a
+        literal (a constant ``0``) is refused rather than compiled once more for the value.
+    inline : numba's IR inlining of the implementation (``"never"``: LLVM decides; small
+        functions are inlined by it).
+    jit_options : options of the implementation, :data:`KERNEL_OPTIONS` by default.
+    """
+    options = jit_options or KERNEL_OPTIONS
+
+    def decorate(factory: Callable[..., Any]) -> Callable[..., Any]:
+        signature = inspect.signature(factory)
+        names = list(signature.parameters)
+        at = [names.index(n) for n in literal]
+        plain_at = [names.index(n) for n in plain]
+
+        @functools.wraps(factory)
+        def stub(*args: Any) -> Any:
+            raise NotImplementedError(f"{factory.__qualname__} is compiled code only")
+
+        def typer(*args: Any) -> Any:
+            if not all(isinstance(args[k], types.Literal) for k in at):
+                return None
+            if any(isinstance(args[k], types.Literal) for k in plain_at):
+                return None
+            values = list(args)
+            for k in at:
+                values[k] = args[k].literal_value
+            return factory(*values)
+
+        typer.__signature__ = signature  # type: ignore[attr-defined]
+        overload(stub, prefer_literal=True, jit_options=options, inline=inline)(typer)
+        return stub
+
+    return decorate

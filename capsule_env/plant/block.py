@@ -19,11 +19,11 @@ needs tan/atan) and Spencer parameters with ``gamma > beta`` use the scalar kern
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from capsule_env._fastmath import BORROWED, FAST
-from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
+from capsule_env._jit import specialised
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
     COIL_CURRENT,
@@ -36,9 +36,6 @@ from capsule_env.layout import (
     OUT_BOGIE_ACC,
     OUT_FORCE,
     OUT_GUIDEWAY,
-    SP_A,
-    SP_BETA,
-    SP_GAMMA,
     STATE_SIZE,
     STIFF_LEVITATION,
     STIFF_SECONDARY,
@@ -109,12 +106,13 @@ def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
 
 
 def _block_kernel_family(damper_code: int, damper_params: np.ndarray) -> int:
-    if damper_code in (BI_EXPONENTIAL, TANH, PASSIVE):
+    hyst = model_of_code(damper_code).hysteresis
+    if hyst is None:
         return KERNEL_BLOCK
-    if damper_code != REFERENCE:
+    if not hyst.fast:
         return KERNEL_SCALAR
     p = np.asarray(damper_params).reshape(-1, damper_params.shape[-1])
-    a_coef, gamma, beta = p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA]
+    a_coef, gamma, beta = p[:, hyst.a_coef], p[:, hyst.gamma], p[:, hyst.beta]
     if np.any(a_coef <= 0.0) or np.any(gamma < 0.0) or np.any(gamma + beta <= 0.0):
         return KERNEL_SCALAR
     unload = beta - gamma
@@ -134,8 +132,9 @@ def block_constants(
     (0 without coil lag). ``table``: one (bins,) table for every row, or (N, bins)."""
     p = np.atleast_2d(np.asarray(damper_params, dtype=float))
     out = np.ones((p.shape[0], _D_EHALF + np.shape(table)[-1]))
-    if damper_code == REFERENCE:
-        out[:, :_D_EHALF] = riccati_constants(p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA])
+    hyst = model_of_code(damper_code).hysteresis
+    if hyst is not None and hyst.fast:
+        out[:, :_D_EHALF] = riccati_constants(p[:, hyst.a_coef], p[:, hyst.gamma], p[:, hyst.beta])
     tau = p[:, COIL_TAU][:, None]
     h = dt_s / np.broadcast_to(np.asarray(table, dtype=float), (p.shape[0], np.shape(table)[-1]))
     lag = tau > 0.0
@@ -247,6 +246,7 @@ def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
         w[o + _W_ZG1 * HALF] = g * guideway_elevation(profiles, k, spacing, last, p0 + sp * (t + h))
 
 
+@specialised("model", "hysteresis", "uniform", plain=("first",))
 def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
     """One RK4 substep of the sorted vehicles ``first .. nb-1``: the SIMD loop.
 
@@ -256,15 +256,8 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     The view starts at the first column and every access is a constant offset from it, so LLVM
     sees no negative indices and no overlap and vectorises the loop. With ``uniform`` the damper
     parameters and Riccati constants are ``p_uniform``/``hc_uniform`` (loop constants) instead of
-    scratch rows. Compiled once per (model, hysteresis, uniform): see the overload below."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
-    if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
-        return None  # specialise on the model, hysteresis and uniform flag only
-    m, hyst, uni = model.literal_value, hysteresis.literal_value, uniform.literal_value
+    scratch rows. Compiled once per (model, hysteresis, uniform)."""
+    m, hyst, uni = model, hysteresis, uniform
 
     def impl(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
         col0 = first >> 1
@@ -290,17 +283,11 @@ def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifo
     return impl
 
 
+@specialised("model", "uniform")
 def output_lanes(model, uniform, wv, count, p_uniform):
     """Force and accelerations at the end of the interval (into rows zg_mid, zg_end, h) of the
     first ``count`` columns of one half. Compiled once per (model, uniform)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _output_lanes(model, uniform, wv, count, p_uniform):
-    if not isinstance(model, types.IntegerLiteral):
-        return None
-    m, uni = model.literal_value, uniform.literal_value
+    m, uni = model, uniform
 
     def impl(model, uniform, wv, count, p_uniform):
         for j in range(count):
@@ -354,22 +341,18 @@ def _sort_by_substeps(nsub_of, nb, lo, order, start):
             order[r] = lo + m
 
 
+@specialised("model", "mode")
 def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
     """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt`` with the vectorised kernel
     (``mode`` a block mode of :func:`block_kernel_mode`). ``lanes`` (``LANES_SIZE``,) float64
     and ``counts`` (``COUNT_ROWS``, ``BLOCK + 1``) int64 are scratch from the caller: this
     function allocates nothing. Compiled once per (model, mode)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(block_step, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
-    if not isinstance(model, types.IntegerLiteral):
-        return None
-    m, md = model.literal_value, mode.literal_value
+    m, md = model, mode
+    damper = model_of_code(m)
+    uses_current = damper.uses_current
     uni = (md & KERNEL_UNIFORM) != 0
     family = md & ~KERNEL_UNIFORM
-    if m != REFERENCE:
+    if damper.hysteresis is None:
         hyst = HYST_NONE
     elif family == KERNEL_BLOCK_TANH_UNLOAD:
         hyst = HYST_FAST_TANH_UNLOAD
@@ -396,7 +379,7 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, cou
         for j in range(nb):  # substeps per vehicle (from the highest current of the interval)
             n = lo + j
             i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
+            cmd = min(max(i_cmd[n], 0.0), i_max) if uses_current else 0.0
             i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
             b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
             b = min(max(b, 0), n_bins - 1)
@@ -410,7 +393,7 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, cou
             ns = nsub_of[n - lo]
             nsub[rank] = ns
             i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
+            cmd = min(max(i_cmd[n], 0.0), i_max) if uses_current else 0.0
             for j in range(STATE_SIZE):
                 w[o + j * HALF] = x[n, j]
             if tau <= 0.0:

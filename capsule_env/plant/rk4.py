@@ -15,7 +15,7 @@ so that a loop over vehicles vectorises; the scalar kernel uses the general hyst
 (Bouc-Wen's unloading branch needs tan/atan).
 
 Each function is compiled once per model and hysteresis form (literal arguments; the model's
-code is chosen at typing, see the overloads below) and inlined by LLVM: :func:`rk4_substep`
+code is chosen at typing, :func:`capsule_env._jit.specialised`) and inlined by LLVM: :func:`rk4_substep`
 into the kernels' loops with ``forceinline`` (LLVM's ``alwaysinline``), the functions it calls
 because they are small. Numba's own inlining (``inline="always"``) copies the callee's IR at
 every call site before typing: the block kernel's loop, which calls :func:`rk4_substep` twice,
@@ -25,23 +25,13 @@ slower.
 
 from __future__ import annotations
 
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from capsule_env._fastmath import BORROWED, FAST
-from capsule_env.dampers import (
-    BI_EXPONENTIAL,
-    BOUC_WEN,
-    REFERENCE,
-    TANH,
-    bi_exponential_force,
-    bouc_wen_force,
-    spencer_force,
-    spencer_inv_dashpots,
-    tanh_force,
-)
+from capsule_env._jit import specialised
+from capsule_env.dampers.dispatch import model_force, model_prepare
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_update, hysteresis_update_fast
-from capsule_env.layout import BW_A, BW_BETA, BW_GAMMA, PV_DAMPING, SP_A, SP_BETA, SP_GAMMA
 
 __all__ = [
     "HYST_NONE",
@@ -65,98 +55,24 @@ HYST_NONE, HYST_GENERAL, HYST_FAST_LINEAR_UNLOAD, HYST_FAST_TANH_UNLOAD = range(
 LANE_INPUT_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t", "h", "i_cmd", "e_half",
                     "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end")  # fmt: skip
 
-
-# The model and hysteresis codes are literal arguments: each function below is an overload
-# that picks the model's code in Python, at typing. (A plain numba function specialised on a
-# literal argument still types, lowers and optimises every branch of ``if model == ...``:
-# numba prunes branches on constants and closure variables, not on literal arguments. With
-# the four damper laws behind such branches, a kernel compiled the code of every model.)
-_JIT = {**FAST, **BORROWED}
+#: The damper model's ``prepare`` and ``force`` (:mod:`capsule_env.dampers.dispatch`), under
+#: the names the plant used before the registry.
+inv_dashpots = model_prepare
+damper_force_and_rate = model_force
 
 
-def _literals(*codes) -> bool:
-    return all(isinstance(c, types.IntegerLiteral) for c in codes)
-
-
-def inv_dashpots(model, p, i):
-    """``1 / (c0 + c1)`` of the reference damper at current ``i`` (1 for the other models)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(inv_dashpots, prefer_literal=True, jit_options=_JIT)
-def _inv_dashpots(model, p, i):
-    if not _literals(model):
-        return None
-    if model.literal_value == REFERENCE:
-
-        def impl(model, p, i):
-            return spencer_inv_dashpots(p, i)
-
-    else:
-
-        def impl(model, p, i):
-            return 1.0
-
-    return impl
-
-
-def damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
-    """``(F, y')`` of the damper model at stroke ``x``, stroke rate ``v``, Spencer's internal
-    displacement ``y``, hysteretic variable ``z`` and current ``i``."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(damper_force_and_rate, prefer_literal=True, jit_options=_JIT)
-def _damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
-    if not _literals(model):
-        return None
-    m = model.literal_value
-    if m == REFERENCE:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return spencer_force(p, x, v, y, z, i, inv_c)
-
-    elif m == BOUC_WEN:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return bouc_wen_force(p, x, v, z, i), 0.0
-
-    elif m == BI_EXPONENTIAL:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return bi_exponential_force(p, x, v, i), 0.0
-
-    elif m == TANH:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return tanh_force(p, x, v, i), 0.0
-
-    else:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return p[PV_DAMPING] * v, 0.0
-
-    return impl
-
-
+@specialised("model", "hysteresis")
 def _advance_z(model, hysteresis, z, du, p, hc):
     """The hysteretic variable after a deformation increment ``du`` (``hc``: the Riccati
     constants of the fast forms)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(_advance_z, prefer_literal=True, jit_options=_JIT)
-def _advance_z_impl(model, hysteresis, z, du, p, hc):
-    if not _literals(model, hysteresis):
-        return None
-    m, hyst = model.literal_value, hysteresis.literal_value
-    if hyst == HYST_GENERAL:
-        a_k, g_k, b_k = (SP_A, SP_GAMMA, SP_BETA) if m == REFERENCE else (BW_A, BW_GAMMA, BW_BETA)
+    if hysteresis == HYST_GENERAL:
+        hyst = model_of_code(model).hysteresis
+        a_k, g_k, b_k = hyst.a_coef, hyst.gamma, hyst.beta
 
         def impl(model, hysteresis, z, du, p, hc):
             return hysteresis_update(z, du, p[a_k], p[g_k], p[b_k])
 
-    elif hyst == HYST_NONE:
+    elif hysteresis == HYST_NONE:
 
         def impl(model, hysteresis, z, du, p, hc):
             return z
