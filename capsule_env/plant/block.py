@@ -45,6 +45,7 @@ from capsule_env.plant.rk4 import (
     HYST_FAST_LINEAR_UNLOAD,
     HYST_FAST_TANH_UNLOAD,
     HYST_NONE,
+    LANE_INPUT_NAMES,
     plant_outputs,
     rk4_substep,
 )
@@ -70,12 +71,14 @@ KERNEL_UNIFORM = 4
 
 # Scratch rows of one half of a block: the state, then the per-vehicle values of the interval,
 # the Riccati constants and the damper parameters (each row HALF long).
-_SCRATCH_ROWS = (
-    "z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t",  # the plant state, in STATE_NAMES order
-    "h", "i_cmd", "e_half", "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end",
-)  # fmt: skip
+# The first rows are an RK4 substep's inputs (rk4.LANE_INPUT_NAMES: the plant state in
+# STATE_NAMES order, then the interval's values).
+_SCRATCH_ROWS = LANE_INPUT_NAMES
 (_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
- _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = range(len(_SCRATCH_ROWS))  # fmt: skip
+ _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = (_SCRATCH_ROWS.index(n)
+                                                    for n in _SCRATCH_ROWS)  # fmt: skip
+#: After the last substep, the plant's outputs go into rows the substeps no longer read.
+_W_OUT_FORCE, _W_OUT_ACC_C, _W_OUT_ACC_B = _W_ZGH, _W_ZG1, _W_H
 _W_A = len(_SCRATCH_ROWS)  # N_RICCATI_CONSTANTS rows
 _W_P = _W_A + N_RICCATI_CONSTANTS  # N_DAMPER_PARAMS rows
 _W_ROWS = _W_P + N_DAMPER_PARAMS
@@ -285,21 +288,19 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
 
 @specialised("model", "uniform")
 def output_lanes(model, uniform, wv, count, p_uniform):
-    """Force and accelerations at the end of the interval (into rows zg_mid, zg_end, h) of the
-    first ``count`` columns of one half. Compiled once per (model, uniform)."""
+    """Force and accelerations at the end of the interval (into the output rows) of the first
+    ``count`` columns of one half. Compiled once per (model, uniform)."""
     m, uni = model, uniform
 
     def impl(model, uniform, wv, count, p_uniform):
         for j in range(count):
             v = _lane_values(wv, j)
             p = p_uniform if uni else _lane_params(wv, j)
-            zc, vc, zb, vb, z, y, ic = v[0:7]
-            ks, kp, inv_mc, inv_mb, zg0 = v[_W_KS], v[_W_KP], v[_W_INV_MC], v[_W_INV_MB], v[_W_ZG0]
-            force, acc_c, acc_b = plant_outputs(m, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb,
-                                                ks, kp, zg0)  # fmt: skip
-            wv[j + _W_ZGH * HALF] = force
-            wv[j + _W_ZG1 * HALF] = acc_c
-            wv[j + _W_H * HALF] = acc_b
+            vehicle = (v[_W_INV_MC], v[_W_INV_MB], v[_W_KS], v[_W_KP])
+            force, acc_c, acc_b = plant_outputs(m, p, v[0:7], v[_W_ZG0], vehicle)
+            wv[j + _W_OUT_FORCE * HALF] = force
+            wv[j + _W_OUT_ACC_C * HALF] = acc_c
+            wv[j + _W_OUT_ACC_B * HALF] = acc_b
 
     return impl
 
@@ -437,9 +438,9 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, coun
             o = _slot(rank)
             for j in range(STATE_SIZE):
                 x[n, j] = w[o + j * HALF]
-            out[n, OUT_FORCE] = w[o + _W_ZGH * HALF]
-            out[n, OUT_BODY_ACC] = w[o + _W_ZG1 * HALF]
-            out[n, OUT_BOGIE_ACC] = w[o + _W_H * HALF]
+            out[n, OUT_FORCE] = w[o + _W_OUT_FORCE * HALF]
+            out[n, OUT_BODY_ACC] = w[o + _W_OUT_ACC_C * HALF]
+            out[n, OUT_BOGIE_ACC] = w[o + _W_OUT_ACC_B * HALF]
             out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]
 
     return impl

@@ -86,8 +86,8 @@ def scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
                 zc, vc, zb, vb, z, y, ic, t, zg0 = rk4_substep(m, hyst, v, p, _NO_CONSTANTS)
             x[n, BODY_DISP], x[n, BODY_VEL], x[n, BOGIE_DISP], x[n, BOGIE_VEL] = zc, vc, zb, vb
             x[n, HYST_Z], x[n, DAMPER_Y], x[n, COIL_CURRENT], x[n, TIME] = z, y, ic, t
-            force, acc_c, acc_b = plant_outputs(m, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb,
-                                                ks, kp, zg0)  # fmt: skip
+            force, acc_c, acc_b = plant_outputs(m, p, (zc, vc, zb, vb, z, y, ic), zg0,
+                                                (inv_mc, inv_mb, ks, kp))  # fmt: skip
             out[n, OUT_FORCE], out[n, OUT_BODY_ACC] = force, acc_c
             out[n, OUT_BOGIE_ACC], out[n, OUT_GUIDEWAY] = acc_b, zg0
 
