@@ -1,13 +1,28 @@
-"""The compiler's machinery, kept out of the physics: where numba caches the compiled kernels.
+"""The compiler's machinery, in one room, kept out of the physics.
 
-Every kernel is compiled with ``cache=True``: numba writes the machine code beside the module
-(``__pycache__``), or, when that folder is read-only, under the user's home
+- :func:`ensure_cache_location`: where numba caches the compiled kernels (below);
+- :func:`specialised`: a function compiled once per value of its literal arguments (a damper
+  model's code, a kernel variant): the one helper in place of numba's stub/overload/impl
+  triples;
+- :data:`KERNEL_OPTIONS`: the options of a function inside the kernels (no wrappers, no
+  reference counting, numpy's error model);
+- :func:`unique_symbol`: a kernel variant's own symbol name;
+- :class:`Bundle`: named arrays boxed once and passed to compiled code as one pointer (numba's
+  ``StructRef``);
+- :class:`ForkGuard`: no parallel region in a forked child of a process that launched one;
+- :func:`compiled_entry`: a compiled entry point with its leading arguments bound.
+
+Cache location. Every kernel is compiled with ``cache=True``: numba writes the machine code
+beside the module (``__pycache__``), or, when that folder is read-only, under the user's home
 (``~/.cache/numba``). When neither can be written (a read-only ``site-packages`` and no
 writable home: a container, a cluster node) numba refuses to decorate the function at import
 ("cannot cache function ...: no locator available"). :func:`ensure_cache_location` runs before
 any kernel is defined (``capsule_env/__init__.py`` imports this module first): it leaves a
 writable default, or the user's ``NUMBA_CACHE_DIR``, alone; otherwise it points numba at a
-folder in the temporary directory and says so once (:class:`NumbaCacheWarning`).
+folder in the temporary directory and says so once (:class:`NumbaCacheWarning`). Numba's cache
+of a function does not notice a change in the functions it calls: after editing a kernel's
+callees, clear the cache (``find capsule_env -name "*.nb[ic]" -delete``) or point
+``NUMBA_CACHE_DIR`` at an empty folder.
 """
 
 from __future__ import annotations
@@ -22,11 +37,17 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "FORK_GUARD",
     "KERNEL_OPTIONS",
+    "Bundle",
+    "BundleType",
+    "ForkGuard",
     "NumbaCacheWarning",
+    "compiled_entry",
     "ensure_cache_location",
     "fallback_cache_dir",
     "specialised",
+    "unique_symbol",
 ]
 
 
@@ -75,6 +96,7 @@ ensure_cache_location()
 
 # Numba is imported after the cache location is settled (the decorators below read it).
 from numba import types  # noqa: E402
+from numba.experimental import structref  # noqa: E402
 from numba.extending import overload  # noqa: E402
 
 from capsule_env._fastmath import BORROWED, FAST  # noqa: E402
@@ -140,3 +162,82 @@ def specialised(
         return stub
 
     return decorate
+
+
+# --------------------------------------------------------------------------- symbol names
+def unique_symbol(variant: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Give a kernel closure a qualified name of its own (``<name>_<variant>``), before numba
+    compiles it.
+
+    Numba names a compiled function after its qualified name, a per-process counter and its
+    argument types, and every variant of a kernel closure takes the same types. Two variants
+    compiled in different processes (each the first kernel of its process) thus get the same
+    symbol, and once both are loaded from the disk cache into one process, a function that
+    calls one (the parallel kernel calling the serial one) could be linked to the other's
+    code: different trajectories from the threaded kernel than from the serial one. A name
+    per variant rules that out (and gives each variant its own cache index file)."""
+
+    def rename(fn: Callable[..., Any]) -> Callable[..., Any]:
+        fn.__qualname__ = f"{fn.__qualname__}_{variant}"
+        fn.__name__ = f"{fn.__name__}_{variant}"
+        return fn
+
+    return rename
+
+
+# --------------------------------------------------------------------------- structures
+@structref.register
+class BundleType(types.StructRef):
+    """The numba type of a :class:`Bundle` (one per combination of field types; literal
+    field types are widened, so that a bundle of the same arrays has one type)."""
+
+    def preprocess_fields(self, fields: Any) -> tuple[tuple[str, Any], ...]:
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class Bundle(structref.StructRefProxy):
+    """Named fields (arrays, named tuples of arrays) boxed once and passed to compiled code
+    as one pointer (numba's ``StructRef``): a compiled call unboxes each array argument (a
+    check, a reference and a small allocation each), a bundle only once. Its fields are
+    readable in compiled code only; it refers to the arrays it was made from (their memory,
+    not copies). Made in compiled code: ``structref.new(BundleType([(name, type), ...]))``,
+    then its fields assigned (``capsule_env.kernels.env_args``)."""
+
+
+structref.define_boxing(BundleType, Bundle)
+
+
+# --------------------------------------------------------------------------- fork guard
+class ForkGuard:
+    """Whether this process may launch a parallel region.
+
+    Numba's fastest threading layer here is GNU OpenMP, which terminates a child process that
+    launches a parallel region after its parent did (``fork() called from a process already
+    using GNU OpenMP``: ``AsyncVectorEnv(context="fork")``, multiprocessing pools). A forked
+    child of a process that has launched one is therefore ``serial_only``: its callers run
+    the serial kernels (correct and as fast per core, never killed)."""
+
+    def __init__(self) -> None:
+        self.launched_parallel = False  # this process has launched a parallel region
+        self.serial_only = False  # a forked child of a process that had: never launch one
+
+    def after_fork_in_child(self) -> None:
+        self.serial_only = self.serial_only or self.launched_parallel
+
+
+#: The process's fork guard.
+FORK_GUARD = ForkGuard()
+os.register_at_fork(after_in_child=FORK_GUARD.after_fork_in_child)
+
+
+# --------------------------------------------------------------------------- entry points
+def compiled_entry(
+    dispatcher: Any, head: tuple[Any, ...], args: tuple[Any, ...]
+) -> Callable[..., Any] | None:
+    """The compiled entry point of ``dispatcher`` for the argument types of ``(*head, *args)``
+    (after a call compiled or loaded it), with ``head`` bound: calling it with arguments of
+    the same types skips numba's argument dispatch (a few microseconds per call on
+    named-structure arguments); None if there is none."""
+    signature = tuple(dispatcher.typeof_pyval(a) for a in (*head, *args))
+    compiled = dispatcher.overloads.get(signature)
+    return None if compiled is None else functools.partial(compiled.entry_point, *head)
