@@ -282,7 +282,7 @@ class EnvConfig:
         name = self.plant_damper_name
         damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
         tau = self.effective_coil_time_constant_s
-        if name != "passive":
+        if hasattr(damper, "coil_time_constant_s"):  # a damper with a coil
             damper = replace(damper, coil_time_constant_s=tau)
         return damper
 

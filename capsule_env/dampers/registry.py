@@ -15,7 +15,15 @@ import pkgutil
 from capsule_env._validation import check_choice
 from capsule_env.dampers.base import DamperModel
 
-__all__ = ["MODELS", "MODELS_BY_CODE", "DAMPER_NAMES", "model_named", "model_of_code", "register"]
+__all__ = [
+    "MODELS",
+    "MODELS_BY_CODE",
+    "DAMPER_NAMES",
+    "model_named",
+    "model_of_code",
+    "register",
+    "unregister",
+]
 
 #: Modules of this package that are machinery, not models.
 _NOT_MODELS = frozenset({"base", "registry", "dispatch", "api", "compat"})
@@ -46,6 +54,14 @@ def register(model: DamperModel) -> DamperModel:
     MODELS[model.name] = model
     MODELS_BY_CODE[model.code] = model
     return model
+
+
+def unregister(name: str) -> None:
+    """Remove a registered model (not a built-in one: ``ValueError``)."""
+    if name in DAMPER_NAMES:
+        raise ValueError(f"damper model {name!r} is built in; only registered ones can go")
+    model = model_named(name)
+    del MODELS[name], MODELS_BY_CODE[model.code]
 
 
 def model_named(name: str) -> DamperModel:
