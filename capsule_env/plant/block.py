@@ -361,86 +361,124 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, coun
         hyst = HYST_FAST_LINEAR_UNLOAD
 
     def impl(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
-        dp, vp, table, derived = plant.damper, plant.vehicle, plant.substeps, plant.constants
-        profiles, spacing = plant.profiles, plant.spacing_m
         nb = hi - lo
-        # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD
-        # lanes. The columns that only masked lanes read are zeroed, so that no lane computes
-        # on denormal garbage (slow on x86); the rest is written below.
-        w = lanes
-        w[2 * _W_HALF_SIZE :] = 0.0
-        end = (nb + 1) >> 1
-        for col in range(end, min(end + 3, HALF)):
-            for r in range(_W_ROWS):
-                w[r * HALF + col] = 0.0
-                w[_W_HALF_SIZE + r * HALF + col] = 0.0
-        nsub_of, bin_of, nsub = counts[_C_NSUB_OF], counts[_C_BIN_OF], counts[_C_NSUB]
-        order = counts[_C_ORDER]
-        n_bins = table.shape[1]
-        for j in range(nb):  # substeps per vehicle (from the highest current of the interval)
-            n = lo + j
-            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if uses_current else 0.0
-            i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
-            b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
-            b = min(max(b, 0), n_bins - 1)
-            nsub_of[j] = table[n, b]
-            bin_of[j] = b
-        _sort_by_substeps(nsub_of, nb, lo, order, counts[_C_START])
-        last = profiles.shape[1] - 1.0
-        for rank in range(nb):
-            n = order[rank]
-            o = _slot(rank)
-            ns = nsub_of[n - lo]
-            nsub[rank] = ns
-            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if uses_current else 0.0
-            for j in range(STATE_SIZE):
-                w[o + j * HALF] = x[n, j]
-            if tau <= 0.0:
-                w[o + COIL_CURRENT * HALF] = cmd
-            w[o + _W_H * HALF] = dt / ns
-            w[o + _W_ICMD * HALF] = cmd
-            w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
-            w[o + _W_INV_MC * HALF] = 1.0 / vp[n, MASS_BODY]
-            w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
-            w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
-            w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
-            position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
-            w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
-                profiles, route.profile[n], spacing, last, position
-            )
-            if not uni:  # else read as loop constants
-                for j in range(N_DAMPER_PARAMS):
-                    w[o + (_W_P + j) * HALF] = dp[n, j]
-                for j in range(_D_EHALF):
-                    w[o + (_W_A + j) * HALF] = derived[n, j]
-        if nb & 1:  # the odd half's last column has no vehicle: give it real numbers
-            src, dst = _slot(nb - 1), _slot(nb)
-            for j in range(_W_ROWS):
-                w[dst + j * HALF] = w[src + j * HALF]
-        p_uniform, hc_uniform = row_params(dp, lo), _row_constants(derived, lo)
+        w, order, nsub = lanes, counts[_C_ORDER], counts[_C_NSUB]
+        _clear_padding(w, nb)
+        _count_substeps(lo, nb, plant, x, i_cmd, uses_current, counts)
+        _sort_by_substeps(counts[_C_NSUB_OF], nb, lo, order, counts[_C_START])
+        _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uni, counts)
+        p_uniform = row_params(plant.damper, lo)
+        hc_uniform = _row_constants(plant.constants, lo)
         # substep s advances the tail of the vehicles that need more than s substeps
         # an int64 from the start: a literal 0 would first type the calls below with
         # Literal[int](0) and compile _guideway_lanes a second time for it
         first = np.int64(0)
         s = 0
         while first < nb:
-            _guideway_lanes(w, first, nb, order, profiles, spacing, route)
+            _guideway_lanes(w, first, nb, order, plant.profiles, plant.spacing_m, route)
             substep_lanes(m, hyst, uni, w, first, nb, p_uniform, hc_uniform)
             s += 1
             while first < nb and nsub[first] <= s:
                 first += 1
         output_lanes(m, uni, w[:_W_HALF_SIZE], min(HALF, (((nb + 1) >> 1) + 3) & -4), p_uniform)
         output_lanes(m, uni, w[_W_HALF_SIZE:], min(HALF, ((nb >> 1) + 3) & -4), p_uniform)
-        for rank in range(nb):
-            n = order[rank]
-            o = _slot(rank)
-            for j in range(STATE_SIZE):
-                x[n, j] = w[o + j * HALF]
-            out[n, OUT_FORCE] = w[o + _W_OUT_FORCE * HALF]
-            out[n, OUT_BODY_ACC] = w[o + _W_OUT_ACC_C * HALF]
-            out[n, OUT_BOGIE_ACC] = w[o + _W_OUT_ACC_B * HALF]
-            out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]
+        _store_results(w, nb, order, x, out)
 
     return impl
+
+
+@njit(**FAST, **BORROWED)
+def _clear_padding(w, nb):
+    """Zero the scratch columns that only masked SIMD lanes read, so that no lane computes on
+    denormal garbage (slow on x86); the rest is written by :func:`_load_lanes`."""
+    w[2 * _W_HALF_SIZE :] = 0.0
+    end = (nb + 1) >> 1
+    for col in range(end, min(end + 3, HALF)):
+        for r in range(_W_ROWS):
+            w[r * HALF + col] = 0.0
+            w[_W_HALF_SIZE + r * HALF + col] = 0.0
+
+
+@njit(**FAST, **BORROWED)
+def _applied_command(dp, i_cmd, n, uses_current):
+    """The current command vehicle ``n``'s damper follows, clipped to its range (0 for a
+    damper the current does not change)."""
+    return min(max(i_cmd[n], 0.0), dp[n, I_MAX]) if uses_current else 0.0
+
+
+@njit(**FAST, **BORROWED)
+def _count_substeps(lo, nb, plant, x, i_cmd, uses_current, counts):
+    """Substeps and table bin of vehicles ``lo .. lo+nb-1`` (rows ``_C_NSUB_OF``,
+    ``_C_BIN_OF``), from the highest current of the interval."""
+    dp, table = plant.damper, plant.substeps
+    nsub_of, bin_of = counts[_C_NSUB_OF], counts[_C_BIN_OF]
+    n_bins = table.shape[1]
+    for j in range(nb):
+        n = lo + j
+        i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
+        cmd = _applied_command(dp, i_cmd, n, uses_current)
+        i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
+        b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
+        b = min(max(b, 0), n_bins - 1)
+        nsub_of[j] = table[n, b]
+        bin_of[j] = b
+
+
+@njit(**FAST, **BORROWED)
+def _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uniform, counts):
+    """Copy the sorted vehicles into their scratch columns: the state, the interval's values
+    (:data:`LANE_INPUT_NAMES`), and unless ``uniform`` the Riccati constants and damper
+    parameters; the odd half's last column, which has no vehicle, gets real numbers too."""
+    dp, vp, derived = plant.damper, plant.vehicle, plant.constants
+    profiles, spacing = plant.profiles, plant.spacing_m
+    order, nsub_of, bin_of, nsub = (
+        counts[_C_ORDER],
+        counts[_C_NSUB_OF],
+        counts[_C_BIN_OF],
+        counts[_C_NSUB],
+    )
+    last = profiles.shape[1] - 1.0
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
+        ns = nsub_of[n - lo]
+        nsub[rank] = ns
+        cmd = _applied_command(dp, i_cmd, n, uses_current)
+        for j in range(STATE_SIZE):
+            w[o + j * HALF] = x[n, j]
+        if dp[n, COIL_TAU] <= 0.0:
+            w[o + COIL_CURRENT * HALF] = cmd
+        w[o + _W_H * HALF] = dt / ns
+        w[o + _W_ICMD * HALF] = cmd
+        w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
+        w[o + _W_INV_MC * HALF] = 1.0 / vp[n, MASS_BODY]
+        w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
+        w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
+        w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
+        position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
+        w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
+            profiles, route.profile[n], spacing, last, position
+        )
+        if not uniform:  # else read as loop constants
+            for j in range(N_DAMPER_PARAMS):
+                w[o + (_W_P + j) * HALF] = dp[n, j]
+            for j in range(_D_EHALF):
+                w[o + (_W_A + j) * HALF] = derived[n, j]
+    if nb & 1:
+        src, dst = _slot(nb - 1), _slot(nb)
+        for j in range(_W_ROWS):
+            w[dst + j * HALF] = w[src + j * HALF]
+
+
+@njit(**FAST, **BORROWED)
+def _store_results(w, nb, order, x, out):
+    """Copy the sorted vehicles' new state and the plant's outputs back from the scratch."""
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
+        for j in range(STATE_SIZE):
+            x[n, j] = w[o + j * HALF]
+        out[n, OUT_FORCE] = w[o + _W_OUT_FORCE * HALF]
+        out[n, OUT_BODY_ACC] = w[o + _W_OUT_ACC_C * HALF]
+        out[n, OUT_BOGIE_ACC] = w[o + _W_OUT_ACC_B * HALF]
+        out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]
