@@ -27,8 +27,9 @@ from capsule_env._validation import (
     unexpected_argument,
 )
 from capsule_env.dampers import DAMPER_NAMES, DamperParams, make_damper
-from capsule_env.dampers.registry import MODELS, model_named
+from capsule_env.dampers.registry import MODELS
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
+from capsule_env.inverse import INVERSE_CODES as _INVERSE_CODES
 from capsule_env.inverse import INVERSE_MODELS, inverse_models
 from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS
 from capsule_env.metrics import wk_filter_sos
@@ -107,8 +108,8 @@ OBSERVATION_NAMES = {
 #: (m/s), bogie displacement (m), bogie velocity (m/s), guideway elevation (m); then for the
 #: ``measured`` set: levitation gap (m, like the LVDT's) and coil current (A, 0.7 % of 1.5 A).
 SENSOR_NOISE_STD = np.array([0.02, 0.1, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 2e-3, 1e-4, 1e-4, 0.01])
-#: Damper code of the model each ``inverse_model`` inverts.
-INVERSE_CODES = {name: model_named(model).code for name, model in INVERSE_MODELS.items()}
+#: Damper code of the model each ``inverse_model`` inverts (registered models included).
+INVERSE_CODES = _INVERSE_CODES
 #: Filters of the car-body acceleration in the reward (``reward_acceleration_filter``).
 REWARD_ACCELERATION_FILTERS = ("none", "wk")
 #: Most guideway preview points an observation may carry.

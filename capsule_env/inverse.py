@@ -22,6 +22,8 @@ per episode. Pure numba/numpy, no Gym import.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+
 import numpy as np
 from numba import literally, njit
 
@@ -35,6 +37,7 @@ from capsule_env.hysteresis import hysteresis_update
 __all__ = [
     "INVERSE_NAMES",
     "INVERSE_MODELS",
+    "INVERSE_CODES",
     "affine_in_current",
     "invert_affine",
     "csdc_z_update",
@@ -51,6 +54,22 @@ def inverse_models() -> dict[str, str]:
     return {m.inverse_name: m.name for m in MODELS.values() if m.affine is not None}
 
 
+class _InverseCodes(Mapping):
+    """``{inverse name: the damper code of the model it inverts}``, a view of the registry."""
+
+    def __getitem__(self, name: str) -> int:
+        return model_named(inverse_models()[name]).code
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(inverse_models()))
+
+    def __len__(self) -> int:
+        return len(inverse_models())
+
+
+#: Damper code of the model each inverse (``EnvConfig.inverse_model``) inverts, registered
+#: models included.
+INVERSE_CODES: Mapping[str, int] = _InverseCodes()
 #: The inverses of the built-in models and the model each inverts (``csdc``: Bouc-Wen's, with
 #: its hysteresis estimate; the others are named after their model).
 INVERSE_MODELS = dict(sorted(inverse_models().items()))

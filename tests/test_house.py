@@ -12,6 +12,10 @@ from __future__ import annotations
 import ast
 import dataclasses
 import importlib
+import os
+import re
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 from typing import ClassVar
@@ -172,3 +176,20 @@ def test_old_import_paths_warn_and_still_work():
     assert old == bouc_wen.force.py_func(p, 0.01, 0.2, 0.0, 3e-4, 0.5, 1.0)[0]
     with pytest.warns(DeprecationWarning, match="capsule_env.dampers.reference"):
         from capsule_env.dampers import spencer_force  # noqa: F401
+
+
+def test_howto_damper_model_snippet_runs_as_a_script(tmp_path):
+    """docs/howto-damper-model.md's registered model runs the env as the plant and as the
+    inverted model (a user's script: a fresh folder, only the installed package)."""
+    page = PACKAGE.parent / "docs" / "howto-damper-model.md"
+    (snippet,) = re.findall(r"^```python\n(.*?)^```$", page.read_text(), flags=re.S | re.M)
+    (tmp_path / "model.py").write_text(snippet)
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env.pop("PYTHONPATH", None)
+    done = subprocess.run([sys.executable, "model.py"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = done.stdout.splitlines()
+    assert len(lines) == 2 and all("damper force" in line for line in lines)
+    forces = [np.array(line.split("[")[-1].rstrip("]").split(), float) for line in lines]
+    assert all(np.all(np.isfinite(f)) and np.ptp(f) > 1.0 for f in forces)
