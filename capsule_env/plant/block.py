@@ -399,7 +399,7 @@ def _clear_padding(w, nb):
             w[_W_HALF_SIZE + r * HALF + col] = 0.0
 
 
-@njit(**FAST, **BORROWED)
+@njit(**FAST, **BORROWED, forceinline=True)
 def _applied_command(dp, i_cmd, n, uses_current):
     """The current command vehicle ``n``'s damper follows, clipped to its range (0 for a
     damper the current does not change)."""
