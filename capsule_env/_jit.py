@@ -5,7 +5,8 @@
   model's code, a kernel variant): the one helper in place of numba's stub/overload/impl
   triples;
 - :data:`KERNEL_OPTIONS`: the options of a function inside the kernels (no wrappers, no
-  reference counting, numpy's error model);
+  reference counting, numpy's error model), :func:`kernel_function` and :func:`inlined`, the
+  decorators the physics modules use;
 - :func:`unique_symbol`: a kernel variant's own symbol name;
 - :class:`Bundle`: named arrays boxed once and passed to compiled code as one pointer (numba's
   ``StructRef``);
@@ -46,6 +47,8 @@ __all__ = [
     "compiled_entry",
     "ensure_cache_location",
     "fallback_cache_dir",
+    "inlined",
+    "kernel_function",
     "specialised",
     "unique_symbol",
 ]
@@ -95,7 +98,7 @@ def ensure_cache_location() -> None:
 ensure_cache_location()
 
 # Numba is imported after the cache location is settled (the decorators below read it).
-from numba import types  # noqa: E402
+from numba import njit, types  # noqa: E402
 from numba.experimental import structref  # noqa: E402
 from numba.extending import overload  # noqa: E402
 
@@ -241,3 +244,21 @@ def compiled_entry(
     signature = tuple(dispatcher.typeof_pyval(a) for a in (*head, *args))
     compiled = dispatcher.overloads.get(signature)
     return None if compiled is None else functools.partial(compiled.entry_point, *head)
+
+
+# --------------------------------------------------------------------------- decorators
+def kernel_function(fn: Callable[..., Any] | None = None, *, inline: bool = False) -> Any:
+    """Compile a function called only from the kernels with :data:`KERNEL_OPTIONS`;
+    ``inline=True``: LLVM inlines it into every caller (``forceinline``, for the small
+    functions of a SIMD loop's body). ``@kernel_function`` or ``@kernel_function(inline=True)``."""
+    options = {**KERNEL_OPTIONS, "forceinline": True} if inline else KERNEL_OPTIONS
+    if fn is None:
+        return njit(**options)
+    return njit(**options)(fn)
+
+
+def inlined(fn: Callable[..., Any]) -> Any:
+    """Compile a small function that numba copies into each caller before typing
+    (``inline="always"``; numpy's error model, cached): for helpers that callers compiled
+    with other options (reference counting, Python's error model) also use."""
+    return njit(cache=True, error_model="numpy", inline="always")(fn)

@@ -22,10 +22,9 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-from numba import njit
 
 import capsule_env
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import kernel_function
 from capsule_env.dampers import DamperModel, DamperParamsBase, damper_force, make_damper, registry
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 from capsule_env.guideway import random_profile
@@ -46,7 +45,7 @@ class ToyLinearDamper(DamperParamsBase):
     param_names: ClassVar[tuple[str, ...]] = ("damping_n_s_per_m",)
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def _toy_force(p, x, v, y, z, i, pre):
     return p[0] * v, 0.0
 
@@ -151,7 +150,7 @@ def test_layering_of_the_house():
         }
         assert not above, f"dampers/{path.name} imports {sorted(above)}"
     equations = {m for m in _imports(PACKAGE / "plant" / "equations.py") if "capsule_env" in m}
-    assert equations <= {"capsule_env._fastmath"}
+    assert equations <= {"capsule_env._jit"}  # the vehicle depends on no damper, no layout
     for path in PACKAGE.rglob("*.py"):  # numba's overload machinery only in _jit
         if path.name not in ("_jit.py", "_fastmath.py", "kernels.py", "env_kernel.py"):
             assert "numba.extending" not in _imports(path), path.relative_to(PACKAGE)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
+from capsule_env._jit import inlined, kernel_function
 from capsule_env.dampers.api import damper_force, make_damper
 from capsule_env.dampers.base import (
     N_DAMPER_PARAMS,
@@ -69,6 +70,8 @@ __all__ = [
     "branch_weight",
     "branch_weights",
     "bi_exponential_branch",
+    "kernel_function",
+    "inlined",
 ]
 
 #: Integer codes of the built-in models (each model's ``code``; the kernels read the registry).

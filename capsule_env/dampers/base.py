@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import inlined, kernel_function
 from capsule_env._validation import check_finite, check_nonnegative, check_positive
 
 __all__ = [
@@ -168,13 +168,13 @@ class DamperParamsBase:
             check_nonnegative("coil_time_constant_s", self.coil_time_constant_s)
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def no_preparation(p, i: float) -> float:
     """The ``prepare`` of a model that needs none."""
     return 1.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def branch_weight(x: float, width_m: float) -> float:
     """Weight of the upper (x >= 0) branch of a sign-of-stroke model: 0 for ``x <= -width_m``,
     1 for ``x >= width_m``, the smoothstep ``s^2 (3 - 2 s)`` of ``s = (1 + x / width_m) / 2`` in

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST, fast_exp
+from capsule_env._fastmath import fast_exp
+from capsule_env._jit import inlined, kernel_function
 from capsule_env._validation import check_positive
 from capsule_env.dampers.base import (
     BRANCH_BLEND,
@@ -76,7 +76,7 @@ class BiExponentialDamper(DamperParamsBase):
         check_blend(self.branch_blend_m)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def bi_exponential_branch(p, x: float):
     """The parameters ``(a0, a1, b0, b1, c0, c1, d)`` at stroke ``x``: the lower set plus
     :func:`~capsule_env.dampers.base.branch_weight` times (upper - lower)."""
@@ -93,14 +93,14 @@ def bi_exponential_branch(p, x: float):
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def saturation(d: float, v: float) -> float:
     """``S_d(v) = sign(v) (1 - exp(-d |v|))``."""
     mag = 1.0 - fast_exp(-d * abs(v))
     return mag if v >= 0.0 else -mag
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     """``(F, 0)`` of paper eq. 4 with the branches blended."""
     a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
@@ -108,7 +108,7 @@ def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     return (a0 + a1 * i) * s_d + (b0 + b1 * i) * v + c0 + c1 * i, 0.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def affine(p, x: float, v: float, z: float):
     """``(F0, slope)`` of paper eqs. 5-11: ``F0 = a0 S_d + b0 v + c0``,
     ``slope = a1 S_d + b1 v + c1``."""

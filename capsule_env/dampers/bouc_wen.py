@@ -7,9 +7,8 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import inlined, kernel_function
 from capsule_env._validation import check_positive
 from capsule_env.dampers.base import (
     DamperModel,
@@ -61,7 +60,7 @@ class BoucWenDamper(DamperParamsBase):
         check_bouc_wen_shape(self.gamma, self.beta)
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     """``(c0 v + k0 (x - x0) + alpha z, 0)`` (paper eq. 1)."""
     return (
@@ -69,7 +68,7 @@ def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     ), 0.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def affine(p, x: float, v: float, z: float):
     """``(F0, slope)``: ``F0 = c0a v + k0 (x - x0) + alpha_a z``, ``slope = c0b v + alpha_b z``
     (the algebraic core of the CSDC inverse, Wang & Liao 2005)."""

@@ -6,9 +6,8 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import kernel_function
 from capsule_env._validation import check_nonnegative
 from capsule_env.dampers.base import DamperModel, DamperParamsBase, slots
 
@@ -35,7 +34,7 @@ class LinearDamper(DamperParamsBase):
         check_nonnegative("damping_n_s_per_m", self.damping_n_s_per_m)
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     """``(c v, 0)``: the force and no internal displacement rate."""
     return p[DAMPING] * v, 0.0

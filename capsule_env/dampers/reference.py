@@ -7,9 +7,8 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import kernel_function
 from capsule_env._validation import check_nonnegative, check_positive
 from capsule_env.dampers.base import (
     DamperModel,
@@ -71,13 +70,13 @@ class ReferenceDamper(DamperParamsBase):
         check_bouc_wen_shape(self.gamma, self.beta)
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def spencer_inv_dashpots(p, i: float) -> float:
     """``1 / (c0 + c1)`` at current ``i`` (the model's ``prepare``)."""
     return 1.0 / ((p[C0A] + p[C0B] * i) + (p[C1A] + p[C1B] * i))
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def spencer_force(p, x: float, v: float, y: float, z: float, i: float, inv_c: float):
     """``(F, y')`` with ``inv_c = 1 / (c0 + c1)`` at ``i`` (:func:`spencer_inv_dashpots`,
     computed ahead, off the integrator's dependency chain)."""

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST, fast_tanh_nonneg
+from capsule_env._fastmath import fast_tanh_nonneg
+from capsule_env._jit import inlined, kernel_function
 from capsule_env._validation import check_positive
 from capsule_env.dampers.base import (
     BRANCH_BLEND,
@@ -63,7 +63,7 @@ class TanhDamper(DamperParamsBase):
         check_blend(self.branch_blend_m)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def hysteresis_term(p, x: float, v: float) -> float:
     """``tanh(beta v + delta sgn_w(x))`` (the sign of the stroke blended)."""
     arg = p[BETA] * v + p[DELTA] * (2.0 * branch_weight(x, p[BRANCH_BLEND]) - 1.0)
@@ -71,7 +71,7 @@ def hysteresis_term(p, x: float, v: float) -> float:
     return th if arg >= 0.0 else -th
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     """``(F, 0)`` of paper eq. 3 with the sign of the stroke blended."""
     th = hysteresis_term(p, x, v)
@@ -79,7 +79,7 @@ def force(p, x: float, v: float, y: float, z: float, i: float, pre: float):
     return f + p[F0_A] + p[F0_B] * i, 0.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def affine(p, x: float, v: float, z: float):
     """``(F0, slope)``: c, k, alpha and f0 are linear in the current (the tanh inverse)."""
     th = hysteresis_term(p, x, v)

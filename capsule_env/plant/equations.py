@@ -19,9 +19,7 @@ that a loop over vehicles vectorises.
 
 from __future__ import annotations
 
-from numba import njit
-
-from capsule_env._fastmath import BORROWED, FAST
+from capsule_env._jit import kernel_function
 
 __all__ = [
     "VEHICLE_LANE_NAMES",
@@ -39,13 +37,13 @@ VEHICLE_LANE_NAMES = ("inv_m_c", "inv_m_b", "k_s", "k_p")
 INV_M_C, INV_M_B, K_S, K_P = (VEHICLE_LANE_NAMES.index(n) for n in VEHICLE_LANE_NAMES)
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def levitation_force(bogie_disp_m: float, guideway_m: float, vehicle) -> float:
     """The levitation's force on the bogie, ``k_p (z_b - z_g)`` (N, > 0 pulling it down)."""
     return vehicle[K_P] * (bogie_disp_m - guideway_m)
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def accelerations(
     body_disp_m: float, bogie_disp_m: float, damper_force_n: float, levitation_n: float, vehicle
 ):

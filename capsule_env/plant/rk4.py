@@ -25,10 +25,7 @@ slower.
 
 from __future__ import annotations
 
-from numba import njit
-
-from capsule_env._fastmath import BORROWED, FAST
-from capsule_env._jit import specialised
+from capsule_env._jit import kernel_function, specialised
 from capsule_env.dampers.dispatch import model_force, model_prepare
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_update, hysteresis_update_fast
@@ -89,7 +86,7 @@ def _advance_z(model, hysteresis, z, du, p, hc):
     return impl
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def _rates(model, p, x, pre, zg, vehicle):
     """The time derivatives of the state ``x = (z_c, z_c', z_b, z_b', z, y, i)`` (the first
     7 of ``layout.STATE_NAMES``) but ``z`` and ``i`` (advanced in closed form):
@@ -101,14 +98,14 @@ def _rates(model, p, x, pre, zg, vehicle):
     return vc, acc_c, vb, acc_b, y_dot
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def _stage(x, k, step):
     """``x + step k`` over ``(z_c, z_c', z_b, z_b', y)``: the state an RK4 stage reads."""
     return (x[0] + step * k[0], x[1] + step * k[1], x[2] + step * k[2], x[3] + step * k[3],
             x[4] + step * k[4])  # fmt: skip
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def _combine(x, k1, k2, k3, k4, wt):
     """``x + wt (k1 + 2 k2 + 2 k3 + k4)`` over ``(z_c, z_c', z_b, z_b', y)``: the RK4 step."""
     return (
@@ -120,7 +117,7 @@ def _combine(x, k1, k2, k3, k4, wt):
     )
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
 def rk4_substep(model, hysteresis, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
     damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
@@ -149,7 +146,7 @@ def rk4_substep(model, hysteresis, v, p, hc):
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
-@njit(**FAST, **BORROWED)
+@kernel_function
 def plant_outputs(model, p, x, zg, vehicle):
     """``(damper force, body acceleration, bogie acceleration)`` at a state ``x = (z_c, z_c',
     z_b, z_b', z, y, i)`` and guideway elevation ``zg``."""
