@@ -27,19 +27,11 @@ from capsule_env._validation import (
     format_bytes,
     unexpected_argument,
 )
-from capsule_env.dampers import (
-    BI_EXPONENTIAL,
-    BOUC_WEN,
-    TANH,
-    BiExponentialDamper,
-    BoucWenDamper,
-    DamperParams,
-    LinearDamper,
-    TanhDamper,
-    make_damper,
-)
+from capsule_env.dampers import DAMPER_NAMES, DamperParams, make_damper
+from capsule_env.dampers.registry import MODELS
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
-from capsule_env.inverse import INVERSE_NAMES
+from capsule_env.inverse import INVERSE_CODES as _INVERSE_CODES
+from capsule_env.inverse import INVERSE_MODELS, inverse_models
 from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS
 from capsule_env.metrics import wk_filter_sos
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
@@ -66,10 +58,12 @@ __all__ = [
 ACTION_MODES = ("force", "current")
 SETTINGS = ("sim", "hils")
 OBSERVATION_SETS = _observations.OBSERVATION_SETS
-PLANT_DAMPERS = ("reference", "bouc_wen", "bi_exponential", "tanh", "passive")
+#: The built-in plant dampers (``capsule_env.dampers.DAMPER_NAMES``; a registered model is
+#: accepted too: ``capsule_env.dampers.registry.MODELS``).
+PLANT_DAMPERS = DAMPER_NAMES
 #: The plant damper of the ``sim`` setting: the model the controller inverts
-#: (docs/model.md, section 8).
-SIM_PLANT_FOR_INVERSE = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}
+#: (docs/model.md, section 8; ``capsule_env.inverse.INVERSE_MODELS``).
+SIM_PLANT_FOR_INVERSE = INVERSE_MODELS
 
 #: The column names of each observation set, from the one table
 #: (:data:`capsule_env.observations.OBSERVABLES`).
@@ -86,8 +80,8 @@ MEASURED_NAMES = OBSERVATION_NAMES["measured"]
 #: ``layout.NOISE_CHANNEL_NAMES``, read by name from
 #: :data:`capsule_env.observations.NOISE_CHANNELS`.
 SENSOR_NOISE_STD = _observations.SENSOR_NOISE_STD
-#: Damper code of the model each ``inverse_model`` inverts.
-INVERSE_CODES = {"bi_exponential": BI_EXPONENTIAL, "tanh": TANH, "csdc": BOUC_WEN}
+#: Damper code of the model each ``inverse_model`` inverts (registered models included).
+INVERSE_CODES = _INVERSE_CODES
 #: Filters of the car-body acceleration in the reward (``reward_acceleration_filter``).
 REWARD_ACCELERATION_FILTERS = ("none", "wk")
 #: Most guideway preview points an observation may carry.
@@ -151,10 +145,10 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         check_choice("action_mode", self.action_mode, ACTION_MODES)
-        check_choice("inverse_model", self.inverse_model, INVERSE_NAMES)
+        check_choice("inverse_model", self.inverse_model, tuple(sorted(inverse_models())))
         check_choice("setting", self.setting, SETTINGS)
         if self.damper is not None:
-            check_choice("damper", self.damper, PLANT_DAMPERS)
+            check_choice("damper", self.damper, tuple(MODELS))
         if self.coil_time_constant_s is not None:
             check_in_range("coil_time_constant_s", self.coil_time_constant_s, 0.0, 10.0)
         if self.sensor_noise is not None:
@@ -250,7 +244,7 @@ class EnvConfig:
     def plant_damper_name(self) -> str:
         if self.damper is not None:
             return self.damper
-        return "reference" if self.hils else SIM_PLANT_FOR_INVERSE[self.inverse_model]
+        return "reference" if self.hils else inverse_models()[self.inverse_model]
 
     @property
     def vehicle(self) -> VehicleParams:
@@ -261,7 +255,7 @@ class EnvConfig:
         name = self.plant_damper_name
         damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
         tau = self.effective_coil_time_constant_s
-        if not isinstance(damper, LinearDamper):  # the passive damper has no coil
+        if hasattr(damper, "coil_time_constant_s"):  # a damper with a coil
             damper = replace(damper, coil_time_constant_s=tau)
         return damper
 
@@ -284,13 +278,8 @@ class EnvConfig:
         return 1 if self.hils else 0
 
     @property
-    def inverse_damper(self) -> BiExponentialDamper | BoucWenDamper | TanhDamper:
-        name = {"bi_exponential": "bi_exponential", "csdc": "bouc_wen", "tanh": "tanh"}[
-            self.inverse_model
-        ]
-        damper = make_damper(name, **self.inverse_params)
-        assert isinstance(damper, (BiExponentialDamper, BoucWenDamper, TanhDamper))  # names above
-        return damper
+    def inverse_damper(self) -> DamperParams:
+        return make_damper(inverse_models()[self.inverse_model], **self.inverse_params)
 
     @property
     def guideway_spec(self) -> GuidewayParams:

@@ -13,9 +13,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import literally, njit
 
-from capsule_env.dampers import DamperParams, damper_eval, hysteresis_params
+from capsule_env.dampers import DamperParams
+from capsule_env.dampers.dispatch import damper_eval, hysteresis_params
 from capsule_env.hysteresis import hysteresis_update
 from capsule_env.layout import COIL_TAU
 
@@ -24,6 +25,7 @@ __all__ = ["simulate_damper", "sinusoidal_stroke"]
 
 @njit(cache=True)
 def _damper_response(model, dp, t, x, v, i_cmd, n_sub, force, z_out, y_out, i_out):
+    literally(model)  # compiled per model (the dispatch is on its code)
     a_coef, gamma, beta = hysteresis_params(model, dp)
     hysteretic = a_coef > 0.0
     tau = dp[COIL_TAU]

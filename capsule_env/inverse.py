@@ -22,48 +22,22 @@ per episode. Pure numba/numpy, no Gym import.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from collections.abc import Iterator, Mapping
 
-from capsule_env._fastmath import fast_exp, fast_tanh_nonneg
+import numpy as np
+from numba import literally, njit
+
 from capsule_env._validation import check_choice
-from capsule_env.dampers import (
-    BI_EXPONENTIAL,
-    BOUC_WEN,
-    TANH,
-    BiExponentialDamper,
-    BoucWenDamper,
-    TanhDamper,
-    bi_exponential_branch,
-    branch_weight,
-)
+from capsule_env.dampers import BiExponentialDamper, BoucWenDamper, TanhDamper
+from capsule_env.dampers.base import I_MAX, DamperParamsBase
+from capsule_env.dampers.dispatch import model_affine
+from capsule_env.dampers.registry import MODELS, model_named
 from capsule_env.hysteresis import hysteresis_update
-from capsule_env.layout import (
-    BRANCH_BLEND,
-    BW_A,
-    BW_ALPHA_A,
-    BW_ALPHA_B,
-    BW_BETA,
-    BW_C0A,
-    BW_C0B,
-    BW_GAMMA,
-    BW_K0,
-    BW_X0,
-    I_MAX,
-    TH_ALPHA_A,
-    TH_ALPHA_B,
-    TH_BETA,
-    TH_C_A,
-    TH_C_B,
-    TH_DELTA,
-    TH_F0_A,
-    TH_F0_B,
-    TH_K_A,
-    TH_K_B,
-)
 
 __all__ = [
     "INVERSE_NAMES",
+    "INVERSE_MODELS",
+    "INVERSE_CODES",
     "affine_in_current",
     "invert_affine",
     "csdc_z_update",
@@ -73,30 +47,43 @@ __all__ = [
     "inverse_current",
 ]
 
-INVERSE_NAMES = ("bi_exponential", "csdc", "tanh")
+
+def inverse_models() -> dict[str, str]:
+    """``{inverse name: the damper model it inverts}``: every registered model with an affine
+    form (``DamperModel.affine``), under its ``inverse_name``."""
+    return {m.inverse_name: m.name for m in MODELS.values() if m.affine is not None}
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def affine_in_current(model, p, x, v, z):
-    """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)`` (``z``: the
-    Bouc-Wen hysteretic variable, unused by the others). Written without branches or library
-    calls for the algebraic models (capsule_env._fastmath), so that a loop over vehicles
-    vectorises; ``p`` is the packed parameters (an array or a tuple)."""
-    if model == BI_EXPONENTIAL:
-        a0, a1, b0, b1, c0, c1, d = bi_exponential_branch(p, x)
-        mag = 1.0 - fast_exp(-d * abs(v))
-        s_d = mag if v >= 0.0 else -mag
-        return a0 * s_d + b0 * v + c0, a1 * s_d + b1 * v + c1
-    if model == TANH:
-        arg = p[TH_BETA] * v + p[TH_DELTA] * (2.0 * branch_weight(x, p[BRANCH_BLEND]) - 1.0)
-        th = fast_tanh_nonneg(abs(arg))
-        th = th if arg >= 0.0 else -th
-        f0 = p[TH_C_A] * v + p[TH_K_A] * x + p[TH_ALPHA_A] * th + p[TH_F0_A]
-        return f0, p[TH_C_B] * v + p[TH_K_B] * x + p[TH_ALPHA_B] * th + p[TH_F0_B]
-    if model == BOUC_WEN:
-        f0 = p[BW_C0A] * v + p[BW_K0] * (x - p[BW_X0]) + p[BW_ALPHA_A] * z
-        return f0, p[BW_C0B] * v + p[BW_ALPHA_B] * z
-    return 0.0, 0.0
+class _InverseCodes(Mapping):
+    """``{inverse name: the damper code of the model it inverts}``, a view of the registry."""
+
+    def __getitem__(self, name: str) -> int:
+        return model_named(inverse_models()[name]).code
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(inverse_models()))
+
+    def __len__(self) -> int:
+        return len(inverse_models())
+
+
+#: Damper code of the model each inverse (``EnvConfig.inverse_model``) inverts, registered
+#: models included.
+INVERSE_CODES: Mapping[str, int] = _InverseCodes()
+#: The inverses of the built-in models and the model each inverts (``csdc``: Bouc-Wen's, with
+#: its hysteresis estimate; the others are named after their model).
+INVERSE_MODELS = dict(sorted(inverse_models().items()))
+INVERSE_NAMES = tuple(INVERSE_MODELS)
+#: The CSDC inverse's model and the packed slots of its hysteresis.
+_CSDC = model_named(INVERSE_MODELS["csdc"])
+_CSDC_CODE = _CSDC.code
+_A, _GAMMA, _BETA = _CSDC.hysteresis.a_coef, _CSDC.hysteresis.gamma, _CSDC.hysteresis.beta
+
+#: ``affine_in_current(model, p, x, v, z) -> (F0, slope)`` with ``F(i) = F0 + slope * i``: the
+#: model's affine form (:func:`capsule_env.dampers.dispatch.model_affine`), the model's code a
+#: compile-time constant. Written without branches or library calls for the algebraic models,
+#: so that a loop over vehicles vectorises; ``p`` is the packed parameters (array or tuple).
+affine_in_current = model_affine
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -118,6 +105,7 @@ def invert_affine(f_desired, f0, slope, v, i_max):
 
 @njit(cache=True, error_model="numpy")
 def _inverse_batch(model, params, f_d, x, v, z, out):
+    literally(model)  # compiled per model (the dispatch is on its code)
     for k in range(f_d.shape[0]):
         p = params[k]
         f0, slope = affine_in_current(model, p, x[k], v[k], z[k])
@@ -178,7 +166,7 @@ def tanh_inverse(
 def csdc_z_update(p, z_estimate: float, stroke_increment_m: float) -> float:
     """The CSDC inverse's Bouc-Wen ``z`` estimate advanced over a measured stroke increment
     (the exact n = 2 update of :mod:`capsule_env.hysteresis`)."""
-    return hysteresis_update(z_estimate, stroke_increment_m, p[BW_A], p[BW_GAMMA], p[BW_BETA])
+    return hysteresis_update(z_estimate, stroke_increment_m, p[_A], p[_GAMMA], p[_BETA])
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,7 +174,7 @@ def _csdc_batch(p, f_d, x, v, z, x_prev, out):
     for k in range(f_d.shape[0]):
         z[k] = csdc_z_update(p, z[k], x[k] - x_prev[k])
         x_prev[k] = x[k]
-        f0, slope = affine_in_current(BOUC_WEN, p, x[k], v[k], z[k])
+        f0, slope = affine_in_current(_CSDC_CODE, p, x[k], v[k], z[k])
         out[k] = invert_affine(f_d[k], f0, slope, v[k], p[I_MAX])
 
 
@@ -244,15 +232,18 @@ class CSDCInverse:
 
 def inverse_current(
     name: str,
-    damper: BiExponentialDamper | TanhDamper,
+    damper: DamperParamsBase,
     desired_force_n: np.ndarray | float,
     stroke_m: np.ndarray | float,
     stroke_rate_m_s: np.ndarray | float,
 ) -> np.ndarray:
-    """Stateless inverse by name (``"bi_exponential"`` or ``"tanh"``); CSDC needs its object."""
-    check_choice("inverse model", name, INVERSE_NAMES)
-    if name == "bi_exponential":
-        return bi_exponential_inverse(damper, desired_force_n, stroke_m, stroke_rate_m_s)
-    if name == "tanh":
-        return tanh_inverse(damper, desired_force_n, stroke_m, stroke_rate_m_s)
-    raise ValueError("the 'csdc' inverse has state: use CSDCInverse(damper, num_vehicles)")
+    """Stateless inverse by name (``"bi_exponential"``, ``"tanh"`` or a registered model's);
+    CSDC, whose model has a hysteretic state, needs its object."""
+    inverses = inverse_models()
+    check_choice("inverse model", name, tuple(sorted(inverses)))
+    model = model_named(inverses[name])
+    if model.hysteresis is not None:
+        raise ValueError(f"the {name!r} inverse has state: use CSDCInverse(damper, num_vehicles)")
+    if not isinstance(damper, model.params):
+        raise ValueError(f"damper must be a {model.params.__name__} for the {name} inverse")
+    return _batch(damper, desired_force_n, stroke_m, stroke_rate_m_s)

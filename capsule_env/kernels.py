@@ -35,25 +35,23 @@ serial kernel) and is compiled without reference counting
 it reads the structures out of ``EnvArgs`` (numba's ``StructRef`` access needs its runtime): 78
 atomic operations a single-env step, counted with a debugger, against about 240 before.
 
-Fork: numba's fastest threading layer here is GNU OpenMP, which terminates a child process that
-launches a parallel region after its parent did (``fork() called from a process already using
-GNU OpenMP``: ``AsyncVectorEnv(context="fork")``, multiprocessing pools). A forked child of a
-process that has launched one therefore runs the serial kernels: correct and as fast per core,
-never killed. (Numba's fork-safe ``workqueue`` layer and a pool of Python threads were measured
-slower than the serial kernel at N = 64: their thread wake-up costs 50-80 us a step.)
+Fork: a forked child of a process that has launched a parallel region runs the serial kernels
+(GNU OpenMP would terminate it: :class:`capsule_env._jit.ForkGuard`). (Numba's fork-safe
+``workqueue`` layer and a pool of Python threads were measured slower than the serial kernel at
+N = 64: their thread wake-up costs 50-80 us a step.) The compiler's machinery (the StructRef,
+the variants' symbol names, the compiled entry points) lives in :mod:`capsule_env._jit`.
 """
 
 from __future__ import annotations
 
-import functools
-import os
 from typing import Any
 
 import numpy as np
-from numba import njit, prange, types
+from numba import njit, prange
 from numba.experimental import structref
 from numba.extending import overload
 
+from capsule_env._jit import FORK_GUARD, Bundle, BundleType, compiled_entry, unique_symbol
 from capsule_env.env_kernel import (
     SENSE_SCRATCH_SHAPE,
     EnvOutputs,
@@ -73,17 +71,6 @@ ENV, PLANT = 0, 1
 #: Batches at least this large are stepped by the multi-threaded kernel.
 PARALLEL_THRESHOLD = 64
 
-_launched_parallel = False  # this process has launched a parallel region
-_serial_only = False  # a forked child of a process that had: never launch one
-
-
-def _after_fork_in_child() -> None:
-    global _serial_only
-    _serial_only = _serial_only or _launched_parallel
-
-
-os.register_at_fork(after_in_child=_after_fork_in_child)
-
 
 @njit(cache=True)
 def work_item_size(n: int) -> int:
@@ -92,25 +79,13 @@ def work_item_size(n: int) -> int:
     return min(BLOCK, max(8, ((n + 3) // 4 + 7) // 8 * 8))
 
 
-@structref.register
-class EnvArgsType(types.StructRef):
-    """The numba type of :class:`EnvArgs` (one per combination of field types)."""
-
-    def preprocess_fields(self, fields: Any) -> tuple[tuple[str, Any], ...]:
-        return tuple((name, types.unliteral(typ)) for name, typ in fields)
-
-
-class EnvArgs(structref.StructRefProxy):
-    """The env kernel's arguments that stay the same from step to step, as one object
-    (made by :func:`env_args`; fields ``params``, ``plant``, ``state``, ``obs``, ``reward``,
-    ``terminated``, ``plant_out``, readable in compiled code only).
-
-    It refers to the arrays it was made from (their memory, not copies): the kernel writes
-    into them, and arrays assigned afterwards in their place are not seen. ``signals`` is
-    not in it: the vector envs give it a new buffer every step."""
-
-
-structref.define_boxing(EnvArgsType, EnvArgs)
+#: The env kernel's arguments that stay the same from step to step, as one object (a
+#: :class:`capsule_env._jit.Bundle` made by :func:`env_args`; fields ``params``, ``plant``,
+#: ``state``, ``obs``, ``reward``, ``terminated``, ``plant_out``, readable in compiled code
+#: only). It refers to the arrays it was made from (their memory, not copies): the kernel
+#: writes into them, and arrays assigned afterwards in their place are not seen. ``signals``
+#: is not in it: the vector envs give it a new buffer every step.
+EnvArgs = Bundle
 
 _ENV_ARGS_FIELDS = ("params", "plant", "state", "obs", "reward", "terminated", "plant_out")
 
@@ -122,7 +97,7 @@ def _new_env_args(params, plant, state, obs, reward, terminated, plant_out):  # 
 @overload(_new_env_args)
 def _new_env_args_impl(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN202
     fields = (params, plant, state, obs, reward, terminated, plant_out)
-    env_args_type = EnvArgsType(list(zip(_ENV_ARGS_FIELDS, fields)))
+    env_args_type = BundleType(list(zip(_ENV_ARGS_FIELDS, fields)))
 
     def impl(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN202
         args = structref.new(env_args_type)
@@ -145,36 +120,17 @@ def env_args(params, plant, state, obs, reward, terminated, plant_out):  # noqa:
     return _new_env_args(params, plant, state, obs, reward, terminated, plant_out)
 
 
-def _unique(variant: str) -> Any:
-    """Give a kernel closure a qualified name of its own (``serial_<variant>``).
-
-    Numba names a compiled function after its qualified name, a per-process counter and its
-    argument types, and every variant of ``serial`` takes the same types. Two variants compiled
-    in different processes (each the first kernel of its process) thus get the same symbol, and
-    once both are loaded from the disk cache into one process, the parallel kernel of one
-    (which calls ``serial``) could be linked to the other's code: different trajectories from
-    the threaded kernel than from the serial one. A name per variant rules that out (and gives
-    each variant its own cache index file)."""
-
-    def rename(fn: Any) -> Any:
-        fn.__qualname__ = f"{fn.__qualname__}_{variant}"
-        fn.__name__ = f"{fn.__name__}_{variant}"
-        return fn
-
-    return rename
-
-
 def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # plant kernel takes them apart into arrays and scalars before the loop and puts them
     # together again in each chunk (the env kernel's EnvArgs can be captured as it is).
     # Called from Python (a CPython wrapper), never through a C pointer (no cfunc wrapper).
-    # Each variant gets a name of its own (_unique): see there.
+    # Each variant gets a name of its own (_jit.unique_symbol): see there.
     variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
     if kind == ENV:
 
         @njit(cache=True, no_cfunc_wrapper=True)
-        @_unique(variant)
+        @unique_symbol(variant)
         def serial(lo, hi, actions, signals, args):
             params, plant, state = args.params, args.plant, args.state
             out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
@@ -197,7 +153,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
                     env_preview(b, e, params, plant, state, out.obs)
 
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
-        @_unique(variant)
+        @unique_symbol(variant)
         def parallel(n, actions, signals, args):
             chunk = work_item_size(n)
             for c in prange((n + chunk - 1) // chunk):
@@ -206,7 +162,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
     else:
 
         @njit(cache=True, no_cfunc_wrapper=True)
-        @_unique(variant)
+        @unique_symbol(variant)
         def serial(lo, hi, plant, x, i_cmd, route, dt, out):
             lanes, counts = block_scratch()
             for b in range(lo, hi, BLOCK):
@@ -217,7 +173,7 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
                     block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out, lanes, counts)
 
         @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
-        @_unique(variant)
+        @unique_symbol(variant)
         def parallel(n, plant, x, i_cmd, route, dt, out):
             dp, vp, table, constants, profiles, spacing = plant
             r0, r1, r2, r3 = route
@@ -275,26 +231,24 @@ class BatchedKernel:
 
     def __call__(self, *args: Any) -> None:
         entry = self._entry
-        if entry is not None and not (self._threaded and _serial_only):
+        if entry is not None and not (self._threaded and FORK_GUARD.serial_only):
             entry(*args)
             return
         self._call_slow(args)
 
     def _call_slow(self, args: tuple[Any, ...]) -> None:
-        global _launched_parallel
         n = self.num_envs
-        threaded = self._threaded and not _serial_only
+        threaded = self._threaded and not FORK_GUARD.serial_only
         entry = self._entries.get(threaded)
         if entry is not None:
             entry(*args)
             return
         head = (n,) if threaded else (0, n)
         dispatcher = self.parallel if threaded else self.serial
-        _launched_parallel |= threaded
+        FORK_GUARD.launched_parallel |= threaded
         dispatcher(*head, *args)  # compiles (or loads from the cache) on the first call
-        signature = tuple(dispatcher.typeof_pyval(a) for a in (*head, *args))
-        compiled = dispatcher.overloads.get(signature)
-        if compiled is not None:
-            entry = self._entries[threaded] = functools.partial(compiled.entry_point, *head)
+        entry = compiled_entry(dispatcher, head, args)
+        if entry is not None:
+            self._entries[threaded] = entry
             if threaded == self._threaded:
                 self._entry = entry

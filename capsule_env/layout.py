@@ -5,15 +5,13 @@ and every kernel reads ``state[n, BODY_VEL]`` or ``signals[SIG_STROKE, n]``, nev
 ``state[n, 1]``. Module-level integers are compile-time constants for numba: naming costs no
 speed.
 
-Most indices are derived from their tuple of names (``name.index(...)``, or an unpacking of
-``range(len(names))`` that fails if a name is added without its constant), so a layout and its
-constants cannot disagree. Not yet (issue 26): the shared damper slots ``I_MAX, COIL_TAU,
-BRANCH_BLEND = 14, 15, 16`` and ``N_DAMPER_PARAMS = 17`` are written as numbers (after the
-longest model's 14 parameters; an assert checks that every model fits), the Bi-exponential
-offsets ``BX_*`` within a branch and ``PV_DAMPING`` likewise, and the per-vehicle floats'
-``VF_*`` are ``range(9)`` (``VF_REWARD_FILTER`` is the first of the reward filter's 8 slots):
-inserting a name in :data:`VEHICLE_FLOAT_NAMES` or :data:`SHARED_DAMPER_SLOTS` does not move
-those constants.
+Every index is derived from its tuple of names (``name.index(...)``, or an unpacking of
+``range(...)`` that fails if a name is added without its constant), so a layout and its
+constants cannot disagree: the shared damper slots (:data:`I_MAX`, :data:`COIL_TAU`,
+:data:`BRANCH_BLEND`) come from :data:`capsule_env.dampers.base.SHARED_DAMPER_SLOTS` after the
+longest model's parameters, each model's parameter slots from its own module's names
+(:mod:`capsule_env.dampers`), and the per-vehicle floats' ``VF_*`` from
+:data:`VEHICLE_FLOAT_NAMES`.
 
 | array | shape | layout |
 | --- | --- | --- |
@@ -29,7 +27,17 @@ those constants.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+
 from capsule_env import observations as _observations
+from capsule_env.dampers.base import (  # noqa: F401  (the shared damper slots, named here too)
+    BRANCH_BLEND,
+    COIL_TAU,
+    I_MAX,
+    N_DAMPER_PARAMS,
+    SHARED_DAMPER_SLOTS,
+)
+from capsule_env.dampers.registry import MODELS as _DAMPER_MODELS
 
 __all__ = [
     "STATE_NAMES",
@@ -71,57 +79,27 @@ MASS_BODY, MASS_BOGIE, STIFF_SECONDARY, STIFF_LEVITATION = range(len(VEHICLE_PAR
 N_VEHICLE_PARAMS = len(VEHICLE_PARAM_NAMES)
 
 # --------------------------------------------------------------------------- dampers
-#: Model parameters of each damper model, in packed order (``DamperParams.as_array``); the
-#: slots after them are shared by every model (:data:`SHARED_DAMPER_SLOTS`).
-DAMPER_PARAM_NAMES = {
-    "passive": ("damping_n_s_per_m",),
-    "reference": (
-        "c0a",
-        "c0b",
-        "c1a",
-        "c1b",
-        "alpha_a",
-        "alpha_b",
-        "k0",
-        "k1",
-        "x0",
-        "gamma",
-        "beta",
-        "a_coef",
-    ),  # fmt: skip
-    "bouc_wen": ("c0a", "c0b", "alpha_a", "alpha_b", "k0", "x0", "gamma", "beta", "a_coef"),
-    "tanh": ("c_a", "c_b", "k_a", "k_b", "alpha_a", "alpha_b", "f0_a", "f0_b", "beta", "delta"),
-    "bi_exponential": tuple(
-        f"{branch}_{p}"
-        for branch in ("upper", "lower")
-        for p in ("a0", "a1", "b0", "b1", "c0", "c1", "d")
-    ),
-}
-#: Slots every model has, after its own parameters.
-SHARED_DAMPER_SLOTS = ("max_current_a", "coil_time_constant_s", "branch_blend_m")
-I_MAX, COIL_TAU, BRANCH_BLEND = 14, 15, 16
-N_DAMPER_PARAMS = 17
+# Each damper model declares its own parameter names, in packed order, in its module
+# (capsule_env/dampers/<model>.py); the slots after them are shared by every model.
 
-_REF = DAMPER_PARAM_NAMES["reference"]
-SP_C0A, SP_C0B, SP_C1A, SP_C1B, SP_ALPHA_A, SP_ALPHA_B, SP_K0, SP_K1, SP_X0 = (
-    _REF.index(n) for n in ("c0a", "c0b", "c1a", "c1b", "alpha_a", "alpha_b", "k0", "k1", "x0")
-)
-SP_GAMMA, SP_BETA, SP_A = (_REF.index(n) for n in ("gamma", "beta", "a_coef"))
-_BW = DAMPER_PARAM_NAMES["bouc_wen"]
-BW_C0A, BW_C0B, BW_ALPHA_A, BW_ALPHA_B, BW_K0, BW_X0, BW_GAMMA, BW_BETA, BW_A = (
-    _BW.index(n) for n in _BW
-)
-_TH = DAMPER_PARAM_NAMES["tanh"]
-TH_C_A, TH_C_B, TH_K_A, TH_K_B, TH_ALPHA_A, TH_ALPHA_B, TH_F0_A, TH_F0_B, TH_BETA, TH_DELTA = (
-    _TH.index(n) for n in _TH
-)
-_BX = DAMPER_PARAM_NAMES["bi_exponential"]
-#: Offsets of the upper (x >= 0) and lower (x < 0) Bi-exponential branches, and of each
-#: parameter within a branch.
-BX_UPPER, BX_LOWER = _BX.index("upper_a0"), _BX.index("lower_a0")
-BX_A0, BX_A1, BX_B0, BX_B1, BX_C0, BX_C1, BX_D = range(7)
-PV_DAMPING = 0
-assert all(len(v) <= I_MAX for v in DAMPER_PARAM_NAMES.values())
+
+class _DamperParamNames(Mapping):
+    """``{model name: its packed parameter names}``: a view of the damper registry (a
+    registered model appears in it)."""
+
+    def __getitem__(self, name: str) -> tuple[str, ...]:
+        return _DAMPER_MODELS[name].param_names
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_DAMPER_MODELS)
+
+    def __len__(self) -> int:
+        return len(_DAMPER_MODELS)
+
+
+#: Model parameters of each damper model, in packed order (``DamperParams.as_array``); the
+#: slots after them (from :data:`I_MAX` on) are shared by every model (:data:`SHARED_DAMPER_SLOTS`).
+DAMPER_PARAM_NAMES: Mapping[str, tuple[str, ...]] = _DamperParamNames()
 
 # --------------------------------------------------------------------------- plant outputs
 #: Columns of the plant kernel's per-step outputs, at the end of the control interval.
@@ -189,7 +167,9 @@ VEHICLE_FLOAT_NAMES = (
     *(f"reward_filter_state_{k}" for k in range(1, 2 * 4 + 1)),
 )
 (VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED, VF_EST_BODY_1, VF_EST_BODY_2, VF_EST_BOGIE_1,
- VF_EST_BOGIE_2, VF_POSITION_ERROR, VF_REWARD_FILTER) = range(9)  # fmt: skip
+ VF_EST_BOGIE_2, VF_POSITION_ERROR) = range(VEHICLE_FLOAT_NAMES.index("reward_filter_state_1"))  # fmt: skip
+#: The first of the reward filter's slots (two per second-order section).
+VF_REWARD_FILTER = VEHICLE_FLOAT_NAMES.index("reward_filter_state_1")
 #: Second-order sections the reward's acceleration filter may have.
 MAX_REWARD_FILTER_SECTIONS = 4
 N_VEHICLE_FLOATS = len(VEHICLE_FLOAT_NAMES)

@@ -31,7 +31,7 @@ from numba import njit
 from capsule_env import metrics
 from capsule_env.batch import CapsuleBatch
 from capsule_env.config import EnvConfig
-from capsule_env.dampers import BOUC_WEN, PASSIVE, REFERENCE
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.kernels import PLANT, BatchedKernel
 from capsule_env.layout import (
     BODY_DISP,
@@ -73,12 +73,13 @@ def active_state_columns(damper_code: int, damper_params: np.ndarray) -> tuple[i
     mechanical ones; the hysteretic variable of the Spencer and Bouc-Wen models; Spencer's
     internal displacement; the coil current when the coil lags (without lag the current is the
     applied one, an input). Time is never one: it advances by ``dt`` whatever the state."""
+    model = model_of_code(damper_code)
     cols = [BODY_DISP, BODY_VEL, BOGIE_DISP, BOGIE_VEL]
-    if damper_code in (REFERENCE, BOUC_WEN):
+    if model.hysteresis is not None:
         cols.append(HYST_Z)
-    if damper_code == REFERENCE:
+    if model.internal_displacement:
         cols.append(DAMPER_Y)
-    if damper_code != PASSIVE and float(np.asarray(damper_params)[COIL_TAU]) > 0.0:
+    if model.uses_current and float(np.asarray(damper_params)[COIL_TAU]) > 0.0:
         cols.append(COIL_CURRENT)
     return tuple(cols)
 

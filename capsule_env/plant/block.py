@@ -20,11 +20,11 @@ so only the code of the model in use compiles.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from capsule_env._fastmath import BORROWED, FAST
-from capsule_env.dampers import BI_EXPONENTIAL, PASSIVE, REFERENCE, TANH
+from capsule_env._jit import specialised
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
     COIL_CURRENT,
@@ -37,9 +37,6 @@ from capsule_env.layout import (
     OUT_BOGIE_ACC,
     OUT_FORCE,
     OUT_GUIDEWAY,
-    SP_A,
-    SP_BETA,
-    SP_GAMMA,
     STATE_SIZE,
     STIFF_LEVITATION,
     STIFF_SECONDARY,
@@ -49,6 +46,7 @@ from capsule_env.plant.rk4 import (
     HYST_FAST_LINEAR_UNLOAD,
     HYST_FAST_TANH_UNLOAD,
     HYST_NONE,
+    LANE_INPUT_NAMES,
     plant_outputs,
     rk4_substep,
 )
@@ -74,12 +72,14 @@ KERNEL_UNIFORM = 4
 
 # Scratch rows of one half of a block: the state, then the per-vehicle values of the interval,
 # the Riccati constants and the damper parameters (each row HALF long).
-_SCRATCH_ROWS = (
-    "z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t",  # the plant state, in STATE_NAMES order
-    "h", "i_cmd", "e_half", "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end",
-)  # fmt: skip
+# The first rows are an RK4 substep's inputs (rk4.LANE_INPUT_NAMES: the plant state in
+# STATE_NAMES order, then the interval's values).
+_SCRATCH_ROWS = LANE_INPUT_NAMES
 (_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
- _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = range(len(_SCRATCH_ROWS))  # fmt: skip
+ _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = (_SCRATCH_ROWS.index(n)
+                                                    for n in _SCRATCH_ROWS)  # fmt: skip
+#: After the last substep, the plant's outputs go into rows the substeps no longer read.
+_W_OUT_FORCE, _W_OUT_ACC_C, _W_OUT_ACC_B = _W_ZGH, _W_ZG1, _W_H
 _W_A = len(_SCRATCH_ROWS)  # N_RICCATI_CONSTANTS rows
 _W_P = _W_A + N_RICCATI_CONSTANTS  # N_DAMPER_PARAMS rows
 _W_ROWS = _W_P + N_DAMPER_PARAMS
@@ -110,12 +110,13 @@ def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
 
 
 def _block_kernel_family(damper_code: int, damper_params: np.ndarray) -> int:
-    if damper_code in (BI_EXPONENTIAL, TANH, PASSIVE):
+    hyst = model_of_code(damper_code).hysteresis
+    if hyst is None:
         return KERNEL_BLOCK
-    if damper_code != REFERENCE:
+    if not hyst.fast:
         return KERNEL_SCALAR
     p = np.asarray(damper_params).reshape(-1, damper_params.shape[-1])
-    a_coef, gamma, beta = p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA]
+    a_coef, gamma, beta = p[:, hyst.a_coef], p[:, hyst.gamma], p[:, hyst.beta]
     if np.any(a_coef <= 0.0) or np.any(gamma < 0.0) or np.any(gamma + beta <= 0.0):
         return KERNEL_SCALAR
     unload = beta - gamma
@@ -135,8 +136,9 @@ def block_constants(
     (0 without coil lag). ``table``: one (bins,) table for every row, or (N, bins)."""
     p = np.atleast_2d(np.asarray(damper_params, dtype=float))
     out = np.ones((p.shape[0], _D_EHALF + np.shape(table)[-1]))
-    if damper_code == REFERENCE:
-        out[:, :_D_EHALF] = riccati_constants(p[:, SP_A], p[:, SP_GAMMA], p[:, SP_BETA])
+    hyst = model_of_code(damper_code).hysteresis
+    if hyst is not None and hyst.fast:
+        out[:, :_D_EHALF] = riccati_constants(p[:, hyst.a_coef], p[:, hyst.gamma], p[:, hyst.beta])
     tau = p[:, COIL_TAU][:, None]
     h = dt_s / np.broadcast_to(np.asarray(table, dtype=float), (p.shape[0], np.shape(table)[-1]))
     lag = tau > 0.0
@@ -248,6 +250,7 @@ def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
         w[o + _W_ZG1 * HALF] = g * guideway_elevation(profiles, k, spacing, last, p0 + sp * (t + h))
 
 
+@specialised("model", "hysteresis", "uniform", plain=("first",))
 def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
     """One RK4 substep of the sorted vehicles ``first .. nb-1``: the SIMD loop.
 
@@ -257,15 +260,8 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     The view starts at the first column and every access is a constant offset from it, so LLVM
     sees no negative indices and no overlap and vectorises the loop. With ``uniform`` the damper
     parameters and Riccati constants are ``p_uniform``/``hc_uniform`` (loop constants) instead of
-    scratch rows. Compiled once per (model, hysteresis, uniform): see the overload below."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(substep_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
-    if not isinstance(model, types.IntegerLiteral) or isinstance(first, types.Literal):
-        return None  # specialise on the model, hysteresis and uniform flag only
-    m, hyst, uni = model.literal_value, hysteresis.literal_value, uniform.literal_value
+    scratch rows. Compiled once per (model, hysteresis, uniform)."""
+    m, hyst, uni = model, hysteresis, uniform
 
     def impl(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
         col0 = first >> 1
@@ -291,29 +287,21 @@ def _substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifo
     return impl
 
 
+@specialised("model", "uniform")
 def output_lanes(model, uniform, wv, count, p_uniform):
-    """Force and accelerations at the end of the interval (into rows zg_mid, zg_end, h) of the
-    first ``count`` columns of one half. Compiled once per (model, uniform)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(output_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _output_lanes(model, uniform, wv, count, p_uniform):
-    if not isinstance(model, types.IntegerLiteral):
-        return None
-    m, uni = model.literal_value, uniform.literal_value
+    """Force and accelerations at the end of the interval (into the output rows) of the first
+    ``count`` columns of one half. Compiled once per (model, uniform)."""
+    m, uni = model, uniform
 
     def impl(model, uniform, wv, count, p_uniform):
         for j in range(count):
             v = _lane_values(wv, j)
             p = p_uniform if uni else _lane_params(wv, j)
-            zc, vc, zb, vb, z, y, ic = v[0:7]
-            ks, kp, inv_mc, inv_mb, zg0 = v[_W_KS], v[_W_KP], v[_W_INV_MC], v[_W_INV_MB], v[_W_ZG0]
-            force, acc_c, acc_b = plant_outputs(m, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb,
-                                                ks, kp, zg0)  # fmt: skip
-            wv[j + _W_ZGH * HALF] = force
-            wv[j + _W_ZG1 * HALF] = acc_c
-            wv[j + _W_H * HALF] = acc_b
+            vehicle = (v[_W_INV_MC], v[_W_INV_MB], v[_W_KS], v[_W_KP])
+            force, acc_c, acc_b = plant_outputs(m, p, v[0:7], v[_W_ZG0], vehicle)
+            wv[j + _W_OUT_FORCE * HALF] = force
+            wv[j + _W_OUT_ACC_C * HALF] = acc_c
+            wv[j + _W_OUT_ACC_B * HALF] = acc_b
 
     return impl
 
@@ -355,22 +343,18 @@ def _sort_by_substeps(nsub_of, nb, lo, order, start):
             order[r] = lo + m
 
 
+@specialised("model", "mode")
 def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
     """Advance vehicles ``lo .. hi-1`` (at most BLOCK) by ``dt`` with the vectorised kernel
     (``mode`` a block mode of :func:`block_kernel_mode`). ``lanes`` (``LANES_SIZE``,) float64
     and ``counts`` (``COUNT_ROWS``, ``BLOCK + 1``) int64 are scratch from the caller: this
     function allocates nothing. Compiled once per (model, mode)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(block_step, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
-    if not isinstance(model, types.IntegerLiteral):
-        return None
-    m, md = model.literal_value, mode.literal_value
+    m, md = model, mode
+    damper = model_of_code(m)
+    uses_current = damper.uses_current
     uni = (md & KERNEL_UNIFORM) != 0
     family = md & ~KERNEL_UNIFORM
-    if m != REFERENCE:
+    if damper.hysteresis is None:
         hyst = HYST_NONE
     elif family == KERNEL_BLOCK_TANH_UNLOAD:
         hyst = HYST_FAST_TANH_UNLOAD
@@ -378,86 +362,124 @@ def _block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, cou
         hyst = HYST_FAST_LINEAR_UNLOAD
 
     def impl(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, counts):
-        dp, vp, table, derived = plant.damper, plant.vehicle, plant.substeps, plant.constants
-        profiles, spacing = plant.profiles, plant.spacing_m
         nb = hi - lo
-        # flat: two halves of _W_ROWS rows, each HALF long, + padding read by masked SIMD
-        # lanes. The columns that only masked lanes read are zeroed, so that no lane computes
-        # on denormal garbage (slow on x86); the rest is written below.
-        w = lanes
-        w[2 * _W_HALF_SIZE :] = 0.0
-        end = (nb + 1) >> 1
-        for col in range(end, min(end + 3, HALF)):
-            for r in range(_W_ROWS):
-                w[r * HALF + col] = 0.0
-                w[_W_HALF_SIZE + r * HALF + col] = 0.0
-        nsub_of, bin_of, nsub = counts[_C_NSUB_OF], counts[_C_BIN_OF], counts[_C_NSUB]
-        order = counts[_C_ORDER]
-        n_bins = table.shape[1]
-        for j in range(nb):  # substeps per vehicle (from the highest current of the interval)
-            n = lo + j
-            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
-            i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
-            b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
-            b = min(max(b, 0), n_bins - 1)
-            nsub_of[j] = table[n, b]
-            bin_of[j] = b
-        _sort_by_substeps(nsub_of, nb, lo, order, counts[_C_START])
-        last = profiles.shape[1] - 1.0
-        for rank in range(nb):
-            n = order[rank]
-            o = _slot(rank)
-            ns = nsub_of[n - lo]
-            nsub[rank] = ns
-            i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
-            for j in range(STATE_SIZE):
-                w[o + j * HALF] = x[n, j]
-            if tau <= 0.0:
-                w[o + COIL_CURRENT * HALF] = cmd
-            w[o + _W_H * HALF] = dt / ns
-            w[o + _W_ICMD * HALF] = cmd
-            w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
-            w[o + _W_INV_MC * HALF] = 1.0 / vp[n, MASS_BODY]
-            w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
-            w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
-            w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
-            position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
-            w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
-                profiles, route.profile[n], spacing, last, position
-            )
-            if not uni:  # else read as loop constants
-                for j in range(N_DAMPER_PARAMS):
-                    w[o + (_W_P + j) * HALF] = dp[n, j]
-                for j in range(_D_EHALF):
-                    w[o + (_W_A + j) * HALF] = derived[n, j]
-        if nb & 1:  # the odd half's last column has no vehicle: give it real numbers
-            src, dst = _slot(nb - 1), _slot(nb)
-            for j in range(_W_ROWS):
-                w[dst + j * HALF] = w[src + j * HALF]
-        p_uniform, hc_uniform = row_params(dp, lo), _row_constants(derived, lo)
+        w, order, nsub = lanes, counts[_C_ORDER], counts[_C_NSUB]
+        _clear_padding(w, nb)
+        _count_substeps(lo, nb, plant, x, i_cmd, uses_current, counts)
+        _sort_by_substeps(counts[_C_NSUB_OF], nb, lo, order, counts[_C_START])
+        _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uni, counts)
+        p_uniform = row_params(plant.damper, lo)
+        hc_uniform = _row_constants(plant.constants, lo)
         # substep s advances the tail of the vehicles that need more than s substeps
         # an int64 from the start: a literal 0 would first type the calls below with
         # Literal[int](0) and compile _guideway_lanes a second time for it
         first = np.int64(0)
         s = 0
         while first < nb:
-            _guideway_lanes(w, first, nb, order, profiles, spacing, route)
+            _guideway_lanes(w, first, nb, order, plant.profiles, plant.spacing_m, route)
             substep_lanes(m, hyst, uni, w, first, nb, p_uniform, hc_uniform)
             s += 1
             while first < nb and nsub[first] <= s:
                 first += 1
         output_lanes(m, uni, w[:_W_HALF_SIZE], min(HALF, (((nb + 1) >> 1) + 3) & -4), p_uniform)
         output_lanes(m, uni, w[_W_HALF_SIZE:], min(HALF, ((nb >> 1) + 3) & -4), p_uniform)
-        for rank in range(nb):
-            n = order[rank]
-            o = _slot(rank)
-            for j in range(STATE_SIZE):
-                x[n, j] = w[o + j * HALF]
-            out[n, OUT_FORCE] = w[o + _W_ZGH * HALF]
-            out[n, OUT_BODY_ACC] = w[o + _W_ZG1 * HALF]
-            out[n, OUT_BOGIE_ACC] = w[o + _W_H * HALF]
-            out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]
+        _store_results(w, nb, order, x, out)
 
     return impl
+
+
+@njit(**FAST, **BORROWED)
+def _clear_padding(w, nb):
+    """Zero the scratch columns that only masked SIMD lanes read, so that no lane computes on
+    denormal garbage (slow on x86); the rest is written by :func:`_load_lanes`."""
+    w[2 * _W_HALF_SIZE :] = 0.0
+    end = (nb + 1) >> 1
+    for col in range(end, min(end + 3, HALF)):
+        for r in range(_W_ROWS):
+            w[r * HALF + col] = 0.0
+            w[_W_HALF_SIZE + r * HALF + col] = 0.0
+
+
+@njit(**FAST, **BORROWED, forceinline=True)
+def _applied_command(dp, i_cmd, n, uses_current):
+    """The current command vehicle ``n``'s damper follows, clipped to its range (0 for a
+    damper the current does not change)."""
+    return min(max(i_cmd[n], 0.0), dp[n, I_MAX]) if uses_current else 0.0
+
+
+@njit(**FAST, **BORROWED)
+def _count_substeps(lo, nb, plant, x, i_cmd, uses_current, counts):
+    """Substeps and table bin of vehicles ``lo .. lo+nb-1`` (rows ``_C_NSUB_OF``,
+    ``_C_BIN_OF``), from the highest current of the interval."""
+    dp, table = plant.damper, plant.substeps
+    nsub_of, bin_of = counts[_C_NSUB_OF], counts[_C_BIN_OF]
+    n_bins = table.shape[1]
+    for j in range(nb):
+        n = lo + j
+        i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
+        cmd = _applied_command(dp, i_cmd, n, uses_current)
+        i_high = max(cmd, x[n, COIL_CURRENT]) if tau > 0.0 else cmd
+        b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
+        b = min(max(b, 0), n_bins - 1)
+        nsub_of[j] = table[n, b]
+        bin_of[j] = b
+
+
+@njit(**FAST, **BORROWED)
+def _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uniform, counts):
+    """Copy the sorted vehicles into their scratch columns: the state, the interval's values
+    (:data:`LANE_INPUT_NAMES`), and unless ``uniform`` the Riccati constants and damper
+    parameters; the odd half's last column, which has no vehicle, gets real numbers too."""
+    dp, vp, derived = plant.damper, plant.vehicle, plant.constants
+    profiles, spacing = plant.profiles, plant.spacing_m
+    order, nsub_of, bin_of, nsub = (
+        counts[_C_ORDER],
+        counts[_C_NSUB_OF],
+        counts[_C_BIN_OF],
+        counts[_C_NSUB],
+    )
+    last = profiles.shape[1] - 1.0
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
+        ns = nsub_of[n - lo]
+        nsub[rank] = ns
+        cmd = _applied_command(dp, i_cmd, n, uses_current)
+        for j in range(STATE_SIZE):
+            w[o + j * HALF] = x[n, j]
+        if dp[n, COIL_TAU] <= 0.0:
+            w[o + COIL_CURRENT * HALF] = cmd
+        w[o + _W_H * HALF] = dt / ns
+        w[o + _W_ICMD * HALF] = cmd
+        w[o + _W_EHALF * HALF] = derived[n, _D_EHALF + bin_of[n - lo]]
+        w[o + _W_INV_MC * HALF] = 1.0 / vp[n, MASS_BODY]
+        w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
+        w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
+        w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
+        position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
+        w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
+            profiles, route.profile[n], spacing, last, position
+        )
+        if not uniform:  # else read as loop constants
+            for j in range(N_DAMPER_PARAMS):
+                w[o + (_W_P + j) * HALF] = dp[n, j]
+            for j in range(_D_EHALF):
+                w[o + (_W_A + j) * HALF] = derived[n, j]
+    if nb & 1:
+        src, dst = _slot(nb - 1), _slot(nb)
+        for j in range(_W_ROWS):
+            w[dst + j * HALF] = w[src + j * HALF]
+
+
+@njit(**FAST, **BORROWED)
+def _store_results(w, nb, order, x, out):
+    """Copy the sorted vehicles' new state and the plant's outputs back from the scratch."""
+    for rank in range(nb):
+        n = order[rank]
+        o = _slot(rank)
+        for j in range(STATE_SIZE):
+            x[n, j] = w[o + j * HALF]
+        out[n, OUT_FORCE] = w[o + _W_OUT_FORCE * HALF]
+        out[n, OUT_BODY_ACC] = w[o + _W_OUT_ACC_C * HALF]
+        out[n, OUT_BOGIE_ACC] = w[o + _W_OUT_ACC_B * HALF]
+        out[n, OUT_GUIDEWAY] = w[o + _W_ZG0 * HALF]

@@ -15,7 +15,7 @@ so that a loop over vehicles vectorises; the scalar kernel uses the general hyst
 (Bouc-Wen's unloading branch needs tan/atan).
 
 Each function is compiled once per model and hysteresis form (literal arguments; the model's
-code is chosen at typing, see the overloads below) and inlined by LLVM: :func:`rk4_substep`
+code is chosen at typing, :func:`capsule_env._jit.specialised`) and inlined by LLVM: :func:`rk4_substep`
 into the kernels' loops with ``forceinline`` (LLVM's ``alwaysinline``), the functions it calls
 because they are small. Numba's own inlining (``inline="always"``) copies the callee's IR at
 every call site before typing: the block kernel's loop, which calls :func:`rk4_substep` twice,
@@ -25,23 +25,11 @@ slower.
 
 from __future__ import annotations
 
-from numba import njit, types
-from numba.extending import overload
-
-from capsule_env._fastmath import BORROWED, FAST
-from capsule_env.dampers import (
-    BI_EXPONENTIAL,
-    BOUC_WEN,
-    REFERENCE,
-    TANH,
-    bi_exponential_force,
-    bouc_wen_force,
-    spencer_force,
-    spencer_inv_dashpots,
-    tanh_force,
-)
+from capsule_env._jit import kernel_function, specialised
+from capsule_env.dampers.dispatch import model_force, model_prepare
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_update, hysteresis_update_fast
-from capsule_env.layout import BW_A, BW_BETA, BW_GAMMA, PV_DAMPING, SP_A, SP_BETA, SP_GAMMA
+from capsule_env.plant.equations import VEHICLE_LANE_NAMES, accelerations, levitation_force
 
 __all__ = [
     "HYST_NONE",
@@ -63,100 +51,26 @@ HYST_NONE, HYST_GENERAL, HYST_FAST_LINEAR_UNLOAD, HYST_FAST_TANH_UNLOAD = range(
 #: command and the coil-lag factor, the vehicle's inverse masses and stiffnesses, and the
 #: guideway elevation at the start, middle and end of the substep.
 LANE_INPUT_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i", "t", "h", "i_cmd", "e_half",
-                    "inv_m_c", "inv_m_b", "k_s", "k_p", "zg_start", "zg_mid", "zg_end")  # fmt: skip
+                    *VEHICLE_LANE_NAMES, "zg_start", "zg_mid", "zg_end")  # fmt: skip
+
+#: The damper model's ``prepare`` and ``force`` (:mod:`capsule_env.dampers.dispatch`), under
+#: the names the plant used before the registry.
+inv_dashpots = model_prepare
+damper_force_and_rate = model_force
 
 
-# The model and hysteresis codes are literal arguments: each function below is an overload
-# that picks the model's code in Python, at typing. (A plain numba function specialised on a
-# literal argument still types, lowers and optimises every branch of ``if model == ...``:
-# numba prunes branches on constants and closure variables, not on literal arguments. With
-# the four damper laws behind such branches, a kernel compiled the code of every model.)
-_JIT = {**FAST, **BORROWED}
-
-
-def _literals(*codes) -> bool:
-    return all(isinstance(c, types.IntegerLiteral) for c in codes)
-
-
-def inv_dashpots(model, p, i):
-    """``1 / (c0 + c1)`` of the reference damper at current ``i`` (1 for the other models)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(inv_dashpots, prefer_literal=True, jit_options=_JIT)
-def _inv_dashpots(model, p, i):
-    if not _literals(model):
-        return None
-    if model.literal_value == REFERENCE:
-
-        def impl(model, p, i):
-            return spencer_inv_dashpots(p, i)
-
-    else:
-
-        def impl(model, p, i):
-            return 1.0
-
-    return impl
-
-
-def damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
-    """``(F, y')`` of the damper model at stroke ``x``, stroke rate ``v``, Spencer's internal
-    displacement ``y``, hysteretic variable ``z`` and current ``i``."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(damper_force_and_rate, prefer_literal=True, jit_options=_JIT)
-def _damper_force_and_rate(model, p, x, v, y, z, i, inv_c):
-    if not _literals(model):
-        return None
-    m = model.literal_value
-    if m == REFERENCE:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return spencer_force(p, x, v, y, z, i, inv_c)
-
-    elif m == BOUC_WEN:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return bouc_wen_force(p, x, v, z, i), 0.0
-
-    elif m == BI_EXPONENTIAL:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return bi_exponential_force(p, x, v, i), 0.0
-
-    elif m == TANH:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return tanh_force(p, x, v, i), 0.0
-
-    else:
-
-        def impl(model, p, x, v, y, z, i, inv_c):
-            return p[PV_DAMPING] * v, 0.0
-
-    return impl
-
-
+@specialised("model", "hysteresis")
 def _advance_z(model, hysteresis, z, du, p, hc):
     """The hysteretic variable after a deformation increment ``du`` (``hc``: the Riccati
     constants of the fast forms)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(_advance_z, prefer_literal=True, jit_options=_JIT)
-def _advance_z_impl(model, hysteresis, z, du, p, hc):
-    if not _literals(model, hysteresis):
-        return None
-    m, hyst = model.literal_value, hysteresis.literal_value
-    if hyst == HYST_GENERAL:
-        a_k, g_k, b_k = (SP_A, SP_GAMMA, SP_BETA) if m == REFERENCE else (BW_A, BW_GAMMA, BW_BETA)
+    if hysteresis == HYST_GENERAL:
+        hyst = model_of_code(model).hysteresis
+        a_k, g_k, b_k = hyst.a_coef, hyst.gamma, hyst.beta
 
         def impl(model, hysteresis, z, du, p, hc):
             return hysteresis_update(z, du, p[a_k], p[g_k], p[b_k])
 
-    elif hyst == HYST_NONE:
+    elif hysteresis == HYST_NONE:
 
         def impl(model, hysteresis, z, du, p, hc):
             return z
@@ -172,58 +86,72 @@ def _advance_z_impl(model, hysteresis, z, du, p, hc):
     return impl
 
 
-@njit(**FAST, **BORROWED, forceinline=True)
+@kernel_function(inline=True)
+def _rates(model, p, x, pre, zg, vehicle):
+    """The time derivatives of the state ``x = (z_c, z_c', z_b, z_b', z, y, i)`` (the first
+    7 of ``layout.STATE_NAMES``) but ``z`` and ``i`` (advanced in closed form):
+    ``(z_c', z_c'', z_b', z_b'', y')`` at guideway elevation ``zg``; ``pre``: the damper
+    model's ``prepare`` at current ``i``."""
+    zc, vc, zb, vb, z, y, i = x
+    force, y_dot = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, i, pre)
+    acc_c, acc_b = accelerations(zc, zb, force, levitation_force(zb, zg, vehicle), vehicle)
+    return vc, acc_c, vb, acc_b, y_dot
+
+
+@kernel_function(inline=True)
+def _stage(x, k, step):
+    """``x + step k`` over ``(z_c, z_c', z_b, z_b', y)``: the state an RK4 stage reads."""
+    return (x[0] + step * k[0], x[1] + step * k[1], x[2] + step * k[2], x[3] + step * k[3],
+            x[4] + step * k[4])  # fmt: skip
+
+
+@kernel_function(inline=True)
+def _combine(x, k1, k2, k3, k4, wt):
+    """``x + wt (k1 + 2 k2 + 2 k3 + k4)`` over ``(z_c, z_c', z_b, z_b', y)``: the RK4 step."""
+    return (
+        x[0] + wt * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+        x[1] + wt * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+        x[2] + wt * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
+        x[3] + wt * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
+        x[4] + wt * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4]),
+    )
+
+
+@kernel_function(inline=True)
 def rk4_substep(model, hysteresis, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
     damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
     ``(z_c, z_c', z_b, z_b', z, y, i, t, zg_end)``."""
     zc, vc, zb, vb, z, y, ic, t, h, i_cmd, e_half = v[0:11]
-    inv_mc, inv_mb, ks, kp, zg0, zgh, zg1 = v[11:18]
+    vehicle, (zg0, zgh, zg1) = v[11:15], v[15:18]
     ic_half = i_cmd + (ic - i_cmd) * e_half
     ic1 = i_cmd + (ic_half - i_cmd) * e_half
-    inv_c0 = inv_dashpots(model, p, ic)
-    inv_ch = inv_dashpots(model, p, ic_half)
-    inv_c1 = inv_dashpots(model, p, ic1)
-    u0 = zc - zb - y
-    # stage 1
-    f1, y1 = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic, inv_c0)
-    sec = ks * (zc - zb) + f1
-    k10, k11, k12, k13 = vc, -sec * inv_mc, vb, (sec - kp * (zb - zg0)) * inv_mb
-    # stage 2
-    a0, a1 = zc + 0.5 * h * k10, vc + 0.5 * h * k11
-    a2, a3, a4 = zb + 0.5 * h * k12, vb + 0.5 * h * k13, y + 0.5 * h * y1
-    zs = _advance_z(model, hysteresis, z, a0 - a2 - a4 - u0, p, hc)
-    f2, y2 = damper_force_and_rate(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
-    sec = ks * (a0 - a2) + f2
-    k20, k21, k22, k23 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
-    # stage 3
-    a0, a1 = zc + 0.5 * h * k20, vc + 0.5 * h * k21
-    a2, a3, a4 = zb + 0.5 * h * k22, vb + 0.5 * h * k23, y + 0.5 * h * y2
-    zs = _advance_z(model, hysteresis, z, a0 - a2 - a4 - u0, p, hc)
-    f3, y3 = damper_force_and_rate(model, p, a0 - a2, a1 - a3, a4, zs, ic_half, inv_ch)
-    sec = ks * (a0 - a2) + f3
-    k30, k31, k32, k33 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zgh)) * inv_mb
-    # stage 4
-    a0, a1 = zc + h * k30, vc + h * k31
-    a2, a3, a4 = zb + h * k32, vb + h * k33, y + h * y3
-    zs = _advance_z(model, hysteresis, z, a0 - a2 - a4 - u0, p, hc)
-    f4, y4 = damper_force_and_rate(model, p, a0 - a2, a1 - a3, a4, zs, ic1, inv_c1)
-    sec = ks * (a0 - a2) + f4
-    k40, k41, k42, k43 = a1, -sec * inv_mc, a3, (sec - kp * (a2 - zg1)) * inv_mb
-    wt = h / 6.0
-    zc = zc + wt * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
-    vc = vc + wt * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
-    zb = zb + wt * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
-    vb = vb + wt * (k13 + 2.0 * k23 + 2.0 * k33 + k43)
-    y_new = y + wt * (y1 + 2.0 * y2 + 2.0 * y3 + y4)
+    pre_0 = inv_dashpots(model, p, ic)
+    pre_h = inv_dashpots(model, p, ic_half)
+    pre_1 = inv_dashpots(model, p, ic1)
+    x0 = (zc, vc, zb, vb, y)
+    u0 = zc - zb - y  # the deformation that drives z, at the start
+    k1 = _rates(model, p, (zc, vc, zb, vb, z, y, ic), pre_0, zg0, vehicle)
+    a = _stage(x0, k1, 0.5 * h)
+    zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
+    k2 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh, vehicle)
+    a = _stage(x0, k2, 0.5 * h)
+    zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
+    k3 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh, vehicle)
+    a = _stage(x0, k3, h)
+    zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
+    k4 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic1), pre_1, zg1, vehicle)
+    zc, vc, zb, vb, y_new = _combine(x0, k1, k2, k3, k4, h / 6.0)
     z = _advance_z(model, hysteresis, z, zc - zb - y_new - u0, p, hc)
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
-@njit(**FAST, **BORROWED)
-def plant_outputs(model, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb, ks, kp, zg):
-    """``(damper force, body acceleration, bogie acceleration)`` at a state."""
+@kernel_function
+def plant_outputs(model, p, x, zg, vehicle):
+    """``(damper force, body acceleration, bogie acceleration)`` at a state ``x = (z_c, z_c',
+    z_b, z_b', z, y, i)`` and guideway elevation ``zg``."""
+    zc, vc, zb, vb, z, y, ic = x
     force, _ = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic,
                                      inv_dashpots(model, p, ic))  # fmt: skip
-    sec = ks * (zc - zb) + force
-    return force, -sec * inv_mc, (sec - kp * (zb - zg)) * inv_mb
+    acc_c, acc_b = accelerations(zc, zb, force, levitation_force(zb, zg, vehicle), vehicle)
+    return force, acc_c, acc_b

@@ -11,11 +11,8 @@ from __future__ import annotations
 
 import math
 
-from numba import types
-from numba.extending import overload
-
-from capsule_env._fastmath import BORROWED, FAST
-from capsule_env.dampers import BOUC_WEN, PASSIVE, REFERENCE
+from capsule_env._jit import specialised
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.layout import (
     BODY_DISP,
     BODY_VEL,
@@ -44,20 +41,16 @@ __all__ = ["scalar_step"]
 _NO_CONSTANTS = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
 
 
+@specialised("model")
 def scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
     """Advance vehicles ``lo .. hi-1`` by ``dt``, one at a time (any number of them).
 
     The number of substeps is ``plant.substeps[n, bin]`` for the bin of the highest current in
     the interval (the damper's stiffness grows with current). Compiled once per model."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(scalar_step, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
-    if not isinstance(model, types.IntegerLiteral):
-        return None
-    m = model.literal_value
-    hyst = HYST_GENERAL if m in (REFERENCE, BOUC_WEN) else HYST_NONE
+    m = model
+    damper = model_of_code(m)
+    uses_current = damper.uses_current
+    hyst = HYST_NONE if damper.hysteresis is None else HYST_GENERAL
 
     def impl(model, lo, hi, plant, x, i_cmd, route, dt, out):
         dp, vp, table = plant.damper, plant.vehicle, plant.substeps
@@ -67,7 +60,7 @@ def _scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
         for n in range(lo, hi):
             p = row_params(dp, n)
             i_max, tau = dp[n, I_MAX], dp[n, COIL_TAU]
-            cmd = min(max(i_cmd[n], 0.0), i_max) if m != PASSIVE else 0.0
+            cmd = min(max(i_cmd[n], 0.0), i_max) if uses_current else 0.0
             ic = x[n, COIL_CURRENT]
             i_high = max(cmd, ic) if tau > 0.0 else cmd
             b = int(i_high / i_max * n_bins) if i_max > 0.0 else 0
@@ -93,8 +86,8 @@ def _scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
                 zc, vc, zb, vb, z, y, ic, t, zg0 = rk4_substep(m, hyst, v, p, _NO_CONSTANTS)
             x[n, BODY_DISP], x[n, BODY_VEL], x[n, BOGIE_DISP], x[n, BOGIE_VEL] = zc, vc, zb, vb
             x[n, HYST_Z], x[n, DAMPER_Y], x[n, COIL_CURRENT], x[n, TIME] = z, y, ic, t
-            force, acc_c, acc_b = plant_outputs(m, p, zc, vc, zb, vb, z, y, ic, inv_mc, inv_mb,
-                                                ks, kp, zg0)  # fmt: skip
+            force, acc_c, acc_b = plant_outputs(m, p, (zc, vc, zb, vb, z, y, ic), zg0,
+                                                (inv_mc, inv_mb, ks, kp))  # fmt: skip
             out[n, OUT_FORCE], out[n, OUT_BODY_ACC] = force, acc_c
             out[n, OUT_BOGIE_ACC], out[n, OUT_GUIDEWAY] = acc_b, zg0
 

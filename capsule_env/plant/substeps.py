@@ -13,43 +13,8 @@ import math
 
 import numpy as np
 
-from capsule_env.dampers import BI_EXPONENTIAL, BOUC_WEN, REFERENCE, TANH, DamperParams
-from capsule_env.layout import (
-    BRANCH_BLEND,
-    BW_A,
-    BW_ALPHA_A,
-    BW_ALPHA_B,
-    BW_C0A,
-    BW_C0B,
-    BW_K0,
-    BX_A0,
-    BX_A1,
-    BX_B0,
-    BX_B1,
-    BX_C0,
-    BX_C1,
-    BX_D,
-    BX_LOWER,
-    BX_UPPER,
-    PV_DAMPING,
-    SP_A,
-    SP_ALPHA_A,
-    SP_ALPHA_B,
-    SP_C0A,
-    SP_C0B,
-    SP_C1A,
-    SP_C1B,
-    SP_K0,
-    SP_K1,
-    TH_ALPHA_A,
-    TH_ALPHA_B,
-    TH_BETA,
-    TH_C_A,
-    TH_C_B,
-    TH_DELTA,
-    TH_K_A,
-    TH_K_B,
-)
+from capsule_env.dampers import DamperParams
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [
@@ -90,44 +55,10 @@ MAX_AUTO_SUBSTEPS = 1024
 
 def _linearised_damper(damper: DamperParams, i: np.ndarray) -> list[tuple[np.ndarray, ...]]:
     """The damper near ``x = v = 0`` in each of its regimes, as ``(c, k, K, C)`` arrays over the
-    currents ``i``: ``F = c x' + k x`` for the algebraic models (``C = 0``); for Spencer's
-    model ``y' = (K (x - y) + c x') / C`` and ``F = (C - c) y' + k x``. Regimes: pre-yield (the
-    hysteretic variable follows the deformation, ``z = A u``: the stiffest) and yielded (``z``
-    saturated)."""
-    p = damper.as_array()
-    zero = 0.0 * i
-    code = damper.code
-    if code == REFERENCE:
-        c0, c1 = p[SP_C0A] + p[SP_C0B] * i, p[SP_C1A] + p[SP_C1B] * i
-        alpha = p[SP_ALPHA_A] + p[SP_ALPHA_B] * i
-        pre_yield = (c0, p[SP_K1] + zero, alpha * p[SP_A] + p[SP_K0], c0 + c1)
-        return [pre_yield, (c0, p[SP_K1] + zero, p[SP_K0] + zero, c0 + c1)]
-    if code == BOUC_WEN:
-        c0, alpha = p[BW_C0A] + p[BW_C0B] * i, p[BW_ALPHA_A] + p[BW_ALPHA_B] * i
-        pre_yield = (c0, p[BW_K0] + np.abs(alpha) * p[BW_A], zero, zero)
-        return [pre_yield, (c0, p[BW_K0] + zero, zero, zero)]
-    if code == TANH:
-        alpha = np.abs(p[TH_ALPHA_A] + p[TH_ALPHA_B] * i)
-        c = np.abs(p[TH_C_A] + p[TH_C_B] * i) + alpha * p[TH_BETA]
-        # the branch blend: d/dx of alpha tanh(beta v + delta sgn_w(x)), sgn_w' <= 1.5 / width
-        k = np.abs(p[TH_K_A] + p[TH_K_B] * i) + alpha * abs(p[TH_DELTA]) * 1.5 / p[BRANCH_BLEND]
-        return [(c, k, zero, zero)]
-    if code == BI_EXPONENTIAL:
-        up, lo = BX_UPPER, BX_LOWER
-        slopes = [
-            np.abs(p[o + BX_A0] + p[o + BX_A1] * i) * p[o + BX_D]
-            + np.abs(p[o + BX_B0] + p[o + BX_B1] * i)
-            for o in (up, lo)
-        ]
-
-        def jump(k0: int, k1: int) -> np.ndarray:  # |upper - lower| of a current-linear law
-            return np.abs((p[up + k0] - p[lo + k0]) + (p[up + k1] - p[lo + k1]) * i)
-
-        # the force step between the branches (at |v| <= 1 m/s) over the blend, whose weight
-        # rises with slope at most 0.75 / width
-        step = jump(BX_C0, BX_C1) + jump(BX_A0, BX_A1) + jump(BX_B0, BX_B1)
-        return [(np.maximum(*slopes), step * 0.75 / p[BRANCH_BLEND], zero, zero)]
-    return [(p[PV_DAMPING] + zero, zero, zero, zero)]  # passive
+    currents ``i``: the model's own ``linearise`` (:class:`capsule_env.dampers.DamperModel`):
+    ``F = c x' + k x`` for the algebraic models (``C = 0``); for Spencer's model
+    ``y' = (K (x - y) + c x') / C`` and ``F = (C - c) y' + k x``."""
+    return model_of_code(damper.code).linearise(damper.as_array(), i)
 
 
 def stiffness_rates(

@@ -1,0 +1,194 @@
+"""The house of issue 26: a damper model is one module (or one ``register`` call), the plant
+and the env run it without a line of kernel code naming it, the vehicle's equations are
+written once, the compiler's machinery sits in ``capsule_env._jit``, old import paths warn.
+
+The independent fact: a linear damper of coefficient ``c`` declared here, under a new name
+and code, is the built-in ``passive`` damper with the same ``c``; its trajectories must be
+those of ``passive`` bit for bit (the same arithmetic in the same order, compiled for another
+model code)."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import importlib
+import os
+import re
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+import capsule_env
+from capsule_env._jit import kernel_function
+from capsule_env.dampers import DamperModel, DamperParamsBase, damper_force, make_damper, registry
+from capsule_env.envs import CapsuleSuspensionVectorEnv
+from capsule_env.guideway import random_profile
+from capsule_env.layout import DAMPER_PARAM_NAMES
+from capsule_env.plant import simulate
+
+PACKAGE = Path(capsule_env.__file__).parent
+TOY_NAME, TOY_CODE, C = "toy_linear", 90, 1.1e4
+
+
+@dataclasses.dataclass(frozen=True)
+class ToyLinearDamper(DamperParamsBase):
+    """``F = c v``, declared outside the package."""
+
+    damping_n_s_per_m: float = C
+    code: ClassVar[int] = TOY_CODE
+    name: ClassVar[str] = TOY_NAME
+    param_names: ClassVar[tuple[str, ...]] = ("damping_n_s_per_m",)
+
+
+@kernel_function
+def _toy_force(p, x, v, y, z, i, pre):
+    return p[0] * v, 0.0
+
+
+def _toy_linearise(p, i):
+    zero = 0.0 * i
+    return [(p[0] + zero, zero, zero, zero)]
+
+
+TOY = DamperModel(
+    name=TOY_NAME,
+    code=TOY_CODE,
+    params=ToyLinearDamper,
+    param_names=ToyLinearDamper.param_names,
+    force=_toy_force,
+    linearise=_toy_linearise,
+    uses_current=False,
+)
+
+
+@pytest.fixture
+def toy():
+    registry.register(TOY)
+    yield TOY
+    registry.unregister(TOY_NAME)
+
+
+def test_a_registered_model_is_everywhere_a_model_is(toy):
+    assert registry.model_named(TOY_NAME) is toy
+    assert DAMPER_PARAM_NAMES[TOY_NAME] == ("damping_n_s_per_m",)
+    damper = make_damper(TOY_NAME, damping_n_s_per_m=2.0e3)
+    force, rates = damper_force(damper, [0.01, -0.02], [0.5, -0.25], 0.0)
+    np.testing.assert_array_equal(force, [1.0e3, -0.5e3])  # c v, by hand
+    np.testing.assert_array_equal(rates, 0.0)
+    with pytest.raises(ValueError, match="must be new"):
+        registry.register(dataclasses.replace(toy, name="another_name"))  # same code
+    with pytest.raises(ValueError, match="built in"):
+        registry.unregister("passive")
+
+
+def test_registered_model_runs_the_plant_like_passive(toy):
+    profile = random_profile(600.0, 0.25, seed=3)
+    runs = {}
+    for name in ("passive", TOY_NAME):
+        damper = make_damper(name, damping_n_s_per_m=C)
+        runs[name] = simulate(damper, profile, 0.25, 150.0, 0.0, duration_s=0.5, dt_s=0.002)
+    assert runs["passive"].keys() == runs[TOY_NAME].keys()
+    for key, value in runs["passive"].items():
+        np.testing.assert_array_equal(runs[TOY_NAME][key], value, err_msg=key)
+    assert np.ptp(runs["passive"]["damper_force_n"][1:]) > 10.0  # it did move
+
+
+@pytest.mark.parametrize("num_envs", [1, 70])  # the serial kernel, and the threaded one
+def test_registered_model_runs_the_env_like_passive(toy, num_envs):
+    rollouts = {}
+    for name in ("passive", TOY_NAME):
+        env = CapsuleSuspensionVectorEnv(
+            num_envs=num_envs, damper=name, damper_params={"damping_n_s_per_m": C},
+            action_mode="current", episode_length_s=0.2,
+        )  # fmt: skip
+        obs = [env.reset(seed=7)[0].copy()]
+        rng = np.random.default_rng(0)
+        for _ in range(30):
+            o, reward, _, _, info = env.step(rng.uniform(-1.0, 1.0, (num_envs, 1)))
+            obs.append(np.concatenate([np.ravel(o), reward, info["damper_force_n"]]))
+        rollouts[name] = obs
+    for a, b in zip(rollouts["passive"], rollouts[TOY_NAME], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def _names_in(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text())
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    names |= {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+    return names
+
+
+def test_no_kernel_source_names_a_damper_model():
+    codes = {"PASSIVE", "REFERENCE", "BOUC_WEN", "TANH", "BI_EXPONENTIAL"}
+    laws = {"spencer_force", "bouc_wen_force", "tanh_force", "bi_exponential_force"}
+    files = [*sorted((PACKAGE / "plant").glob("*.py")), PACKAGE / "kernels.py",
+             PACKAGE / "dampers" / "dispatch.py", PACKAGE / "dampers" / "registry.py",
+             PACKAGE / "inverse.py", PACKAGE / "config.py"]  # fmt: skip
+    for path in files:
+        found = _names_in(path) & (codes | laws)
+        assert not found, f"{path.relative_to(PACKAGE)} names {sorted(found)}"
+
+
+def _imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text())
+    return {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+
+
+def test_layering_of_the_house():
+    # the damper models sit below the plant, the kernels, the env and the layout
+    below = ("capsule_env._fastmath", "capsule_env._validation", "capsule_env._jit",
+             "capsule_env.hysteresis", "capsule_env.dampers")  # fmt: skip
+    for path in sorted((PACKAGE / "dampers").glob("*.py")):
+        above = {
+            m for m in _imports(path) if m.startswith("capsule_env") and not m.startswith(below)
+        }
+        assert not above, f"dampers/{path.name} imports {sorted(above)}"
+    equations = {m for m in _imports(PACKAGE / "plant" / "equations.py") if "capsule_env" in m}
+    assert equations <= {"capsule_env._jit"}  # the vehicle depends on no damper, no layout
+    for path in PACKAGE.rglob("*.py"):  # numba's overload machinery only in _jit
+        if path.name not in ("_jit.py", "_fastmath.py", "kernels.py", "env_kernel.py"):
+            assert "numba.extending" not in _imports(path), path.relative_to(PACKAGE)
+
+
+def test_every_builtin_model_is_one_module_with_its_model():
+    for name in registry.DAMPER_NAMES:
+        module = importlib.import_module(f"capsule_env.dampers.{name}")
+        assert module.MODEL is registry.model_named(name)
+        assert module.MODEL.params.param_names == module.MODEL.param_names
+
+
+def test_old_import_paths_warn_and_still_work():
+    from capsule_env.dampers import bouc_wen
+
+    p = make_damper("bouc_wen").as_array()
+    with pytest.warns(DeprecationWarning, match="moved to capsule_env.dampers.compat"):
+        from capsule_env.dampers import bouc_wen_force
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        old = bouc_wen_force(p, 0.01, 0.2, 3e-4, 0.5)
+    assert old == bouc_wen.force.py_func(p, 0.01, 0.2, 0.0, 3e-4, 0.5, 1.0)[0]
+    with pytest.warns(DeprecationWarning, match="capsule_env.dampers.reference"):
+        from capsule_env.dampers import spencer_force  # noqa: F401
+
+
+def test_howto_damper_model_snippet_runs_as_a_script(tmp_path):
+    """docs/howto-damper-model.md's registered model runs the env as the plant and as the
+    inverted model (a user's script: a fresh folder, only the installed package)."""
+    page = PACKAGE.parent / "docs" / "howto-damper-model.md"
+    (snippet,) = re.findall(r"^```python\n(.*?)^```$", page.read_text(), flags=re.S | re.M)
+    (tmp_path / "model.py").write_text(snippet)
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env.pop("PYTHONPATH", None)
+    done = subprocess.run([sys.executable, "model.py"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = done.stdout.splitlines()
+    assert len(lines) == 2 and all("damper force" in line for line in lines)
+    forces = [np.array(line.split("[")[-1].rstrip("]").split(), float) for line in lines]
+    assert all(np.all(np.isfinite(f)) and np.ptp(f) > 1.0 for f in forces)
