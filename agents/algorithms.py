@@ -1,17 +1,15 @@
 """The learning algorithms ``train.py`` runs, by name: stable-baselines3's and sb3-contrib's.
 
-============  ==================================  ==========  =================================
-name          class                               on-policy   what it is
-============  ==================================  ==========  =================================
-``ppo``       ``stable_baselines3.PPO``           yes         clipped policy gradient
-``sac``       ``stable_baselines3.SAC``           no          maximum-entropy actor-critic
-``td3``       ``stable_baselines3.TD3``           no          twin delayed deterministic PG
-``tqc``       ``sb3_contrib.TQC``                 no          SAC with truncated quantile critics
-``crossq``    ``sb3_contrib.CrossQ``              no          SAC without target networks,
-                                                              batch-normalised critics
-``recurrentppo`` ``sb3_contrib.RecurrentPPO``     yes         PPO with an LSTM policy (memory
-                                                              of past observations)
-============  ==================================  ==========  =================================
+=================  =================================  ===========================================
+name               class                              what it is
+=================  =================================  ===========================================
+``ppo``            ``stable_baselines3.PPO``          clipped policy gradient (on-policy)
+``sac``            ``stable_baselines3.SAC``          maximum-entropy actor-critic
+``td3``            ``stable_baselines3.TD3``          twin delayed deterministic policy gradient
+``tqc``            ``sb3_contrib.TQC``                SAC with truncated quantile critics
+``crossq``         ``sb3_contrib.CrossQ``             SAC without target networks, batch norm
+``recurrentppo``   ``sb3_contrib.RecurrentPPO``       PPO with an LSTM policy (on-policy)
+=================  =================================  ===========================================
 
 sb3-contrib is part of the ``rl`` extra. Each algorithm's hyperparameters are
 ``hyperparams/<name>.yml`` (RL-Zoo format).

@@ -109,7 +109,11 @@ class MPCController(ForceLaw):
         the tangent); OSQP's ``eps_abs``, ``eps_rel`` (1e-3), ``polish``.
     """
 
-    SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity", "relative_velocity")
+    q_stroke: np.ndarray  # the weights, set by _set_gains
+    q_levitation: np.ndarray
+    r_force: np.ndarray
+    SIGNALS: tuple[str, ...] = ("stroke", "body_velocity", "gap", "bogie_velocity",
+                                "relative_velocity")  # fmt: skip
 
     def __init__(
         self,
@@ -162,7 +166,7 @@ class MPCController(ForceLaw):
             self.SIGNALS = (*type(self).SIGNALS, "body_acceleration")
         self.prediction = prediction_model(vehicle or VehicleParams(), self.dt_s, self.delay_steps,
                                       self.coil_time_constant_s, wk_cost)  # fmt: skip
-        self.damper = EnvConfig(inverse_model=inverse_model).inverse_damper
+        self.damper: Any = EnvConfig(inverse_model=inverse_model).inverse_damper
         self._qps: list[BandQP] = []
         self.reset_counters()
 
@@ -220,7 +224,9 @@ class MPCController(ForceLaw):
     def reset(self) -> None:
         self._qps = []
 
-    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+    def predict(  # type: ignore[no-untyped-def]  # Controller.predict's signature
+        self, observation, state=None, episode_start=None, deterministic=True
+    ):
         """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set forgets its
         requests in flight and its previous plan."""
         if episode_start is not None and self._qps:
@@ -259,6 +265,7 @@ class MPCController(ForceLaw):
             parts.append((edges[0] + frac * (edges[1] - edges[0]))[:, None])
         if self.wk_cost:  # the Wk filter's state, then advanced by this step's measurement
             parts.append(self._wk_state)
+            assert self.prediction.wk_discrete is not None  # built with wk_cost
             a_w, b_w = self.prediction.wk_discrete
             acc = self.signal(obs, "body_acceleration")
             self._wk_state = self._wk_state @ a_w.T + acc[:, None] * b_w[:, 0]
@@ -301,6 +308,7 @@ class MPCController(ForceLaw):
                 self._ref_rate[k] = np.nan
                 continue
             force[k] = result.u[0]
+            assert result.rate_m_s is not None and result.stroke_m is not None  # a solved plan
             self._ref_rate[k] = np.append(result.rate_m_s[1:], result.rate_m_s[-1])
             self._ref_stroke[k] = np.append(result.stroke_m[1:], result.stroke_m[-1])
         self.counters["vehicle_steps"] += n

@@ -26,6 +26,7 @@ stroke at the start of each interval are affine in ``(z_0, w, D)``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -81,7 +82,7 @@ def wk_state_space() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return a, b[:, 0], c[0]
 
 
-def _continuous(vehicle: VehicleParams, tau_s: float, wk: bool):
+def _continuous(vehicle: VehicleParams, tau_s: float, wk: bool) -> tuple[Any, ...]:
     """The continuous ``(A, B, E, c, d, wk slice)`` on ``[x; F_act (lag); w (Wk)]``, inputs
     the applied request and the guideway's velocity."""
     mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
@@ -89,7 +90,9 @@ def _continuous(vehicle: VehicleParams, tau_s: float, wk: bool):
     lag = tau_s > 0.0
     n = 4 + int(lag) + (4 if wk else 0)
     a, b, e = np.zeros((n, n)), np.zeros(n), np.zeros(n)
-    a[:4, :4] = [[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]]
+    a[:4, :4] = np.array(
+        [[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]]
+    )
     force_col = np.array([0.0, -1.0 / mc, 0.0, 1.0 / mb])
     e[2] = -1.0  # the guideway's velocity lowers the gap
     acc = np.zeros(n)  # a_c = acc.z + acc_d u
@@ -268,7 +271,7 @@ def _lq_rise_gain(
 
 
 @njit(cache=True)
-def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):
+def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):  # type: ignore[no-untyped-def]  # numba infers
     for j in range(rate_m_s.shape[0]):
         x, v = stroke_m[j], rate_m_s[j]
         sign = 1.0 if v >= 0.0 else -1.0
@@ -281,7 +284,7 @@ def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):
 
 
 def band_edges(
-    damper, stroke_m: np.ndarray, rate_m_s: np.ndarray, secant_m_s: float = 1e-4
+    damper: Any, stroke_m: np.ndarray, rate_m_s: np.ndarray, secant_m_s: float = 1e-4
 ) -> np.ndarray:
     """``(4, N)``: the force at 0 A and at ``i_max`` of the inverted model at each stroke and
     stroke rate, and their slopes in the rate (N s/m): the secant to the rate ``secant_m_s``

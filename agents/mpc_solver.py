@@ -181,7 +181,14 @@ class BandQP:
         a[2 * n : 3 * n, :m] = t - g_hi[:, None] * self.qp.rate_w
         return a
 
-    def _solve(self, free_rate, free_stroke, ref_rate, ref_stroke, linear):
+    def _solve(
+        self,
+        free_rate: np.ndarray,
+        free_stroke: np.ndarray,
+        ref_rate: np.ndarray,
+        ref_stroke: np.ndarray,
+        linear: bool,
+    ) -> tuple[np.ndarray | None, str]:
         """One solve with the sign pattern and linearisation of ``ref_rate``, ``ref_stroke``.
         ``free_*``: the predicted rate/stroke with ``w = 0``."""
         n = self.n_steps
@@ -219,7 +226,9 @@ class BandQP:
             return None, "time_limit" if status == self._time_limit else "failed"
         return res.x[: self.n_moves], "solved"
 
-    def _daqp(self, q, a, lower, upper):
+    def _daqp(
+        self, q: np.ndarray, a: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[np.ndarray | None, str]:
         """DAQP's solve, warm-started from the previous solution; a solve over
         ``time_limit_s`` (measured: DAQP has no clock of its own) is discarded."""
         t0 = time.perf_counter()

@@ -27,7 +27,8 @@ from capsule_env._validation import (
     format_bytes,
     unexpected_argument,
 )
-from capsule_env.dampers import DAMPER_NAMES, DamperParams, make_damper
+from capsule_env.dampers import DAMPER_NAMES, make_damper
+from capsule_env.dampers.base import DamperParamsBase
 from capsule_env.dampers.registry import MODELS
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
 from capsule_env.inverse import INVERSE_CODES as _INVERSE_CODES
@@ -251,11 +252,11 @@ class EnvConfig:
         return _build("vehicle_params", VehicleParams, self.vehicle_params)
 
     @property
-    def plant_damper(self) -> DamperParams:
+    def plant_damper(self) -> DamperParamsBase:
         name = self.plant_damper_name
-        damper = make_damper(name, **self.damper_params)  # names a bad key or value itself
+        damper: Any = make_damper(name, **self.damper_params)  # names a bad key or value itself
         tau = self.effective_coil_time_constant_s
-        if hasattr(damper, "coil_time_constant_s"):  # a damper with a coil
+        if hasattr(damper, "coil_time_constant_s"):  # a damper with a coil (a dataclass)
             damper = replace(damper, coil_time_constant_s=tau)
         return damper
 
@@ -278,7 +279,7 @@ class EnvConfig:
         return 1 if self.hils else 0
 
     @property
-    def inverse_damper(self) -> DamperParams:
+    def inverse_damper(self) -> DamperParamsBase:
         return make_damper(inverse_models()[self.inverse_model], **self.inverse_params)
 
     @property
@@ -297,7 +298,8 @@ class EnvConfig:
     @property
     def max_current_a(self) -> float:
         damper = self.plant_damper
-        return float(getattr(damper, "max_current_a", self.inverse_damper.max_current_a))
+        inverse: Any = self.inverse_damper  # every inverted model has a coil
+        return float(getattr(damper, "max_current_a", inverse.max_current_a))
 
     def substep_tables(self, vehicle_params: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
         """Substeps per control step, per vehicle (rows of packed ``vehicle_params``, each at its

@@ -26,7 +26,7 @@ def _card(task: Task, results: dict) -> list[str]:
     if task.shipped_policy:
         rows += [(task.shipped_policy, "shipped PPO policy")]
     rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
-    lines = [f"### `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
+    lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
              f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
              "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
              "acceleration on guideway seeds "

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from capsule_env.dampers import DamperParams
+from capsule_env.dampers.base import DamperParamsBase as DamperParams  # any registered model
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.vehicle import VehicleParams
 
