@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import literally, njit
 from scipy.linalg import expm, solve_discrete_are
 from scipy.signal import tf2ss
 
@@ -272,6 +272,7 @@ def _lq_rise_gain(
 
 @njit(cache=True)
 def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):  # type: ignore[no-untyped-def]  # numba infers
+    literally(code)  # compiled per model (the damper registry dispatches on its code)
     for j in range(rate_m_s.shape[0]):
         x, v = stroke_m[j], rate_m_s[j]
         sign = 1.0 if v >= 0.0 else -1.0
