@@ -25,11 +25,13 @@ stroke at the start of each interval are affine in ``(z_0, w, D)``.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import literally, njit
+from numba import njit
+from numba.core.errors import NumbaIRAssumptionWarning
 from scipy.linalg import expm, solve_discrete_are
 from scipy.signal import tf2ss
 
@@ -270,18 +272,39 @@ def _lq_rise_gain(
     return out
 
 
-@njit(cache=True)
-def _edges(code, p, i_max, stroke_m, rate_m_s, step_m_s, out):  # type: ignore[no-untyped-def]  # numba infers
-    literally(code)  # compiled per model (the damper registry dispatches on its code)
-    for j in range(rate_m_s.shape[0]):
-        x, v = stroke_m[j], rate_m_s[j]
-        sign = 1.0 if v >= 0.0 else -1.0
-        f0, slope = affine_in_current(code, p, x, v, 0.0)
-        f0b, slopeb = affine_in_current(code, p, x, v + sign * step_m_s, 0.0)
-        lo, hi = f0, f0 + slope * i_max
-        lob, hib = f0b, f0b + slopeb * i_max
-        out[0, j], out[1, j] = lo, hi
-        out[2, j], out[3, j] = (lob - lo) / (sign * step_m_s), (hib - hi) / (sign * step_m_s)
+_EDGES: dict[int, Any] = {}
+
+
+def _edges(code: int, *args: Any) -> None:
+    """The band edges of the model ``code`` (see :func:`band_edges`), by a kernel compiled
+    once per model with the code as a compile-time constant (the damper registry dispatches on
+    it; ``numba.literally`` would re-type every call)."""
+    kernel = _EDGES.get(code)
+    if kernel is None:
+        kernel = _edges_kernel(int(code))
+        with warnings.catch_warnings():  # numba's internal pedantic SSA check, not ours
+            warnings.simplefilter("ignore", NumbaIRAssumptionWarning)
+            kernel(*args)  # compiles
+        _EDGES[code] = kernel
+        return
+    kernel(*args)
+
+
+def _edges_kernel(code: int) -> Any:
+    @njit
+    def edges(p, i_max, stroke_m, rate_m_s, step_m_s, out):  # type: ignore[no-untyped-def]
+        for j in range(rate_m_s.shape[0]):
+            x, v = stroke_m[j], rate_m_s[j]
+            sign = 1.0 if v >= 0.0 else -1.0
+            f0, slope = affine_in_current(code, p, x, v, 0.0)
+            f0b, slopeb = affine_in_current(code, p, x, v + sign * step_m_s, 0.0)
+            lo, hi = f0, f0 + slope * i_max
+            lob, hib = f0b, f0b + slopeb * i_max
+            out[0, j], out[1, j] = lo, hi
+            out[2, j] = (lob - lo) / (sign * step_m_s)
+            out[3, j] = (hib - hi) / (sign * step_m_s)
+
+    return edges
 
 
 def band_edges(
