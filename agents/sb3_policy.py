@@ -57,6 +57,27 @@ def _statistics(vec_normalize: Any) -> tuple[Any, float, float]:
     return obs_rms, float(vec_normalize.clip_obs), float(vec_normalize.epsilon)
 
 
+def _checked_meta(path: Path, stem: Path, meta_path: Path) -> dict:
+    """The policy's ``.json`` metadata (empty when absent), its recorded digests checked against
+    the files present; ``ValueError`` naming the file otherwise."""
+    meta: dict = {}
+    if meta_path.is_file():
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"policy metadata {meta_path} is not readable JSON: {exc}") from None
+        if not isinstance(meta, dict):
+            raise ValueError(f"policy metadata {meta_path} is not a JSON object")
+    recorded = meta.get("files")
+    if isinstance(recorded, dict):  # a missing .pkl is dealt with by the caller
+        present = {n: d for n, d in recorded.items() if (stem.parent / n).is_file()}
+        problem = digest_mismatch(stem.parent, present)
+        if problem:
+            raise ValueError(f"policy {path} does not match {meta_path.name}: {problem}")
+    meta.setdefault("name", stem.name)
+    return meta
+
+
 class SB3Policy(Controller):
     """A trained SB3 policy with the observation normalisation it was trained with.
 
@@ -106,23 +127,7 @@ class SB3Policy(Controller):
             raise ValueError(f"policy path must be an existing SB3 .zip file, got {path}")
         if zip_path.stat().st_size == 0:
             raise ValueError(f"policy file {path} is empty")
-        meta: dict = {}
-        if meta_path.is_file():
-            try:
-                meta = json.loads(meta_path.read_text())
-            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise ValueError(
-                    f"policy metadata {meta_path} is not readable JSON: {exc}"
-                ) from None
-            if not isinstance(meta, dict):
-                raise ValueError(f"policy metadata {meta_path} is not a JSON object")
-        recorded = meta.get("files")
-        if isinstance(recorded, dict):  # a missing .pkl is dealt with below
-            present = {n: d for n, d in recorded.items() if (stem.parent / n).is_file()}
-            problem = digest_mismatch(stem.parent, present)
-            if problem:
-                raise ValueError(f"policy {path} does not match {meta_path.name}: {problem}")
-        meta.setdefault("name", stem.name)
+        meta = _checked_meta(path, stem, meta_path)
         algo = meta.get("algo", "ppo")
         if algo not in ALGORITHMS:
             raise ValueError(f"unknown algo {algo!r} in {meta_path}; accepted: {ALGORITHMS}")

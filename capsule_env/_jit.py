@@ -98,7 +98,7 @@ def ensure_cache_location() -> None:
 ensure_cache_location()
 
 # Numba is imported after the cache location is settled (the decorators below read it).
-from numba import njit, types  # noqa: E402
+from numba import njit, typeof, types  # noqa: E402
 from numba.experimental import structref  # noqa: E402
 from numba.extending import overload  # noqa: E402
 
@@ -120,8 +120,10 @@ def specialised(
 
     The decorated function is a *factory*: numba calls it with the values of the ``literal``
     arguments (Python ints or bools) and the numba types of the others, and it returns the
-    implementation (a plain function of the same arguments) or ``None`` when it has none. It
-    is called from compiled code only; calling it from Python raises ``NotImplementedError``.
+    implementation (a plain function of the same arguments) or ``None`` when it has none.
+    Called from Python (a script, a test, a controller written in Python), it compiles the
+    implementation for the given values of the ``literal`` arguments once, as a plain
+    ``njit`` function, and runs it (``TypeError`` when the factory has none for them).
 
     Why: a plain numba function specialised on a literal argument still types, lowers and
     optimises every branch of ``if model == ...`` (numba prunes branches on constants and
@@ -146,9 +148,19 @@ def specialised(
         at = [names.index(n) for n in literal]
         plain_at = [names.index(n) for n in plain]
 
+        from_python: dict[tuple[Any, ...], Any] = {}
+
         @functools.wraps(factory)
         def stub(*args: Any) -> Any:
-            raise NotImplementedError(f"{factory.__qualname__} is compiled code only")
+            key = tuple(args[k] for k in at)
+            compiled = from_python.get(key)
+            if compiled is None:
+                given = [a if k in at else typeof(a) for k, a in enumerate(args)]
+                impl = factory(*given)
+                if impl is None:
+                    raise TypeError(f"{factory.__qualname__} has no implementation for {key}")
+                compiled = from_python[key] = njit(error_model="numpy")(impl)
+            return compiled(*args)
 
         def typer(*args: Any) -> Any:
             if not all(isinstance(args[k], types.Literal) for k in at):

@@ -145,6 +145,12 @@ class EnvConfig:
     position_error_m: float = 0.05
 
     def __post_init__(self) -> None:
+        self._check_plant_options()
+        self._check_episode_options()
+        self._check_observation_and_reward()
+        self._check_vehicles_preview_and_overrides()
+
+    def _check_plant_options(self) -> None:
         check_choice("action_mode", self.action_mode, ACTION_MODES)
         check_choice("inverse_model", self.inverse_model, tuple(sorted(inverse_models())))
         check_choice("setting", self.setting, SETTINGS)
@@ -156,6 +162,8 @@ class EnvConfig:
             check_in_range("sensor_noise", self.sensor_noise, 0.0, 1e3)
         if self.control_delay_steps is not None:
             check_integer("control_delay_steps", self.control_delay_steps, 0, 100)
+
+    def _check_episode_options(self) -> None:
         check_choice("guideway", self.guideway, GUIDEWAY_KINDS)
         check_in_range("speed_kmh", self.speed_kmh, 1e-3, 1e4)
         check_seed("guideway_seed", self.guideway_seed)
@@ -169,6 +177,8 @@ class EnvConfig:
             )
         if self.substeps is not None:
             check_integer("substeps", self.substeps, 1, 10_000)
+
+    def _check_observation_and_reward(self) -> None:
         check_choice("observation", self.observation, OBSERVATION_SETS)
         check_positive("max_force_n", self.max_force_n)
         for name in (
@@ -185,6 +195,8 @@ class EnvConfig:
         check_positive("stroke_scale_m", self.stroke_scale_m)
         check_positive("velocity_scale_m_s", self.velocity_scale_m_s)
         check_positive("stroke_limit_m", self.stroke_limit_m)
+
+    def _check_vehicles_preview_and_overrides(self) -> None:
         check_in_range("vehicle_randomization", self.vehicle_randomization, 0.0, 0.9)
         if self.speed_range_kmh is not None:
             _check_speed_range(self.speed_range_kmh)

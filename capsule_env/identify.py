@@ -377,6 +377,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _run(parser, args)
 
 
+def _write_plots(results: list, folder: Path) -> None:
+    """Each result's figures into ``folder`` (a prefix per file when there are several)."""
+    written = []
+    for r in results:
+        prefix = "" if len(results) == 1 else Path(r.source).stem + "_"
+        written += plot_fits(r, None, folder, prefix=prefix)
+    print(f"wrote {len(written)} figures to {folder}")
+
+
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """The work of :func:`main` once the arguments are parsed; returns the exit status."""
     if args.emit_defaults and args.data is not None:
@@ -406,11 +415,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             atomic_write_text(args.json, json.dumps(payload, indent=2) + "\n")
             print(f"\nwrote {args.json}")
         if args.plots is not None:
-            written = []
-            for r in results:
-                prefix = "" if len(results) == 1 else Path(r.source).stem + "_"
-                written += plot_fits(r, None, args.plots, prefix=prefix)
-            print(f"wrote {len(written)} figures to {args.plots}")
+            _write_plots(results, args.plots)
     except (ValueError, OSError, TypeError) as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2

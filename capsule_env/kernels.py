@@ -128,60 +128,72 @@ def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool)
     # Each variant gets a name of its own (_jit.unique_symbol): see there.
     variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
     if kind == ENV:
+        return _env_kernels(variant, model, mode, command, preview)
+    return _plant_kernels(variant, model, mode)
 
-        @njit(cache=True, no_cfunc_wrapper=True)
-        @unique_symbol(variant)
-        def serial(lo, hi, actions, signals, args):
-            params, plant, state = args.params, args.plant, args.state
-            out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
-            # scratch of env_sense and block_step, one per call (they allocate nothing)
-            sense = np.empty(SENSE_SCRATCH_SHAPE)
-            lanes, counts = block_scratch()
-            for b in range(lo, hi, BLOCK):
-                e = min(hi, b + BLOCK)
-                env_commands(command, b, e, actions, params, state, out)
-                x, i_cmd, route = state.plant, applied_current(state), state.route
-                if mode == KERNEL_SCALAR:
-                    scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
-                else:
-                    block_step(
-                        model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
-                        lanes, counts,
-                    )  # fmt: skip
-                env_sense(b, e, params, plant, state, out, sense)
-                if preview:
-                    env_preview(b, e, params, plant, state, out.obs)
 
-        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
-        @unique_symbol(variant)
-        def parallel(n, actions, signals, args):
-            chunk = work_item_size(n)
-            for c in prange((n + chunk - 1) // chunk):
-                serial(c * chunk, min(n, (c + 1) * chunk), actions, signals, args)
+def _env_kernels(
+    variant: str, model: int, mode: int, command: int, preview: bool
+) -> tuple[Any, Any]:
+    """The env kernels ``(serial, parallel)``: commands -> plant -> sense -> observe."""
 
-    else:
+    @njit(cache=True, no_cfunc_wrapper=True)
+    @unique_symbol(variant)
+    def serial(lo, hi, actions, signals, args):
+        params, plant, state = args.params, args.plant, args.state
+        out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
+        # scratch of env_sense and block_step, one per call (they allocate nothing)
+        sense = np.empty(SENSE_SCRATCH_SHAPE)
+        lanes, counts = block_scratch()
+        for b in range(lo, hi, BLOCK):
+            e = min(hi, b + BLOCK)
+            env_commands(command, b, e, actions, params, state, out)
+            x, i_cmd, route = state.plant, applied_current(state), state.route
+            if mode == KERNEL_SCALAR:
+                scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+            else:
+                block_step(
+                    model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
+                    lanes, counts,
+                )  # fmt: skip
+            env_sense(b, e, params, plant, state, out, sense)
+            if preview:
+                env_preview(b, e, params, plant, state, out.obs)
 
-        @njit(cache=True, no_cfunc_wrapper=True)
-        @unique_symbol(variant)
-        def serial(lo, hi, plant, x, i_cmd, route, dt, out):
-            lanes, counts = block_scratch()
-            for b in range(lo, hi, BLOCK):
-                e = min(hi, b + BLOCK)
-                if mode == KERNEL_SCALAR:
-                    scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
-                else:
-                    block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out, lanes, counts)
+    @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+    @unique_symbol(variant)
+    def parallel(n, actions, signals, args):
+        chunk = work_item_size(n)
+        for c in prange((n + chunk - 1) // chunk):
+            serial(c * chunk, min(n, (c + 1) * chunk), actions, signals, args)
 
-        @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
-        @unique_symbol(variant)
-        def parallel(n, plant, x, i_cmd, route, dt, out):
-            dp, vp, table, constants, profiles, spacing = plant
-            r0, r1, r2, r3 = route
-            chunk = work_item_size(n)
-            for c in prange((n + chunk - 1) // chunk):
-                serial(c * chunk, min(n, (c + 1) * chunk),
-                       PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
-                       Route(r0, r1, r2, r3), dt, out)  # fmt: skip
+    return serial, parallel
+
+
+def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
+    """The plant kernels ``(serial, parallel)``: the plant alone over a control interval."""
+
+    @njit(cache=True, no_cfunc_wrapper=True)
+    @unique_symbol(variant)
+    def serial(lo, hi, plant, x, i_cmd, route, dt, out):
+        lanes, counts = block_scratch()
+        for b in range(lo, hi, BLOCK):
+            e = min(hi, b + BLOCK)
+            if mode == KERNEL_SCALAR:
+                scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
+            else:
+                block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out, lanes, counts)
+
+    @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
+    @unique_symbol(variant)
+    def parallel(n, plant, x, i_cmd, route, dt, out):
+        dp, vp, table, constants, profiles, spacing = plant
+        r0, r1, r2, r3 = route
+        chunk = work_item_size(n)
+        for c in prange((n + chunk - 1) // chunk):
+            serial(c * chunk, min(n, (c + 1) * chunk),
+                   PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
+                   Route(r0, r1, r2, r3), dt, out)  # fmt: skip
 
     return serial, parallel
 

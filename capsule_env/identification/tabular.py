@@ -467,21 +467,27 @@ def _map_columns(
     if n < _MIN_SAMPLES:
         raise ValueError(f"{name} has {n} samples; a loop needs at least {_MIN_SAMPLES}")
     for quantity, (label, values) in found.items():
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            raise ValueError(
-                f"{name}, column {label!r}: NaN or infinite value at sample {int(bad[0]) + 1}"
-            )
-        peak = float(np.max(np.abs(values)))
-        if peak > MAX_MEASURED_MAGNITUDE:
-            raise ValueError(
-                f"{name}, column {label!r} reaches {peak:.3g} {QUANTITIES[quantity]}, beyond "
-                f"{MAX_MEASURED_MAGNITUDE:.0e}: not a damper test's values (check the unit)"
-            )
-        if quantity in ("displacement", "force") and np.ptp(values) == 0.0:
-            raise ValueError(f"{name}, column {label!r} is constant: nothing to fit")
-        check_column(name, quantity, label, values)
+        _check_values(name, quantity, label, values)
     return found
+
+
+def _check_values(name: str, quantity: str, label: str, values: np.ndarray) -> None:
+    """One mapped column's values: finite, of a damper test's magnitude, not constant where
+    the fit needs them to vary, and plausible (:func:`check_column`)."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise ValueError(
+            f"{name}, column {label!r}: NaN or infinite value at sample {int(bad[0]) + 1}"
+        )
+    peak = float(np.max(np.abs(values)))
+    if peak > MAX_MEASURED_MAGNITUDE:
+        raise ValueError(
+            f"{name}, column {label!r} reaches {peak:.3g} {QUANTITIES[quantity]}, beyond "
+            f"{MAX_MEASURED_MAGNITUDE:.0e}: not a damper test's values (check the unit)"
+        )
+    if quantity in ("displacement", "force") and np.ptp(values) == 0.0:
+        raise ValueError(f"{name}, column {label!r} is constant: nothing to fit")
+    check_column(name, quantity, label, values)
 
 
 def _runs(

@@ -27,13 +27,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from capsule_env.dampers import PASSIVE, DamperParams, damper_eval
+from capsule_env.dampers import DamperParams, damper_eval
 from capsule_env.dampers import hysteresis_params as _hysteresis_params
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_rate, saturation_level
 from capsule_env.layout import COIL_TAU, MASS_BODY, MASS_BOGIE, STIFF_LEVITATION, STIFF_SECONDARY
 from capsule_env.plant.block import guideway_elevation
@@ -45,23 +47,46 @@ __all__ = ["ODE_STATE_NAMES", "VariableStepPlant", "simulate_variable_step"]
 ODE_STATE_NAMES = ("z_c", "v_c", "z_b", "v_b", "z", "y", "i")
 
 
-@njit(cache=True)
-def _rhs(t, s, model, p, vp, i_cmd, route, profiles, spacing):  # pragma: no cover - numba
-    zc, vc, zb, vb, z, y, ic = s[0], s[1], s[2], s[3], s[4], s[5], s[6]
-    tau = p[COIL_TAU]
-    i_now = ic if tau > 0.0 else i_cmd
-    zg = route[2] * guideway_elevation(profiles, 0, spacing, profiles.shape[1] - 1.0,
-                                       route[0] + route[1] * t)  # fmt: skip
-    force, y_dot, w = damper_eval(model, p, zc - zb, vc - vb, y, z, i_now)
-    a_coef, gamma, beta = _hysteresis_params(model, p)
-    sec = vp[STIFF_SECONDARY] * (zc - zb) + force
-    out = np.empty(7)
-    out[0], out[1] = vc, -sec / vp[MASS_BODY]
-    out[2], out[3] = vb, (sec - vp[STIFF_LEVITATION] * (zb - zg)) / vp[MASS_BOGIE]
-    out[4] = hysteresis_rate(z, w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
-    out[5] = y_dot
-    out[6] = (i_cmd - ic) / tau if tau > 0.0 else 0.0
-    return out, force, zg
+_RHS: dict[int, Any] = {}
+
+
+def _rhs_of(model: int) -> Any:
+    """The ODE's right-hand side for the damper model ``model``, compiled once per model with
+    the code as a compile-time constant (the damper registry dispatches on it)."""
+    if model not in _RHS:
+        _RHS[model] = _make_rhs(int(model))
+    return _RHS[model]
+
+
+def _make_rhs(model: int) -> Any:
+    @njit
+    def rhs(t, s, p, vp, i_cmd, route, profiles, spacing):  # type: ignore[no-untyped-def]
+        zc, vc, zb, vb, z, y, ic = s[0], s[1], s[2], s[3], s[4], s[5], s[6]
+        tau = p[COIL_TAU]
+        i_now = ic if tau > 0.0 else i_cmd
+        zg = route[2] * guideway_elevation(profiles, 0, spacing, profiles.shape[1] - 1.0,
+                                           route[0] + route[1] * t)  # fmt: skip
+        force, y_dot, w = damper_eval(model, p, zc - zb, vc - vb, y, z, i_now)
+        a_coef, gamma, beta = _hysteresis_params(model, p)
+        sec = vp[STIFF_SECONDARY] * (zc - zb) + force
+        out = np.empty(7)
+        out[0], out[1] = vc, -sec / vp[MASS_BODY]
+        out[2], out[3] = vb, (sec - vp[STIFF_LEVITATION] * (zb - zg)) / vp[MASS_BOGIE]
+        out[4] = hysteresis_rate(z, w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
+        out[5] = y_dot
+        out[6] = (i_cmd - ic) / tau if tau > 0.0 else 0.0
+        return out, force, zg
+
+    return rhs
+
+
+def _hysteresis_coefficients(damper: DamperParams, p: np.ndarray) -> tuple[float, float, float]:
+    """``(A, gamma, beta)`` of the damper's hysteresis from its registry entry (zeros
+    without one)."""
+    hyst = model_of_code(damper.code).hysteresis
+    if hyst is None:
+        return 0.0, 0.0, 0.0
+    return float(p[hyst.a_coef]), float(p[hyst.gamma]), float(p[hyst.beta])
 
 
 @dataclass
@@ -105,18 +130,18 @@ class VariableStepPlant:
         self._profiles = np.ascontiguousarray(np.atleast_2d(self.profile_m), dtype=float)
         self._route = np.array([self.start_m, self.speed_mps, self.gain], dtype=float)
         if self.atol is None:
-            a, g, b = (float(u) for u in _hysteresis_params(self.damper.code, self._p))
+            a, g, b = _hysteresis_coefficients(self.damper, self._p)
             z_scale = saturation_level(a, g, b) if a > 0.0 else 1.0
             i_scale = getattr(self.damper, "max_current_a", 1.0)
             scales = np.array([0.01, 0.1, 0.01, 0.1, z_scale, 0.01, i_scale])
             self.atol = self.rtol * scales
 
     def _fun(self, i_cmd: float):
-        code, p, vp = self.damper.code, self._p, self._vp
+        rhs, p, vp = _rhs_of(self.damper.code), self._p, self._vp
         route, profiles, spacing = self._route, self._profiles, float(self.spacing_m)
 
         def fun(t: float, s: np.ndarray) -> np.ndarray:
-            return _rhs(t, s, code, p, vp, i_cmd, route, profiles, spacing)[0]
+            return rhs(t, s, p, vp, i_cmd, route, profiles, spacing)[0]
 
         return fun
 
@@ -124,16 +149,15 @@ class VariableStepPlant:
         """``(damper force N, body acceleration, bogie acceleration m/s^2, guideway m)`` at the
         present state under the command ``i_cmd``."""
         s = self.state
-        d, force, zg = _rhs(self.time_s, s, self.damper.code, self._p, self._vp, i_cmd,
-                            self._route, self._profiles, float(self.spacing_m))  # fmt: skip
+        d, force, zg = _rhs_of(self.damper.code)(self.time_s, s, self._p, self._vp, i_cmd,
+                                                 self._route, self._profiles,
+                                                 float(self.spacing_m))  # fmt: skip
         return float(force), float(d[1]), float(d[3]), float(zg)
 
     def step(self, current_command_a: float, dt_s: float) -> None:
         """Advance by ``dt_s`` with the command held (clipped to ``[0, i_max]``)."""
-        i_max = getattr(self.damper, "max_current_a", 0.0)
-        i_cmd = (
-            min(max(float(current_command_a), 0.0), i_max) if self.damper.code != PASSIVE else 0.0
-        )
+        i_max = getattr(self.damper, "max_current_a", 0.0)  # 0 for a damper without a coil
+        i_cmd = min(max(float(current_command_a), 0.0), i_max)
         if self._p[COIL_TAU] <= 0.0:
             self.state[6] = i_cmd
         t0, t1 = self.time_s, self.time_s + dt_s
