@@ -19,11 +19,11 @@ import math
 import warnings
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from capsule_env._fastmath import BORROWED, FAST, fast_cos_2pi, fast_log
-from capsule_env.dampers import BOUC_WEN
+from capsule_env._jit import specialised
+from capsule_env.dampers.registry import model_of_code
 from capsule_env.env_params import (
     CSDC_STROKE,
     CSDC_Z,
@@ -159,8 +159,8 @@ COMMAND_CURRENT = -1
 def command_path(current_mode: bool, inverse_code: int) -> int:
     """How the env turns actions into current commands, a compile-time constant of its kernel:
     :data:`COMMAND_CURRENT` in current mode, else the damper code of the inverted model
-    (``BOUC_WEN``: the CSDC inverse with its hysteresis estimate; ``BI_EXPONENTIAL``, ``TANH``:
-    the algebraic inverses)."""
+    (Bouc-Wen's: the CSDC inverse with its hysteresis estimate; the Bi-exponential's and
+    tanh's: the algebraic inverses)."""
     return COMMAND_CURRENT if current_mode else int(inverse_code)
 
 
@@ -222,6 +222,7 @@ def _current_lanes(actions, i_max, i_command, f_desired):
         f_desired[j] = 0.0
 
 
+@specialised("inv_code")
 def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
     """Force mode through an algebraic inverse model, one block of vehicles (a SIMD loop).
     ``inv_code`` is a literal: only its model's inverse compiles (a closure constant below,
@@ -230,15 +231,7 @@ def _inverse_lanes(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_c
     The parameters are read into a tuple first: ``p[k] if up else p[j]`` on an array is a
     conditional load, which LLVM does not vectorise (the loop ran 3x slower); on a tuple it is
     a select between two values."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(_inverse_lanes, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _inverse_lanes_impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command,
-                        f_desired):  # fmt: skip
-    if not isinstance(inv_code, types.IntegerLiteral):
-        return None
-    code = inv_code.literal_value
+    code = inv_code
 
     def impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max, i_command, f_desired):
         p = row_params(inv_p.reshape(1, -1), 0)
@@ -251,20 +244,17 @@ def _inverse_lanes_impl(inv_code, inv_p, actions, stroke, rate, max_force, i_max
     return impl
 
 
+@specialised("command", plain=("lo",))
 def env_commands(command, lo, hi, actions, params, state, out):
     """Vehicles ``lo .. hi-1``: action -> current command (directly in current mode, through
     the inverse model on this step's measurements in force mode), then the control delay: the
     command written into each vehicle's ring buffer, the one from ``control_delay_steps`` ago
     applied. ``command`` (:func:`command_path`) is a compile-time constant: only the path in
-    use compiles (the unused ones were a sixth of a first step's compile time)."""
-    raise NotImplementedError  # pragma: no cover - compiled from the overload
-
-
-@overload(env_commands, prefer_literal=True, jit_options={**FAST, **BORROWED})
-def _env_commands(command, lo, hi, actions, params, state, out):
-    if not isinstance(command, types.IntegerLiteral) or isinstance(lo, types.Literal):
-        return None  # specialise on the command path only
-    cmd = command.literal_value
+    use compiles (the unused ones were a sixth of a first step's compile time). An inverse
+    that keeps a hysteresis estimate (the registry's ``inverse_name == "csdc"``, Bouc-Wen's)
+    runs per vehicle with its estimate; the algebraic ones by :func:`_inverse_lanes`."""
+    cmd = command
+    stateful = cmd != COMMAND_CURRENT and model_of_code(cmd).inverse_name == "csdc"
 
     def impl(command, lo, hi, actions, params, state, out):
         sig, meas, csdc_state = out.signals, state.measured, csdc(state)
@@ -272,7 +262,7 @@ def _env_commands(command, lo, hi, actions, params, state, out):
         f_desired, i_command = sig[SIG_DESIRED_FORCE, lo:hi], sig[SIG_CURRENT_COMMAND, lo:hi]
         if cmd == COMMAND_CURRENT:
             _current_lanes(actions[lo:hi], i_max, i_command, f_desired)
-        elif cmd == BOUC_WEN:  # CSDC: a hysteresis estimate per vehicle, scalar
+        elif stateful:  # CSDC: a hysteresis estimate per vehicle, scalar
             inv_p = params.inverse_params
             for n in range(lo, hi):
                 f_d = actions[n] * params.max_force_n
@@ -282,7 +272,7 @@ def _env_commands(command, lo, hi, actions, params, state, out):
                 )
                 csdc_state[CSDC_Z, n] = z_est
                 csdc_state[CSDC_STROKE, n] = x_m
-                f0, slope = affine_in_current(BOUC_WEN, inv_p, x_m, v_m, z_est)
+                f0, slope = affine_in_current(cmd, inv_p, x_m, v_m, z_est)
                 sig[SIG_DESIRED_FORCE, n] = f_d
                 sig[SIG_CURRENT_COMMAND, n] = invert_affine(f_d, f0, slope, v_m, i_max)
         else:
