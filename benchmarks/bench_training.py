@@ -52,7 +52,7 @@ from capsule_env.agents.training import HYPERPARAMS_DIR, policy_env_kwargs
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecMonitor, VecNormalize
 
-from capsule_env._cli import parse_literal
+from capsule_env._cli import ArgumentParser, parse_literal
 from capsule_env.evaluation import VALIDATION_GUIDEWAY_SEED, episode_metrics, run_episodes
 from capsule_env.safe_io import atomic_write_text, check_writable_file
 from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
@@ -280,7 +280,9 @@ def parse_hp(items: list[str]) -> dict:
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p = ArgumentParser(
+        prog="bench_training.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
     p.add_argument(
         "--algos",
         nargs="+",

@@ -29,6 +29,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import numba
 import torch
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
@@ -84,6 +85,10 @@ class Args:
     """tensorboard log folder (needs the tensorboard package)"""
     threads: int = 1
     """torch CPU threads (1 is fastest here)"""
+    env_threads: int = 1
+    """numba threads of the env kernel (1: the env and the learner take turns on one core; on
+    a 2-core machine that other jobs share, 2 made PPO's training 2.2 x slower: the kernel's
+    threads wait for a core at every step; benchmarks/bench_training.py --env-threads)"""
     progress: bool = True
     """show a progress bar"""
     hyperparams: str | None = None
@@ -108,6 +113,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         raise SystemExit(f"train.py: error: {exc}") from None
     args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
     torch.set_num_threads(args.threads)
+    numba.set_num_threads(min(args.env_threads, numba.config.NUMBA_NUM_THREADS))
 
     # Seeds, in one place: torch, numpy, random and the vehicles' streams. A resumed run gets
     # a seed derived from the seed and the timesteps done, so it does not replay the start.
