@@ -10,8 +10,9 @@ ride task ``CapsuleRide-v0``; ``--hp KEY=VALUE`` and ``--num-envs`` override the
 policy is evaluated every ``--eval-every-s`` seconds of training on the validation guideway
 bank (bank 7, seeds 5000..5009, 10 s episodes: train.py's evaluation). The bar is the clipped
 LQR on measured signals (``lqr-clipped-biexp-meas``), measured once in the same run on the same
-episodes. An algorithm stops at the first evaluation at or below the bar, at ``--budget-s``
-seconds of training, or at the file's ``n_timesteps`` (``--timesteps``), whichever comes first.
+episodes. An algorithm stops at the first evaluation at or below the bar (unless
+``--no-stop-at-bar``), at ``--budget-s`` seconds of training, or at the file's ``n_timesteps``
+(``--timesteps``), whichever comes first.
 
 Clocks: ``train_s`` is the wall time of ``learn`` minus the evaluations (the time a training
 run spends learning); ``time_to_bar_s`` is ``train_s`` at the first evaluation that reaches
@@ -120,9 +121,10 @@ class BarCallback(BaseCallback):
     first evaluation at or below ``bar`` or when ``budget_s`` seconds of training are spent."""
 
     def __init__(self, clock: Clock, validation: Validation, bar: float, every_s: float,
-                 budget_s: float) -> None:  # fmt: skip
+                 budget_s: float, stop_at_bar: bool = True) -> None:  # fmt: skip
         super().__init__()
         self.clock, self.validation, self.bar = clock, validation, bar
+        self.stop_at_bar = stop_at_bar
         self.every_s, self.budget_s = every_s, budget_s
         self.next_eval_s = every_s
         self.evaluations: list[dict] = []
@@ -133,7 +135,7 @@ class BarCallback(BaseCallback):
         if train_s >= self.next_eval_s or train_s >= self.budget_s:
             self.next_eval_s = train_s + self.every_s
             self.evaluate(train_s)
-        return self.reached is None and train_s < self.budget_s
+        return (self.reached is None or not self.stop_at_bar) and train_s < self.budget_s
 
     def evaluate(self, train_s: float) -> dict:
         """Evaluate the current policy (frozen normalisation statistics), record it."""
@@ -211,7 +213,8 @@ def bench_algo(setup: Setup, validation: Validation, bar: float, args: Any) -> d
     """Train ``setup`` until the bar, the budget or the timesteps; the figures as a dict."""
     model, timed, first_step_s = make_model(setup, args.seed)
     clock = Clock()
-    callback = BarCallback(clock, validation, bar, args.eval_every_s, args.budget_s)
+    callback = BarCallback(clock, validation, bar, args.eval_every_s, args.budget_s,
+                           args.stop_at_bar)  # fmt: skip
     timed_phases(model, clock)
     clock.t0 = time.perf_counter()
     model.learn(setup.total, callback=callback)
@@ -233,13 +236,17 @@ def bench_algo(setup: Setup, validation: Validation, bar: float, args: Any) -> d
         "update_s": clock.update_s,
         "eval_s": clock.eval_s,
         "first_step_s": first_step_s,
-        "stopped_by": "bar" if reached else ("budget" if train_s >= args.budget_s else "timesteps"),
+        "stopped_by": _stopped_by(reached is not None and args.stop_at_bar, train_s, args.budget_s),
         "time_to_bar_s": reached["train_s"] if reached else None,
         "steps_to_bar": reached["num_timesteps"] if reached else None,
         "best": best,
         "final": callback.evaluations[-1],
         "evaluations": callback.evaluations,
     }
+
+
+def _stopped_by(at_bar: bool, train_s: float, budget_s: float) -> str:
+    return "bar" if at_bar else ("budget" if train_s >= budget_s else "timesteps")
 
 
 def print_result(algo: str, r: dict, bar: float) -> None:
@@ -301,6 +308,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         type=float,
         default=5.0,
         help="seconds of training between evaluations (default 5)",
+    )
+    p.add_argument(
+        "--stop-at-bar",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="stop an algorithm at the first evaluation that reaches the bar "
+        "(--no-stop-at-bar: train on to the budget or the timesteps)",
     )
     p.add_argument("--timesteps", type=int, help="env steps at most (default: the file's)")
     p.add_argument("--num-envs", type=int, help="vehicles (default: the file's n_envs)")
