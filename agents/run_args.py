@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 #: Define the run: restored by ``--resume``; given again with another value, refused.
-FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length")
+FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length",
+         "residual", "residual_scale")  # fmt: skip
 #: Restored by ``--resume`` unless given again (then the given value holds).
 ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_minutes",
               "keep_replay_buffers")  # fmt: skip
@@ -71,6 +72,9 @@ def restore_arguments(args: Any, meta: dict, ckpt: Path) -> Any:
         stored = {k: meta[k] for k in ("algo", "seed", "num_envs", "name") if k in meta}
     given = given_arguments(args)
     changes = {}
+    if isinstance(meta.get("args"), dict) and not stored.get("residual") and "residual" in given:
+        raise ValueError(f"--resume: --residual {args.residual!r}: the run ({ckpt}) is not a "
+                         "residual run; start one in another --output-dir")  # fmt: skip
     for key in FIXED:
         if stored.get(key) is None:
             continue

@@ -26,14 +26,39 @@ def shipped_policy_paths() -> list[str]:
     return [str(p) for p in sorted(PRETRAINED_DIR.glob("*.zip"))]
 
 
-def shipped_policies() -> dict[str, SB3Policy]:
+def shipped_policies() -> dict[str, Controller]:
     """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
     ``ppo-measured``, ``ppo-preview``). Each carries the env arguments it was trained with
     (:attr:`SB3Policy.env_kwargs`: pass them to ``gymnasium.make``) and acts through
     :meth:`SB3Policy.predict`. Needs the ``rl`` extra."""
     use_one_torch_thread()
-    policies = [SB3Policy.load(path) for path in shipped_policy_paths()]
+    policies = [load_policy(path) for path in shipped_policy_paths()]
     return {str(policy.name): policy for policy in policies}
+
+
+def load_policy(path: str | Path, require_normalization: bool = True) -> Controller:
+    """A saved policy as a controller: :meth:`SB3Policy.load`, wrapped as a
+    :class:`~capsule_env.agents.residual.ResidualPolicy` of its law when its metadata has a
+    ``residual`` block (``{"law": NAME, "scale": S}``, written by ``train.py --residual``): the
+    saved network is the correction added to the law's request, so it only acts right with it.
+    ``ValueError`` for an unknown law or a bad scale in the metadata."""
+    policy = SB3Policy.load(path, require_normalization=require_normalization)
+    block = policy.meta.get("residual")
+    if block is None:
+        return policy
+    from capsule_env.agents.classical import FACTORIES, make_controller
+    from capsule_env.agents.residual import ResidualPolicy
+
+    law_name = block.get("law") if isinstance(block, dict) else None
+    if law_name not in FACTORIES:
+        raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller; "
+                         f"accepted: {', '.join(sorted(FACTORIES))}")  # fmt: skip
+    residual = ResidualPolicy(make_controller(law_name), policy, block.get("scale", 0.5),
+                              name=str(policy.name))  # fmt: skip
+    residual.env_kwargs = dict(policy.env_kwargs)
+    residual.meta, residual.path = policy.meta, getattr(policy, "path", None)
+    residual.obs_rms = policy.obs_rms  # None: raw observations (evaluate.py warns)
+    return residual
 
 
 def use_one_torch_thread() -> None:

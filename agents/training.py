@@ -138,6 +138,7 @@ def check_args(args: Any) -> None:
     for name in ("eval_freq", "checkpoint_freq", "keep_replay_buffers"):
         if getattr(args, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    check_residual_args(args)
     if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
         raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
     if args.env_kwargs.get("guideway_seed", None) in (
@@ -148,6 +149,29 @@ def check_args(args: Any) -> None:
             f"guideway_seed={args.env_kwargs['guideway_seed']} is a held-out bank (evaluation "
             f"{EVALUATION_GUIDEWAY_SEED}, validation {VALIDATION_GUIDEWAY_SEED})"
         )
+
+
+def check_residual_args(args: Any) -> None:
+    """``--residual`` names a classical law and ``--residual-scale`` is in (0, 2];
+    ``ValueError`` naming the option and what it accepts."""
+    from capsule_env.agents.classical import FACTORIES
+
+    law = getattr(args, "residual", None)
+    if law is not None and law not in FACTORIES:
+        raise ValueError(f"--residual must name a classical controller ({', '.join(FACTORIES)}), "
+                         f"got {law!r}")  # fmt: skip
+    scale = getattr(args, "residual_scale", 0.5)
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and 0.0 < scale <= 2.0):
+        raise ValueError(f"--residual-scale must be in (0, 2], got {scale}")
+
+
+def residual_of(args: Any) -> tuple[Any, float] | None:
+    """``(law, scale)`` of a residual run (a fresh instance of the law), else None."""
+    if not getattr(args, "residual", None):
+        return None
+    from capsule_env.agents.classical import make_controller
+
+    return make_controller(args.residual), float(args.residual_scale)
 
 
 # ----------------------------------------------------------------------------- before training
@@ -234,7 +258,13 @@ def prepare(args: Any) -> Plan:
         hp = load_hyperparams(args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml")
         env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
     norm_kwargs, algo_kwargs = normalize_kwargs_from(hp), algo_kwargs_from(hp)
-    dt_s = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs)).dt_s
+    config = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs))
+    dt_s = config.dt_s
+    residual = residual_of(args)
+    if residual is not None:  # the law must read this env's signals and act in its mode
+        from capsule_env.agents.residual import check_law_fits
+
+        check_law_fits(residual[0], config)
     check_episode_length(args.eval_episode_length, dt_s, "--eval-episode-length")
 
     num_envs = args.num_envs or int(hp.get("n_envs", 1))
@@ -277,8 +307,12 @@ def make_env(
     env_kwargs: dict,
     norm_kwargs: dict,
     vecnormalize: str | Path | None = None,
+    residual: tuple[Any, float] | None = None,
 ) -> VecNormalize:
     """The batched kernel as an SB3 VecEnv, + VecMonitor + VecNormalize (new, or a saved one).
+    ``residual``: ``(law, scale)``, the vehicles wrapped in
+    :class:`~capsule_env.agents.residual.ResidualVecEnv` (the action a correction of the law's
+    request; the observation and reward unchanged).
 
     Vehicle ``n`` gets stream ``n`` of ``numpy.random.SeedSequence(seed)`` (guideway window,
     noise, ...) at the first reset, so that runs with different seeds share no stream."""
@@ -288,6 +322,10 @@ def make_env(
 
     vehicles = CapsuleSuspensionSB3VecEnv(num_envs, **env_kwargs)
     vehicles.seed(seed)
+    if residual is not None:
+        from capsule_env.agents.residual import ResidualVecEnv
+
+        vehicles = ResidualVecEnv(vehicles, *residual)
     venv = VecMonitor(vehicles)
     if vecnormalize is not None:  # resume: the checkpoint's running statistics
         return VecNormalize.load(str(vecnormalize), venv)
@@ -349,8 +387,27 @@ class Run:
             "hyperparams": self.plan.hp,
             "args": run_arguments(self.args, self.plan.total, self.plan.num_envs, self.name),
             "best": self.best,
+            **self.residual_block(),
             **extra,
         }
+
+    def residual_block(self) -> dict:
+        """``{"residual": {"law", "scale"}}`` of a residual run (what
+        :func:`capsule_env.agents.sb3_policy.load_policy` wraps the saved policy with), else {}."""
+        if not getattr(self.args, "residual", None):
+            return {}
+        return {"residual": {"law": self.args.residual, "scale": float(self.args.residual_scale)}}
+
+    def policy_of(self, model: Any) -> Any:
+        """``model`` as the controller it is evaluated as: an :class:`SB3Policy` of the frozen
+        statistics, plus a fresh instance of the law for a residual run."""
+        policy = SB3Policy.from_model(model, model.get_vec_normalize_env(), {"name": self.name})
+        residual = residual_of(self.args)
+        if residual is None:
+            return policy
+        from capsule_env.agents.residual import ResidualPolicy
+
+        return ResidualPolicy(residual[0], policy, residual[1], name=self.name)
 
     # -- evaluation on the held-out guideway bank
     def _episodes(self, policy: Any, env_kwargs: dict) -> Any:
@@ -368,7 +425,7 @@ class Run:
             passive_kwargs = {**self.eval_kwargs, **PassiveController.env_kwargs}
             self.passive = self._episodes(PassiveController(), passive_kwargs)
             self.references = self._references(self.passive)
-        policy = SB3Policy.from_model(model, model.get_vec_normalize_env(), {"name": self.name})
+        policy = self.policy_of(model)
         m = episode_metrics(self._episodes(policy, self.eval_kwargs), self.passive)
         self.eval_seconds += time.perf_counter() - t_start
         self.last_eval_timesteps = model.num_timesteps

@@ -228,10 +228,10 @@ def build_controllers(
 
         use_one_torch_thread()
     for path in paths:
-        from capsule_env.agents.sb3_policy import SB3Policy
+        from capsule_env.agents.sb3_policy import load_policy
 
-        policy = SB3Policy.load(path, require_normalization=not allow_unnormalized)
-        if policy.obs_rms is None:
+        policy = load_policy(path, require_normalization=not allow_unnormalized)
+        if getattr(policy, "obs_rms", None) is None:
             print(f"evaluate.py: warning: {path} runs on raw observations (no normalisation "
                   "statistics)", file=sys.stderr)  # fmt: skip
         policy.name = unique_name(str(policy.name), ctrls)

@@ -36,8 +36,16 @@ from stable_baselines3.common.utils import set_random_seed
 
 from capsule_env.agents.algorithms import ON_POLICY
 from capsule_env.agents.checkpoints import logged_timesteps, resume_model, save_policy, saved_at
+from capsule_env.agents.residual import zero_last_layer
 from capsule_env.agents.run_args import continue_command
-from capsule_env.agents.training import Run, TrainingMonitor, make_env, prepare, run_seed_for
+from capsule_env.agents.training import (
+    Run,
+    TrainingMonitor,
+    make_env,
+    prepare,
+    residual_of,
+    run_seed_for,
+)
 from capsule_env.agents.training import parse_args as parse_dataclass_args
 
 
@@ -59,6 +67,14 @@ class Args:
     env: list[str] = field(default_factory=list)
     """one env argument KEY=VALUE (VALUE JSON or a Python literal, a bare word a string),
     repeatable, merged over --env-kwargs: --env setting=sim --env speed_kmh=600"""
+    residual: str | None = None
+    """train a residual policy: its action is a correction added to this classical law's
+    request (a name of evaluate.py's controllers that reads the env's signals, e.g.
+    lqr-clipped-biexp-meas), its last layer zeroed so that training starts from the law;
+    the saved policy evaluates as that sum (agents/residual.py)"""
+    residual_scale: float = 0.5
+    """--residual: the correction's scale, in (0, 2] of the action range (0.5: 4 kN in force
+    mode)"""
     output_dir: str | None = None
     """output folder (default: runs/<algo>-seed<seed>)"""
     name: str | None = None
@@ -119,7 +135,8 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
     # a seed derived from the seed and the timesteps done, so it does not replay the start.
     run_seed = run_seed_for(args.seed, plan.start_timesteps)
     set_random_seed(run_seed)
-    env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs, plan.statistics)
+    env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs, plan.statistics,
+                   residual_of(args))  # fmt: skip
     try:
         model = _model(args, plan, env, run_seed)
         run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
@@ -146,8 +163,11 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
 def _model(args: Args, plan: Any, env: Any, run_seed: int) -> Any:
     """A new model on ``env``, or the checkpoint's when resuming."""
     if plan.ckpt is None:
-        return plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
-                             tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
+        model = plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
+                              tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
+        if args.residual:  # start from the law's behaviour exactly (the residual's mean is 0)
+            zero_last_layer(model)
+        return model
     # Algo.load(env=env): learn() first resets the env, which adds that one batch of
     # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
     return resume_model(plan.algo_cls, plan.ckpt, env, device=args.device, verbose=args.verbose,
