@@ -59,6 +59,17 @@ def _wk(policy, guideway_seed: int, episodes: int, first_seed: int) -> float:
     return float(episode_metrics(rollout, None)["wk_rms_body_acc_m_s2"])
 
 
+def _machine() -> str:
+    """The CPU's model name and core count (``/proc/cpuinfo`` where there is one)."""
+    import os
+
+    info = Path("/proc/cpuinfo")
+    names = [line.split(":", 1)[1].strip() for line in
+             (info.read_text().splitlines() if info.is_file() else [])
+             if line.startswith("model name")]  # fmt: skip
+    return f"{names[0] if names else platform.machine()}, {os.cpu_count()} cores"
+
+
 def _run_record(folder: Path) -> dict:
     """One training run: evaluation-bank Wk of its best model, validation Wk, steps, wall."""
     from capsule_env.agents.sb3_policy import load_policy
@@ -190,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     law_val = _law_wk(VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED)
     records = {g: [_run_record(f) for f in fs] for g, fs in groups.items()}
     result = {"references_eval_wk_m_s2": refs, "law_check_eval_wk_m_s2": law_eval,
-              "law_validation_wk_m_s2": law_val, "machine": platform.processor() or platform.machine(),
+              "law_validation_wk_m_s2": law_val, "machine": _machine(),
               "statistics": _statistics(records, refs), "curves": _curves(records, law_val),
               "runs": records}  # fmt: skip
     args.json.write_text(json.dumps(result, indent=1) + "\n")
