@@ -140,9 +140,9 @@ def _curves(records: dict[str, list[dict]], law_val_wk: float) -> dict:
         steps = sorted(set.intersection(*(set(c[0] for c in r["curve"]) for r in rs)))
         if len(rs) < 2 or not steps:
             continue
-        table = {r["folder"]: {c[0]: c for c in r["curve"]} for r in rs}
-        wk = np.array([[table[r["folder"]][s][2] for s in steps] for r in rs])
-        wall = np.array([[table[r["folder"]][s][1] for s in steps] for r in rs])
+        table = [{c[0]: c for c in r["curve"]} for r in rs]
+        wk = np.array([[run[s][2] for s in steps] for run in table])
+        wall = np.array([[run[s][1] for s in steps] for run in table])
         est = iqm_curves({group: (law_val_wk / wk)[:, None, :]})[group]
         out[group] = {"env_steps": steps, "mean_wall_s": wall.mean(axis=0).tolist(),
                       "iqm": est[0].tolist(), "low": est[1].tolist(), "high": est[2].tolist()}  # fmt: skip

@@ -1,0 +1,58 @@
+"""experiments/learned_baselines.py: its statistics against figures computed by hand (IQM of 5
+runs = mean of the middle 3; probability of improvement over a deterministic law = the share of
+runs above it; curves' ratio), and its bad input."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rliable")
+
+ROOT = Path(__file__).resolve().parents[1]
+REFS = {"passive": 0.26, "oracle": 0.21, "lqr-clipped-biexp-meas": 0.24, "mpc-biexp-meas": 0.235}
+
+
+@pytest.fixture(scope="module")
+def lb():
+    spec = importlib.util.spec_from_file_location(
+        "learned_baselines", ROOT / "experiments" / "learned_baselines.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _record(wk: float, curve: list) -> dict:
+    return {"eval_wk_m_s2": wk, "num_timesteps": 100, "wall_time_s": 5.0, "folder": str(wk),
+            "curve": curve}  # fmt: skip
+
+
+def test_statistics_match_hand_computed_figures(lb):
+    wks = [0.230, 0.235, 0.238, 0.242, 0.250]  # scores 0.6, 0.5, 0.44, 0.36, 0.2
+    row = lb._statistics({"a": [_record(w, []) for w in wks]}, REFS)["a"]
+    assert row["scores"] == pytest.approx([0.6, 0.5, 0.44, 0.36, 0.2])
+    assert row["iqm_score"] == pytest.approx((0.5 + 0.44 + 0.36) / 3)
+    assert row["iqm_wk_m_s2"] == pytest.approx((0.235 + 0.238 + 0.242) / 3)
+    assert row["ratio_to_lqr-clipped-biexp-meas"] == pytest.approx(0.715 / 3 / 0.24)
+    low, high = row["iqm_ci95"]
+    assert 0.2 <= low < row["iqm_score"] < high <= 0.6
+    # the LQR (score 0.4): 3 of 5 runs above it; the MPC (0.5): 1 above, 1 tie (one half)
+    assert row["p_improvement_over_lqr-clipped-biexp-meas"][0] == pytest.approx(0.6)
+    assert row["p_improvement_over_mpc-biexp-meas"][0] == pytest.approx(0.3)
+
+
+def test_curves_are_the_law_over_the_runs_wk(lb):
+    runs = [_record(0.24, [(10, 1.0, 0.25), (20, 2.0, 0.2)]),
+            _record(0.24, [(10, 3.0, 0.25), (20, 4.0, 0.2), (30, 5.0, 0.1)])]  # fmt: skip
+    curve = lb._curves({"a": runs}, 0.2)["a"]
+    assert curve["env_steps"] == [10, 20]  # the steps every run evaluated
+    assert curve["mean_wall_s"] == pytest.approx([2.0, 3.0])
+    assert curve["iqm"] == pytest.approx([0.8, 1.0])
+
+
+def test_a_group_without_two_runs_is_one_line(lb, tmp_path, capsys):
+    assert lb.main(["--group", f"a={tmp_path}/none*", "--json", str(tmp_path / "x.json")]) == 2
+    assert "--group" in capsys.readouterr().err
