@@ -168,6 +168,9 @@ class ResidualPolicy(Controller):
         self.law, self.policy, self.scale = law, policy, _check_scale(scale)
         self.name = name or f"residual-{law.name}"
         self.env_kwargs = dict(law.env_kwargs)
+        self.meta: dict = {}  # a saved policy's metadata (sb3_policy.load_policy)
+        self.path: Any = None  # the saved policy's .zip, when loaded from one
+        self.obs_rms: Any = getattr(policy, "obs_rms", None)  # None: raw observations
 
     def reset(self) -> None:
         self.law.reset()

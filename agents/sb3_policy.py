@@ -57,7 +57,6 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
                               name=str(policy.name))  # fmt: skip
     residual.env_kwargs = dict(policy.env_kwargs)
     residual.meta, residual.path = policy.meta, getattr(policy, "path", None)
-    residual.obs_rms = policy.obs_rms  # None: raw observations (evaluate.py warns)
     return residual
 
 

@@ -325,8 +325,9 @@ def make_env(
     if residual is not None:
         from capsule_env.agents.residual import ResidualVecEnv
 
-        vehicles = ResidualVecEnv(vehicles, *residual)
-    venv = VecMonitor(vehicles)
+        venv = VecMonitor(ResidualVecEnv(vehicles, *residual))
+    else:
+        venv = VecMonitor(vehicles)
     if vecnormalize is not None:  # resume: the checkpoint's running statistics
         return VecNormalize.load(str(vecnormalize), venv)
     return VecNormalize(venv, **norm_kwargs)
