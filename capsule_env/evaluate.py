@@ -494,9 +494,9 @@ def format_tables(results: dict) -> str:
             lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
             lines.extend(_row(setting, n, controllers[n], columns) for n in names)
         lines.append(PAPER_TEXT[setting])
-        note = on_off_note(controllers)
-        if note:
-            lines += _wrap(note, NAME_WIDTH + len(header), "  ")
+        on_off = on_off_note(controllers)
+        if on_off:
+            lines += _wrap(on_off, NAME_WIDTH + len(header), "  ")
     if results.get("policies"):
         lines += [
             "",
