@@ -62,9 +62,10 @@ def _column_title(p: dict) -> str:
     return p["label"].replace("simply supported", "s.s.").replace("continuous ", "")
 
 
-def _table(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
+def _table(points: list[tuple[str, dict]], notes: list[str], scale: bool = False) -> list[str]:
     """Wk (m/s^2) per controller (rows) and point (columns), the best law bold, the skipped
-    cells a dash with their reason in ``notes``; then the best law's ratio to passive."""
+    cells a dash with their reason in ``notes``; then the best law's ratio to passive and
+    (``scale``) the mean over the episodes of the env's guideway scale."""
     names, best = _names(points), [_best(p) for _, p in points]
     lines = ["| controller | " + " | ".join(_column_title(p) for _, p in points) + " |",
              "| --- |" + " ---: |" * len(points)]  # fmt: skip
@@ -86,6 +87,10 @@ def _table(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
         passive = p["controllers"].get("passive", {}).get(WK)
         ratios.append(f"{p['controllers'][b][WK] / passive:.3f}" if b and passive else "–")
     lines.append("| best / passive | " + " | ".join(ratios) + " |")
+    if scale:
+        gains = [p.get("guideway_gain") for _, p in points]
+        lines.append("| guideway scale | " + " | ".join(
+            f"{sum(g) / len(g):.3f}" if g else "–" for g in gains) + " |")  # fmt: skip
     return lines
 
 
@@ -108,7 +113,7 @@ def tables(data: dict) -> str:
     for sweep, lev, title in groups:
         points = _points(data, sweep, lev)
         if points:
-            lines += [f"**{title}**", "", *_table(points, notes), ""]
+            lines += [f"**{title}**", "", *_table(points, notes, sweep == "spans"), ""]
     if notes:
         lines += ["Not run:", "", *(f"- {n}" for n in notes), ""]
     return "\n".join(lines).rstrip() + "\n"
@@ -137,9 +142,9 @@ def figures(data: dict, folder: Path) -> list[Path]:
     folder = Path(folder)
     if _points(data, "speed"):
         written.append(_speed_figure(plt, data, folder / "envelope_speed.png"))
-    pair = _psd_pair(data)
-    if pair is not None:
-        written.append(_psd_figure(plt, pair, folder / "envelope_span_psd.png"))
+    pairs = _psd_pairs(data)
+    if pairs:
+        written.append(_psd_figure(plt, pairs, folder / "envelope_span_psd.png"))
     return written
 
 
@@ -173,35 +178,45 @@ def _speed_figure(plt: Any, data: dict, path: Path) -> Path:
     return _save(plt, fig, path)
 
 
-def _psd_pair(data: dict) -> tuple[dict, dict, float] | None:
-    """The 810 km/h EDS point without spans, the one with 30 m continuous spans at L/3000, and
-    the span-passing frequency v / L (Hz); None when the JSON lacks either PSD."""
-    base = data["points"].get("speed/eds/810")
-    spans = data["points"].get("spans/continuous/30m/L3000")
-    if base is None or spans is None:
-        return None
-    if "psd_m2_s4_per_hz" not in base["controllers"].get("passive", {}):
-        return None
-    v_m_s = spans["env_kwargs"]["speed_kmh"] / 3.6
-    return base, spans, v_m_s / spans["env_kwargs"]["span_params"]["span_m"]
+#: The PSD figure's rows: (point without spans, point with 30 m spans, the row's title).
+PSD_PAIRS = (
+    ("speed/eds/810", "spans/continuous/30m/L3000", "profile scaled to 8 mm peak (the env)"),
+    ("spans/unscaled/none", "spans/unscaled/continuous/30m/L3000", "unscaled profile"),
+)
+PSD_CONTROLLERS = ("passive", "lqr-clipped-biexp-meas")
 
 
-def _psd_figure(plt: Any, pair: tuple[dict, dict, float], path: Path) -> Path:
-    base, spans, f_span = pair
-    names = [n for n in ("passive", "lqr-clipped-biexp-meas") if n in spans["controllers"]]
-    fig, axes = plt.subplots(1, len(names), figsize=(6 * len(names), 4.5), squeeze=False)
-    for ax, name in zip(axes[0], names):
-        for p, label, colour in ((base, "no spans", "tab:blue"),
-                                 (spans, "30 m spans, sag L/3000", "tab:red")):  # fmt: skip
-            e = p["controllers"][name]
-            ax.semilogy(e["psd_frequency_hz"], e["psd_m2_s4_per_hz"], color=colour, label=label)
-        top = max(base["controllers"][name]["psd_frequency_hz"])
-        for k in range(1, int(top // f_span) + 1):
-            ax.axvline(k * f_span, color="grey", ls=":", lw=1)
-        ax.set(xlabel="frequency (Hz)", ylabel="car-body acceleration PSD ((m/s²)²/Hz)",
-               title=f"{name}, EDS 810 km/h: span line v/L = {f_span:.2f} Hz and harmonics")  # fmt: skip
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
+def _psd_pairs(data: dict) -> list[tuple[dict, dict, str]]:
+    """The rows of :data:`PSD_PAIRS` whose two points hold the passive damper's PSD."""
+    pairs = []
+    for base_key, spans_key, title in PSD_PAIRS:
+        base, spans = data["points"].get(base_key), data["points"].get(spans_key)
+        if all(p is not None and "psd_m2_s4_per_hz" in p["controllers"].get("passive", {})
+               for p in (base, spans)):  # fmt: skip
+            pairs.append((base, spans, title))
+    return pairs
+
+
+def _psd_figure(plt: Any, pairs: list[tuple[dict, dict, str]], path: Path) -> Path:
+    names = [n for n in PSD_CONTROLLERS if all(n in p[1]["controllers"] for p in pairs)]
+    fig, axes = plt.subplots(len(pairs), len(names), figsize=(6 * len(names), 4 * len(pairs)),
+                             squeeze=False)  # fmt: skip
+    for row, (base, spans, title) in zip(axes, pairs):
+        span_m = spans["env_kwargs"]["span_params"]["span_m"]
+        f_span = spans["env_kwargs"]["speed_kmh"] / 3.6 / span_m
+        for ax, name in zip(row, names):
+            for p, label, colour in ((base, "no spans", "tab:blue"),
+                                     (spans, f"{span_m:g} m spans", "tab:red")):  # fmt: skip
+                e = p["controllers"][name]
+                ax.semilogy(e["psd_frequency_hz"], e["psd_m2_s4_per_hz"], color=colour,
+                            label=label)  # fmt: skip
+            top = max(base["controllers"][name]["psd_frequency_hz"])
+            for k in range(1, int(top // f_span) + 1):
+                ax.axvline(k * f_span, color="grey", ls=":", lw=1)
+            ax.set(xlabel="frequency (Hz)", ylabel="body acceleration PSD ((m/s²)²/Hz)",
+                   title=f"{name}, {title}\nEDS 810 km/h; dotted: k v/L, v/L = {f_span:.2f} Hz")  # fmt: skip
+            ax.grid(alpha=0.3, which="both")
+            ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(plt, fig, path)
 

@@ -149,6 +149,15 @@ def envelope_points(sweeps: tuple[str, ...] = SWEEPS) -> list[Point]:
                 f"spans/{shape}/{span_m:g}m/L{round(1 / sag)}", "spans",
                 f"{shape.replace('_', ' ')} {span_m:g} m, sag L/{round(1 / sag)}", span_m,
                 {**eds810, "spans": shape, "span_params": params}, psd=True))  # fmt: skip
+    if "spans" in sweeps:  # the same pair at the random profile's physical level (unscaled)
+        raw = {**eds810, "guideway_params": {"peak_m": None}}
+        points += [
+            Point("spans/unscaled/none", "spans", "no spans, unscaled profile", 0.0, raw, True),
+            Point("spans/unscaled/continuous/30m/L3000", "spans",
+                  "continuous 30 m, sag L/3000, unscaled profile", 30.0,
+                  {**raw, "spans": "continuous", "span_params": {"span_m": 30.0, "sag_m": 0.01}},
+                  psd=True),
+        ]  # fmt: skip
     if "trip" in sweeps:
         kwargs = {k: v for k, v in task_env_kwargs(TRIP_TASK).items() if k != "setting"}
         points.append(Point("trip", "trip", TRIP_TASK, 0.0, kwargs))
@@ -170,6 +179,22 @@ def psd_of(acc_m_s2: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     f, p = welch(acc_m_s2, fs=fs, nperseg=nperseg, axis=-1)
     keep = f <= PSD_TOP_HZ + 1e-9
     return f[keep], np.mean(np.atleast_2d(p), axis=0)[keep]
+
+
+def guideway_gain(point: Point, seeds: list[int], episode_length_s: float) -> list[float]:
+    """Each episode's guideway scale at ``point``: the factor the env applies to its window of
+    the guideway bank (random profile, plus the spans where the point has them) so that its
+    largest elevation is the guideway's ``peak_m`` (1 with ``peak_m=None``)."""
+    from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+
+    env = CapsuleSuspensionVectorEnv(
+        num_envs=len(seeds), episode_length_s=episode_length_s, setting=SETTING,
+        **{"guideway_seed": EVALUATION_GUIDEWAY_SEED, **point.env_kwargs},
+    )  # fmt: skip
+    env.reset(seed=[int(s) for s in seeds])
+    gain = [float(g) for g in env.batch.gain]
+    env.close()
+    return gain
 
 
 def observation_mismatch(ctrl: Any, env_kwargs: dict[str, Any]) -> str | None:
@@ -339,6 +364,10 @@ def sweep(args: Args, data: dict, ctrls: dict) -> None:
     points = [p for p in envelope_points(tuple(_names(args.sweeps))) if not only or p.key in only]
     seeds = list(range(args.seed, args.seed + args.episodes))
     todo = _todo(data, points, ctrls, set(_names(args.oracle)))
+    for point in points:  # records of an earlier version of this script
+        record = data["points"].get(point.key)
+        if record is not None and "guideway_gain" not in record:
+            record["guideway_gain"] = guideway_gain(point, seeds, args.episode_length)
     for k, (point, name) in enumerate(todo):
         start = time.perf_counter()
         if name == "oracle":
@@ -347,6 +376,8 @@ def sweep(args: Args, data: dict, ctrls: dict) -> None:
             entry = run_point(point, ctrls[name], seeds, args.episode_length)
         record = data["points"].setdefault(point.key, {**_jsonable(point.describe()),
                                                        "controllers": {}})  # fmt: skip
+        if "guideway_gain" not in record:
+            record["guideway_gain"] = guideway_gain(point, seeds, args.episode_length)
         record["controllers"][name] = entry
         data["runtime_s"] = data.get("runtime_s", 0.0) + time.perf_counter() - start
         atomic_write_text(args.json, json.dumps(data, indent=1) + "\n")
