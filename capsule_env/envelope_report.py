@@ -53,6 +53,14 @@ def _best(p: dict) -> str | None:
     return min(run, key=run.__getitem__) if run else None
 
 
+def _headroom(p: dict, best: str | None) -> str:
+    """``(passive - best) / (passive - oracle)`` at a point with the oracle, else a dash."""
+    wk = {n: e.get(WK) for n, e in p["controllers"].items()}
+    if best is None or wk.get("oracle") is None or wk.get("passive") is None:
+        return "–"
+    return f"{(wk['passive'] - wk[best]) / (wk['passive'] - wk['oracle']):.2f}"
+
+
 def _column_title(p: dict) -> str:
     sweep, value = p["sweep"], p["value"]
     if sweep == "speed":
@@ -87,6 +95,9 @@ def _table(points: list[tuple[str, dict]], notes: list[str], scale: bool = False
         passive = p["controllers"].get("passive", {}).get(WK)
         ratios.append(f"{p['controllers'][b][WK] / passive:.3f}" if b and passive else "–")
     lines.append("| best / passive | " + " | ".join(ratios) + " |")
+    if any("oracle" in p["controllers"] for _, p in points):
+        lines.append("| headroom closed | " + " | ".join(_headroom(p, b) for (_, p), b in
+                                                          zip(points, best)) + " |")  # fmt: skip
     if scale:
         gains = [p.get("guideway_gain") for _, p in points]
         lines.append("| guideway scale | " + " | ".join(
@@ -103,8 +114,10 @@ def tables(data: dict) -> str:
              f"{c['guideway_seed']}), setting `{c['setting']}`, measured signals; "
              f"{data.get('runtime_s', 0.0) / 60:.1f} min of computation in all. Wk-weighted "
              "RMS car-body acceleration (m/s²), mean over the episodes; bold: the lowest of "
-             "the controllers (the oracle, a bound, aside); last row: that lowest over the "
-             "passive damper's.", ""]  # fmt: skip
+             "the controllers (the oracle, a bound, aside); `best / passive`: that lowest over "
+             "the passive damper's; `headroom closed`, where the oracle ran: `(passive - best) "
+             "/ (passive - oracle)`; `guideway scale`: the mean factor the env applied to the "
+             "guideway window (random profile and spans) to bring its peak to 8 mm.", ""]  # fmt: skip
     notes: list[str] = []
     groups = [("speed", "eds", "Speed, EDS levitation (km/h)"),
               ("speed", "fixed", "Speed, fixed levitation stiffness (km/h)"),

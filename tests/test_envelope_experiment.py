@@ -80,9 +80,9 @@ def test_rerun_skips_done_pairs(envelope, tmp_path, monkeypatch):
     assert envelope.main(_argv(tmp_path, "passive,skyhook-meas")) == 0  # only the new one
     assert calls[1:] == [("payload/+0.40", "skyhook-meas")]
     done = json.loads((tmp_path / "e.json").read_text())["points"]["payload/+0.40"]
-    assert done["controllers"]["passive"] == first["points"]["payload/+0.40"]["controllers"][
-        "passive"
-    ]
+    assert (
+        done["controllers"]["passive"] == first["points"]["payload/+0.40"]["controllers"]["passive"]
+    )
     # another episode count: the JSON is refused, one line, exit 2
     assert envelope.main([*_argv(tmp_path), "--episodes", "3"]) == 2
 
@@ -132,7 +132,8 @@ def _hand_written() -> dict:
         "runtime_s": 60.0,
         "points": {
             "payload/-0.30": {**point, "label": "", "value": -0.3,
-                              "controllers": ctrls(passive=0.2, lqr=0.15, ppo="not run: x")},
+                              "controllers": ctrls(passive=0.2, lqr=0.15, ppo="not run: x",
+                                                  oracle=0.1)},
             "payload/+0.40": {**point, "label": "", "value": 0.4,
                               "controllers": ctrls(passive=0.3, lqr=0.28, ppo=0.27)},
         },
@@ -148,6 +149,9 @@ def test_tables_from_a_hand_written_json():
     assert "| `ppo` | – | **0.2700** |" in lines
     assert "| best / passive | 0.750 | 0.900 |" in lines
     assert "- `ppo` at `payload/-0.30`: not run: x" in lines
+    assert "| `oracle` | 0.1000 | – |" in lines  # a bound, never bold, last
+    assert lines.index("| `oracle` | 0.1000 | – |") == lines.index("| `ppo` | – | **0.2700** |") + 1
+    assert "| headroom closed | 0.50 | – |" in lines  # (0.2 - 0.15) / (0.2 - 0.1)
 
 
 def test_page_in_sync_with_the_json():
@@ -156,3 +160,23 @@ def test_page_in_sync_with_the_json():
     assert envelope_report.tables(data) in page
     assert data["config"] == {"episodes": 10, "seed": 1000, "episode_length_s": 10.0,
                               "guideway_seed": 2026, "setting": "hils"}  # fmt: skip
+
+
+def test_stored_points_agree_with_the_stored_evaluations():
+    """Two committed runs of other code paths on the same options: the fixed-levitation 810
+    km/h point is evaluate.py's hils run (docs/figures/evaluation.json, measured-signal rows),
+    the trip point is ``evaluate.py --task CapsuleTrip-v0``'s. Both were measured on one
+    machine from the same kernels; 1e-9 relative leaves room for the JSON's float text only."""
+    data = json.loads((ROOT / "docs" / "figures" / "envelope.json").read_text())["points"]
+    pairs = (("speed/fixed/810", "evaluation.json"), ("trip", "evaluation-CapsuleTrip-v0.json"))
+    for key, name in pairs:
+        other = json.loads((ROOT / "docs" / "figures" / name).read_text())
+        theirs = other["settings"]["hils"]["controllers"]
+        ours = data[key]["controllers"]
+        shared = [
+            n for n in ours if n in theirs and theirs[n]["observation"] in ("none", "measured")
+        ]
+        assert "passive" in shared and "lqr-clipped-biexp-meas" in shared
+        for n in shared:
+            assert ours[n]["wk_rms_body_acc_m_s2"] == pytest.approx(
+                theirs[n]["wk_rms_body_acc_m_s2"], rel=1e-9), (key, n)  # fmt: skip
