@@ -180,3 +180,14 @@ def test_stored_points_agree_with_the_stored_evaluations():
         for n in shared:
             assert ours[n]["wk_rms_body_acc_m_s2"] == pytest.approx(
                 theirs[n]["wk_rms_body_acc_m_s2"], rel=1e-9), (key, n)  # fmt: skip
+
+
+def test_law_that_refuses_the_point_is_recorded_not_run(envelope):
+    class NeedsATrip:
+        name, env_kwargs = "needs-a-trip", {"observation": "measured"}
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            raise ValueError("speed column missing: run it on a trip")
+
+    entry = envelope.run_point(_point(envelope, "payload/+0.20"), NeedsATrip(), [1000], 0.5)
+    assert entry["skipped"] == "not run: speed column missing: run it on a trip"
