@@ -70,10 +70,11 @@ def _column_title(p: dict) -> str:
     return p["label"].replace("simply supported", "s.s.").replace("continuous ", "")
 
 
-def _table(points: list[tuple[str, dict]], notes: list[str], scale: bool = False) -> list[str]:
+def _table(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
     """Wk (m/s^2) per controller (rows) and point (columns), the best law bold, the skipped
-    cells a dash with their reason in ``notes``; then the best law's ratio to passive and
-    (``scale``) the mean over the episodes of the env's guideway scale."""
+    cells a dash with their reason in ``notes``; then the best law's ratio to passive, its
+    share of the oracle's headroom (where the oracle ran) and the mean over the episodes of
+    the env's guideway scale (where the JSON has it)."""
     names, best = _names(points), [_best(p) for _, p in points]
     lines = ["| controller | " + " | ".join(_column_title(p) for _, p in points) + " |",
              "| --- |" + " ---: |" * len(points)]  # fmt: skip
@@ -98,8 +99,8 @@ def _table(points: list[tuple[str, dict]], notes: list[str], scale: bool = False
     if any("oracle" in p["controllers"] for _, p in points):
         lines.append("| headroom closed | " + " | ".join(_headroom(p, b) for (_, p), b in
                                                           zip(points, best)) + " |")  # fmt: skip
-    if scale:
-        gains = [p.get("guideway_gain") for _, p in points]
+    gains = [p.get("guideway_gain") for _, p in points]
+    if any(gains):
         lines.append("| guideway scale | " + " | ".join(
             f"{sum(g) / len(g):.3f}" if g else "–" for g in gains) + " |")  # fmt: skip
     return lines
@@ -126,7 +127,7 @@ def tables(data: dict) -> str:
     for sweep, lev, title in groups:
         points = _points(data, sweep, lev)
         if points:
-            lines += [f"**{title}**", "", *_table(points, notes, sweep == "spans"), ""]
+            lines += [f"**{title}**", "", *_table(points, notes), ""]
     if notes:
         lines += ["Not run:", "", *(f"- {n}" for n in notes), ""]
     return "\n".join(lines).rstrip() + "\n"
