@@ -41,7 +41,6 @@ __all__ = [
     "build_condition",
     "task_env_kwargs",
     "controller_env",
-    "tuned_env_kwargs",
     "tuned_condition_changes",
     "format_options",
     "headline",
@@ -219,28 +218,16 @@ def controller_env(
     return {**condition_kwargs, **own, "setting": setting}, kept
 
 
-def tuned_env_kwargs() -> dict[str, Any]:
-    """The env options the shipped gains were tuned in, besides each controller's own: the
-    ``setting`` of ``agents/tuned_gains.json``'s ``settings`` (the search runs a controller in
-    its own options and that setting, every other option the env's default, on the training
-    bank: ``capsule_env.agents.tuning``; its ``stroke_limit_m`` is the search's constraint,
-    not the env's option)."""
-    from capsule_env.agents.tuned import load_tuned
-    from capsule_env.agents.tuning import TuningSettings
-
-    settings = load_tuned().get("settings", {})
-    return {"setting": settings.get("setting", TuningSettings.setting)}
-
-
 def tuned_condition_changes(
-    env_kwargs: dict[str, Any], own: dict[str, Any]
+    env_kwargs: dict[str, Any], own: dict[str, Any], tuning: dict[str, Any]
 ) -> dict[str, dict[str, Any]]:
     """The options in which the env a tuned controller is evaluated in (``env_kwargs``)
-    differs from the env its gains were tuned in (:func:`tuned_env_kwargs` with the
-    controller's own options ``own``), compared as whole :class:`EnvConfig` values (defaults
-    included), the guideway bank and the episode length left out:
-    ``{KEY: {"tuned": value, "evaluated": value}}``."""
-    tuned = dataclasses.asdict(EnvConfig.from_kwargs(**{**tuned_env_kwargs(), **own}))
+    differs from the env its gains were tuned in (``tuning``, e.g. ``{"setting": "hils"}``:
+    ``capsule_env.agents.tuned.tuning_env_kwargs``, with the controller's own options
+    ``own`` over it), compared as whole :class:`EnvConfig` values (defaults included), the
+    guideway bank and the episode length left out: ``{KEY: {"tuned": value, "evaluated":
+    value}}``."""
+    tuned = dataclasses.asdict(EnvConfig.from_kwargs(**{**tuning, **own}))
     evaluated = dataclasses.asdict(EnvConfig.from_kwargs(**env_kwargs))
     return {
         key: {"tuned": tuned[key], "evaluated": value}
@@ -265,10 +252,11 @@ def headline(results: dict[str, Any]) -> str | None:
             "declares itself (JSON: env_kwargs, own_options_kept).")  # fmt: skip
 
 
-def table_notes(controllers: dict[str, dict[str, Any]]) -> list[str]:
+def table_notes(controllers: dict[str, dict[str, Any]], tuning: dict[str, Any]) -> list[str]:
     """One setting's notes under its title: the options some controllers kept over the
     evaluated env's (``own_options_kept``), and where the env differs from the one the tuned
-    gains were tuned in (``tuned_condition_differs``); ``[]`` when neither applies."""
+    gains were tuned in (``tuning``; the rows' ``tuned_condition_differs``); ``[]`` when
+    neither applies."""
     notes = []
     kept: dict[tuple[str, str], list[str]] = {}
     for name, entry in controllers.items():
@@ -282,9 +270,9 @@ def table_notes(controllers: dict[str, dict[str, Any]]) -> list[str]:
         for key, values in entry.get("tuned_condition_differs", {}).items():
             differs.setdefault(key, values)
     if differs:
-        tuning = format_options(tuned_env_kwargs()) or "the env's defaults"
+        where = format_options(tuning) or "the env's defaults"
         notes.append(
-            f"note: the tuned gains (agents/tuned_gains.json) were tuned at {tuning} (other "
+            f"note: the tuned gains (agents/tuned_gains.json) were tuned at {where} (other "
             "options the env's defaults) and are kept as shipped; this table's env differs in "
             + ", ".join(
                 f"{k}={v['evaluated']!r} (tuned: {v['tuned']!r})" for k, v in differs.items()
