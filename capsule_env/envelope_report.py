@@ -118,7 +118,7 @@ def tables(data: dict) -> str:
              "the controllers (the oracle, a bound, aside); `best / passive`: that lowest over "
              "the passive damper's; `headroom closed`, where the oracle ran: `(passive - best) "
              "/ (passive - oracle)`; `guideway scale`: the mean factor the env applied to the "
-             "guideway window (random profile and spans) to bring its peak to 8 mm.", ""]  # fmt: skip
+             "random profile's window to bring its peak to 8 mm.", ""]  # fmt: skip
     notes: list[str] = []
     groups = [("speed", "eds", "Speed, EDS levitation (km/h)"),
               ("speed", "fixed", "Speed, fixed levitation stiffness (km/h)"),
@@ -194,7 +194,7 @@ def _speed_figure(plt: Any, data: dict, path: Path) -> Path:
 
 #: The PSD figure's rows: (point without spans, point with 30 m spans, the row's title).
 PSD_PAIRS = (
-    ("speed/eds/810", "spans/continuous/30m/L3000", "profile scaled to 8 mm peak (the env)"),
+    ("speed/eds/810", "spans/continuous/30m/L3000", "random profile at 8 mm peak (the env)"),
     ("spans/unscaled/none", "spans/unscaled/continuous/30m/L3000", "unscaled profile"),
 )
 PSD_CONTROLLERS = ("passive", "lqr-clipped-biexp-meas")

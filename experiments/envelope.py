@@ -183,8 +183,8 @@ def psd_of(acc_m_s2: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
 
 def guideway_gain(point: Point, seeds: list[int], episode_length_s: float) -> list[float]:
     """Each episode's guideway scale at ``point``: the factor the env applies to its window of
-    the guideway bank (random profile, plus the spans where the point has them) so that its
-    largest elevation is the guideway's ``peak_m`` (1 with ``peak_m=None``)."""
+    the random profile so that its largest elevation is the guideway's ``peak_m`` (1 with
+    ``peak_m=None``; the spans are added after it)."""
     from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 
     env = CapsuleSuspensionVectorEnv(
