@@ -32,11 +32,16 @@ from capsule_env._cli import parse_env_item as parse_env_item
 from capsule_env._cli import parse_env_kwargs as parse_env_kwargs
 from capsule_env._cli import parse_literal as parse_literal
 from capsule_env.config import EnvConfig
+from capsule_env.tasks import task_named
 
 ENV_ID = "CapsuleSuspension-v0"
+#: The registered task ``train.py`` trains on unless the hyperparameter file or the command
+#: line says otherwise: the realistic ride task (capsule_env/tasks.py).
+TRAIN_TASK = "CapsuleRide-v0"
 #: Env arguments used for training unless the hyperparameter file or the command line says
-#: otherwise: the emulated HILS test, force requests through the inverse model, sensors only.
-TRAIN_ENV_DEFAULTS = {"setting": "hils", "action_mode": "force", "observation": "sensors"}
+#: otherwise: force requests through the inverse model, and :data:`TRAIN_TASK`'s options read
+#: from its registration (the emulated HILS test, the ``measured`` signals a capsule has).
+TRAIN_ENV_DEFAULTS = {"action_mode": "force", **task_named(TRAIN_TASK).kwargs}
 #: The names an RL-Zoo ``policy_kwargs`` string may use (torch activation functions).
 ALLOWED_NAMES = ("nn.ReLU", "nn.Tanh", "nn.ELU", "nn.LeakyReLU", "nn.SiLU", "nn.GELU")
 #: Keys of the file that are not arguments of the SB3 algorithm.

@@ -131,7 +131,7 @@ def parse_args(cls: type, argv: list[str] | None, description: str | None) -> An
 
 def check_args(args: Any) -> None:
     """The values' ranges; ``ValueError`` naming the option."""
-    for name in ("num_envs", "total_timesteps", "eval_episodes", "threads"):
+    for name in ("num_envs", "total_timesteps", "eval_episodes", "threads", "env_threads"):
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")

@@ -1,4 +1,4 @@
-"""Train a stable-baselines3 agent (PPO, SAC or TD3) on ``CapsuleSuspension-v0``.
+"""Train a stable-baselines3 / sb3-contrib agent on the ride task (``CapsuleRide-v0``).
 
     python train.py                                   # PPO, defaults from hyperparams/ppo.yml
     python train.py --algo sac --total-timesteps 300000
@@ -6,11 +6,12 @@
     python train.py --resume auto                     # continue runs/ppo-seed0 after a Ctrl-C
     python evaluate.py --policy runs/ppo-seed0/best_model.zip --setting hils
 
-Hyperparameters: ``hyperparams/<algo>.yml`` (RL-Zoo format). Env: ``hils``, force mode, unless
-the file's ``env_kwargs`` (the shipped ones: ``observation: full_state``), ``--env-kwargs`` or
-``--env`` say otherwise; training on guideway bank 0, evaluation every ``--eval-freq`` steps on
-the validation bank 7 (the evaluation bank 2026 that evaluate.py reports on is never
-used to choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<seed>``):
+Hyperparameters: ``hyperparams/<algo>.yml`` (RL-Zoo format). Env: the realistic ride task
+``CapsuleRide-v0`` (``hils``, the ``measured`` signals; force mode), unless the file's
+``env_kwargs`` (the shipped files: the same options), ``--env-kwargs`` or ``--env`` say
+otherwise; training on guideway bank 0, evaluation every ``--eval-freq`` steps on the
+validation bank 7 (the evaluation bank 2026 that evaluate.py reports on is never used to
+choose a model). Output (``--output-dir``, default ``runs/<algo>-seed<seed>``):
 ``best_model.*`` (the best evaluation by the Wk-weighted RMS car-body acceleration;
 ``evaluate.py --policy`` loads it), ``final_model.*``, ``checkpoints/`` (every
 ``--checkpoint-freq`` steps and ``--checkpoint-minutes``, on Ctrl-C or SIGTERM and at the end;
@@ -28,6 +29,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import numba
 import torch
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
@@ -52,7 +54,8 @@ class Args:
     """random seed of torch, numpy and the vehicles (runs with different seeds share no stream)"""
     env_kwargs: dict = field(default_factory=dict)
     """env arguments, a JSON object or Python dict literal such as '{"speed_kmh": 600}', over
-    the file's env_kwargs and the defaults (setting hils, action_mode force, observation sensors)"""
+    the file's env_kwargs and the defaults (the ride task CapsuleRide-v0: setting hils,
+    observation measured; action_mode force)"""
     env: list[str] = field(default_factory=list)
     """one env argument KEY=VALUE (VALUE JSON or a Python literal, a bare word a string),
     repeatable, merged over --env-kwargs: --env setting=sim --env speed_kmh=600"""
@@ -82,6 +85,10 @@ class Args:
     """tensorboard log folder (needs the tensorboard package)"""
     threads: int = 1
     """torch CPU threads (1 is fastest here)"""
+    env_threads: int = 1
+    """numba threads of the env kernel (1: the env and the learner take turns on one core; on
+    a 2-core machine that other jobs share, 2 made PPO's training 2.2 x slower: the kernel's
+    threads wait for a core at every step; benchmarks/bench_training.py --env-threads)"""
     progress: bool = True
     """show a progress bar"""
     hyperparams: str | None = None
@@ -106,6 +113,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
         raise SystemExit(f"train.py: error: {exc}") from None
     args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
     torch.set_num_threads(args.threads)
+    numba.set_num_threads(min(args.env_threads, numba.config.NUMBA_NUM_THREADS))
 
     # Seeds, in one place: torch, numpy, random and the vehicles' streams. A resumed run gets
     # a seed derived from the seed and the timesteps done, so it does not replay the start.

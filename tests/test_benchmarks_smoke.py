@@ -117,33 +117,63 @@ def test_bench_env_refuses_an_unwritable_json_path(tmp_path, bad):
 
 
 @pytest.mark.rl
-def test_bench_training_reports_the_steps_it_ran(tmp_path):
+def test_bench_training_runs_one_algorithm_end_to_end(tmp_path):
+    """A tiny budget: PPO on 4 vehicles up to 2048 steps, evaluated every 0.5 s on 2 one-second
+    validation episodes; the bar measured on the same episodes; the figures add up."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
+    from capsule_env.agents import classical_controllers
+
+    from capsule_env.evaluation import VALIDATION_GUIDEWAY_SEED, episode_metrics, run_episodes
+
     out = tmp_path / "train.json"
-    timesteps, num_envs, n_steps = 300, 4, 64
     process_s = run_script(
-        "benchmarks/bench_training.py", "--timesteps", str(timesteps), "--num-envs",
-        str(num_envs), "--n-steps", str(n_steps), "--batch-size", "64", "--n-epochs", "1",
-        "--json", str(out),
+        "benchmarks/bench_training.py", "--algos", "ppo", "--budget-s", "60", "--eval-every-s",
+        "0.5", "--timesteps", "2000", "--num-envs", "4", "--hp", "n_steps=256", "--hp",
+        "batch_size=256", "--hp", "n_epochs=1", "--eval-episodes", "2", "--eval-episode-length",
+        "1", "--json", str(out),
     )  # fmt: skip
     data = json.loads(out.read_text())
-    assert data["config"]["timesteps"] == timesteps and data["config"]["num_envs"] == num_envs
-    # PPO collects whole rollouts of num_envs x n_steps until it has the timesteps asked for:
-    # 300 asked, two rollouts of 256 run
-    rollout = num_envs * n_steps
-    assert data["timesteps"] == math.ceil(timesteps / rollout) * rollout == 512
-    wall = data["wall_s"]
-    assert data["env_steps_per_s"] == pytest.approx(data["timesteps"] / wall, rel=1e-12)
-    # the env's share: time inside the env's step, part of the training's wall time
-    share = data["env_share_of_wall"]
-    assert 0.0 < share < 1.0
-    env_only = data["env_only_steps_per_s"]
-    assert env_only == pytest.approx(data["timesteps"] / (share * wall), rel=1e-9)
-    assert data["env_steps_per_s"] < env_only < math.inf
-    # the first step (kernel load) is timed apart, before the training: both fit in the
-    # process's own wall time, one after the other
-    assert 0.0 < data["first_step_s"] and 0.0 < wall
-    assert data["first_step_s"] + wall < process_s
+    # the bar: the clipped LQR on measured signals, hils, validation bank 7, seeds 5000, 5001
+    law = classical_controllers()["lqr-clipped-biexp-meas"]
+    kwargs = {"setting": "hils", "observation": "measured", **law.env_kwargs,
+              "guideway_seed": VALIDATION_GUIDEWAY_SEED}  # fmt: skip
+    lqr = episode_metrics(run_episodes(law, kwargs, 2, 5000, 1.0), None)
+    assert data["bar"]["wk_rms_body_acc_m_s2"] == pytest.approx(lqr["wk_rms_body_acc_m_s2"])
+    r = data["results"]["ppo"]
+    # PPO collects whole rollouts of 4 x 256: 2000 asked, two rollouts run (unless the bar
+    # stopped it first, at a step of the first or second rollout)
+    assert r["num_envs"] == 4 and r["hyperparams"]["n_steps"] == 256
+    assert r["stopped_by"] in ("timesteps", "bar")
+    if r["stopped_by"] == "timesteps":
+        assert r["num_timesteps"] == 2048 and r["time_to_bar_s"] is None
+    assert r["env_steps_per_s"] == pytest.approx(r["num_timesteps"] / r["train_s"], rel=1e-12)
+    # the phases are parts of the training time, the evaluations apart from it
+    phases = r["env_s"] + r["rollout_other_s"] + r["update_s"]
+    assert min(r["env_s"], r["rollout_other_s"], r["update_s"]) > 0 and phases <= r["train_s"]
+    assert r["first_step_s"] + r["train_s"] + r["eval_s"] < process_s
+    # the time line: evaluations in order, the last one of the final policy; the bar is
+    # reached exactly when an evaluation is at or below it, and training stopped there
+    evals = r["evaluations"]
+    assert [e["train_s"] for e in evals] == sorted(e["train_s"] for e in evals)
+    assert evals[-1] == r["final"] and evals[-1]["num_timesteps"] == r["num_timesteps"]
+    wk = [e["wk_rms_body_acc_m_s2"] for e in evals]
+    assert r["best"]["wk_rms_body_acc_m_s2"] == min(wk)
+    below = [e for e in evals if e["wk_rms_body_acc_m_s2"] <= data["bar"]["wk_rms_body_acc_m_s2"]]
+    assert (r["time_to_bar_s"] is None) == (not below)
+    if below:
+        assert r["time_to_bar_s"] == below[0]["train_s"] and below[0] == evals[-1]
+
+
+@pytest.mark.rl
+def test_bench_training_bad_input_is_one_line():
+    for argv in (["--algos", "ppo", "a2c"], ["--budget-s", "0"], ["--hp", "n_steps"]):
+        result = subprocess.run(
+            [sys.executable, "benchmarks/bench_training.py", *argv], cwd=ROOT,
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert result.returncode == 2, argv
+        assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+        assert argv[0] in result.stderr and result.stdout == "", (argv, result.stderr)
 
 
 def test_soak_quick_runs_and_counts(tmp_path):

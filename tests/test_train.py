@@ -19,7 +19,7 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
-from capsule_env.agents import hyperparams  # noqa: E402
+from capsule_env.agents import hyperparams, training  # noqa: E402
 from capsule_env.agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
 
 from capsule_env import (
@@ -253,6 +253,23 @@ def test_hyperparameter_files_parse():
     assert ppo["n_timesteps"] == 4e6 and ppo["learning_rate"] == "lin_1e-3"
     schedule = hyperparams.algo_kwargs_from(ppo)["learning_rate"]
     assert schedule(1.0) == pytest.approx(1e-3) and schedule(0.5) == pytest.approx(5e-4)
+
+
+def test_the_default_task_is_the_ride_task(tmp_path):
+    """train.py with no env argument, and every shipped hyperparameter file, train on the
+    registered ride task's options (hils plant, measured signals; force requests)."""
+    import gymnasium as gym
+
+    import capsule_env  # noqa: F401  (registers the tasks)
+
+    ride = {"action_mode": "force", **gym.spec("CapsuleRide-v0").kwargs}
+    assert ride == {"setting": "hils", "observation": "measured", "action_mode": "force"}
+    assert hyperparams.resolve_env_kwargs({}, {}) == ride
+    for algo in ALGORITHMS:
+        hp = hyperparams.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml")
+        assert hp["env_kwargs"] == ride, f"{algo}.yml"
+    plan = training.prepare(train.parse_args(["--output-dir", str(tmp_path)]))
+    assert plan.env_kwargs == ride and plan.args.algo == "ppo"
 
 
 def test_policy_kwargs_are_read_without_eval():

@@ -219,7 +219,8 @@ def check_train(params: dict[str, Any]) -> None:
     for key, value in plain.items():
         default = getattr(defaults, key)
         if key in ("total_timesteps", "num_envs", "eval_freq", "eval_episodes", "eval_seed",
-                   "checkpoint_freq", "keep_replay_buffers", "threads", "verbose"):  # fmt: skip
+                   "checkpoint_freq", "keep_replay_buffers", "threads", "env_threads",
+                   "verbose"):  # fmt: skip
             _number(value, key, 0, integer=True)
         elif isinstance(default, (int, float)) and not isinstance(default, bool):
             _number(value, key, 0)
