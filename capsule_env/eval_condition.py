@@ -34,6 +34,7 @@ from typing import Any
 
 from capsule_env._cli import parse_env_item
 from capsule_env.config import SETTINGS, EnvConfig
+from capsule_env.evaluation import check_episode_length
 from capsule_env.tasks import TASKS
 
 __all__ = [
@@ -41,7 +42,6 @@ __all__ = [
     "build_condition",
     "task_env_kwargs",
     "controller_env",
-    "tuned_env_kwargs",
     "tuned_condition_changes",
     "format_options",
     "headline",
@@ -198,9 +198,13 @@ def build_condition(
     where = "--env" if task is None else f"--task {task} / --env"
     for one in settings:
         try:
-            EnvConfig.from_kwargs(**env_kwargs, setting=one, episode_length_s=length)
+            config = EnvConfig.from_kwargs(**env_kwargs, setting=one)
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from None
+        if "episode_length_s" in overrides:  # --episode-length: checked with the controllers
+            check_episode_length(length, config.dt_s, "--env episode_length_s")
+        elif "episode_length_s" in task_kwargs and episode_length_s is None:
+            check_episode_length(length, config.dt_s, f"--task {task}'s episode_length_s")
     return Condition(task, task_kwargs, overrides, settings, float(length), env_kwargs)
 
 
@@ -219,28 +223,16 @@ def controller_env(
     return {**condition_kwargs, **own, "setting": setting}, kept
 
 
-def tuned_env_kwargs() -> dict[str, Any]:
-    """The env options the shipped gains were tuned in, besides each controller's own: the
-    ``setting`` of ``agents/tuned_gains.json``'s ``settings`` (the search runs a controller in
-    its own options and that setting, every other option the env's default, on the training
-    bank: ``capsule_env.agents.tuning``; its ``stroke_limit_m`` is the search's constraint,
-    not the env's option)."""
-    from capsule_env.agents.tuned import load_tuned
-    from capsule_env.agents.tuning import TuningSettings
-
-    settings = load_tuned().get("settings", {})
-    return {"setting": settings.get("setting", TuningSettings.setting)}
-
-
 def tuned_condition_changes(
-    env_kwargs: dict[str, Any], own: dict[str, Any]
+    env_kwargs: dict[str, Any], own: dict[str, Any], tuning: dict[str, Any]
 ) -> dict[str, dict[str, Any]]:
     """The options in which the env a tuned controller is evaluated in (``env_kwargs``)
-    differs from the env its gains were tuned in (:func:`tuned_env_kwargs` with the
-    controller's own options ``own``), compared as whole :class:`EnvConfig` values (defaults
-    included), the guideway bank and the episode length left out:
-    ``{KEY: {"tuned": value, "evaluated": value}}``."""
-    tuned = dataclasses.asdict(EnvConfig.from_kwargs(**{**tuned_env_kwargs(), **own}))
+    differs from the env its gains were tuned in (``tuning``, e.g. ``{"setting": "hils"}``:
+    ``capsule_env.agents.tuned.tuning_env_kwargs``, with the controller's own options
+    ``own`` over it), compared as whole :class:`EnvConfig` values (defaults included), the
+    guideway bank and the episode length left out: ``{KEY: {"tuned": value, "evaluated":
+    value}}``."""
+    tuned = dataclasses.asdict(EnvConfig.from_kwargs(**{**tuning, **own}))
     evaluated = dataclasses.asdict(EnvConfig.from_kwargs(**env_kwargs))
     return {
         key: {"tuned": tuned[key], "evaluated": value}
@@ -265,10 +257,11 @@ def headline(results: dict[str, Any]) -> str | None:
             "declares itself (JSON: env_kwargs, own_options_kept).")  # fmt: skip
 
 
-def table_notes(controllers: dict[str, dict[str, Any]]) -> list[str]:
+def table_notes(controllers: dict[str, dict[str, Any]], tuning: dict[str, Any]) -> list[str]:
     """One setting's notes under its title: the options some controllers kept over the
     evaluated env's (``own_options_kept``), and where the env differs from the one the tuned
-    gains were tuned in (``tuned_condition_differs``); ``[]`` when neither applies."""
+    gains were tuned in (``tuning``; the rows' ``tuned_condition_differs``); ``[]`` when
+    neither applies."""
     notes = []
     kept: dict[tuple[str, str], list[str]] = {}
     for name, entry in controllers.items():
@@ -282,9 +275,9 @@ def table_notes(controllers: dict[str, dict[str, Any]]) -> list[str]:
         for key, values in entry.get("tuned_condition_differs", {}).items():
             differs.setdefault(key, values)
     if differs:
-        tuning = format_options(tuned_env_kwargs()) or "the env's defaults"
+        where = format_options(tuning) or "the env's defaults"
         notes.append(
-            f"note: the tuned gains (agents/tuned_gains.json) were tuned at {tuning} (other "
+            f"note: the tuned gains (agents/tuned_gains.json) were tuned at {where} (other "
             "options the env's defaults) and are kept as shipped; this table's env differs in "
             + ", ".join(
                 f"{k}={v['evaluated']!r} (tuned: {v['tuned']!r})" for k, v in differs.items()

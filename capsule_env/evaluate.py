@@ -41,6 +41,7 @@ from capsule_env._cli import ArgumentParser
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.base import OBSERVATION_GROUPS
 from capsule_env.agents.classical import PAPER_FIXED
+from capsule_env.agents.tuned import tuning_env_kwargs
 from capsule_env.config import EnvConfig
 from capsule_env.eval_condition import (
     Condition,
@@ -311,6 +312,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
         ctrls = prepare(args)
     results: dict = {
         "condition": condition.describe(),
+        "gains_tuned_env_kwargs": tuning_env_kwargs(),
         "natural_frequencies_hz": [float(f) for f in natural_frequencies_hz()],
         "bands_hz": {k: list(v) for k, v in DEFAULT_BANDS_HZ.items()},
         "episodes": args.episodes,
@@ -335,7 +337,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             entry.update(env_kwargs=env_kwargs, own_options_kept=kept)
             if entry["gains_tuned"]:
                 entry["tuned_condition_differs"] = tuned_condition_changes(
-                    env_kwargs, ctrl.env_kwargs
+                    env_kwargs, ctrl.env_kwargs, results["gains_tuned_env_kwargs"]
                 )
             results["settings"][setting]["controllers"][name] = entry
             done += 1
@@ -487,7 +489,7 @@ def format_tables(results: dict) -> str:
         ]
         header = "".join(f"{COLUMNS[k][0]:>{COLUMNS[k][1]}}" for k in columns)
         controllers = block["controllers"]
-        for note in table_notes(controllers):
+        for note in table_notes(controllers, results.get("gains_tuned_env_kwargs", {})):
             lines += _wrap(note, NAME_WIDTH + len(header), "  ")
         lines += [f"{'controller':<{NAME_WIDTH}}{header}", "-" * (NAME_WIDTH + len(header))]
         for group, names in _grouped(controllers):

@@ -4,6 +4,7 @@ its law; its composition checked against the law and the network computed separa
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -36,10 +37,9 @@ def residual_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("residual")
     yml = folder / "ppo.yml"
     text = (ROOT / "hyperparams" / "ppo.yml").read_text()
-    for old, new in (("n_steps: 512", "n_steps: 256"), ("batch_size: 2048", "batch_size: 256"),
-                     ("n_epochs: 10", "n_epochs: 2")):  # fmt: skip
-        assert old in text
-        text = text.replace(old, new)
+    for key, value in (("n_steps", 256), ("batch_size", 256), ("n_epochs", 2)):
+        text, count = re.subn(rf"^  {key}: \d+", f"  {key}: {value}", text, flags=re.M)
+        assert count == 1, key
     yml.write_text(text)
     argv = ["--num-envs", "4", "--eval-episodes", "2", "--eval-episode-length", "1",
             "--no-progress", "--hyperparams", str(yml), "--total-timesteps", "2048",

@@ -542,6 +542,7 @@ def test_unwritable_output_folders_stop_before_training(
         (["--checkpoint-minutes", "-1"], "--checkpoint-minutes"),
         (["--keep-replay-buffers", "-1"], "--keep-replay-buffers"),
         (["--eval-episodes", "0"], "--eval-episodes"),
+        (["--env-threads", "0"], "--env-threads"),
     ],
 )
 def test_train_bad_arguments_are_one_line(train, extra, expected, capsys):

@@ -138,3 +138,18 @@ def test_force_accuracy_across_the_operating_envelope(damper):
               "spans": "continuous", "payload_range": (-0.3, 0.4), "vehicle_randomization": 0.3}  # fmt: skip
     err = _relative_errors(kwargs, vehicles=24)
     assert err.max() < TOLERANCE, f"worst vehicle {err.argmax()}: {100 * err.max():.3f} %"
+
+
+@pytest.mark.parametrize("shape", ["continuous", "simply_supported"])
+def test_force_accuracy_on_short_spans(shape):
+    """Spans shorter than the random irregularity's shortest wavelength: the substeps follow
+    their harmonics (``config.input_rate_rad_s``)."""
+    kwargs = {"setting": "sim", "spans": shape, "span_params": {"span_m": 1.0, "sag_m": 0.01}}
+    assert _relative_errors(kwargs, vehicles=8).max() < TOLERANCE
+
+
+@pytest.mark.parametrize("c_p", [-2e4, 2e4])
+@pytest.mark.parametrize("setting", ["sim", "hils"])
+def test_force_accuracy_at_the_ends_of_the_levitation_damping_range(setting, c_p):
+    kwargs = {"setting": setting, "vehicle_params": {"levitation_damping_n_s_per_m": c_p}}
+    assert _relative_errors(kwargs, vehicles=8).max() < TOLERANCE
