@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 #: Define the run: restored by ``--resume``; given again with another value, refused.
-FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length")
+FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length",
+         "task")  # fmt: skip
 #: Restored by ``--resume`` unless given again (then the given value holds).
 ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_minutes",
               "keep_replay_buffers")  # fmt: skip
