@@ -78,7 +78,7 @@ TASKS: tuple[Task, ...] = (
          "the measured signals, the speed and the longitudinal acceleration",
          {"setting": "hils", "observation": "measured", "levitation": "eds",
           "speed_profile": "trip", "spans": "continuous", "payload_range": (-0.3, 0.4)},
-         "hils", "lqr-clipped-biexp-meas", ""),
+         "hils", "lqr-clipped-biexp-meas", "ppo-trip"),
 )  # fmt: skip
 
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"
