@@ -32,7 +32,7 @@ from typing import Any
 
 #: Define the run: restored by ``--resume``; given again with another value, refused.
 FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length",
-         "residual", "residual_scale")  # fmt: skip
+         "residual", "residual_scale", "task")  # fmt: skip
 #: Restored by ``--resume`` unless given again (then the given value holds).
 ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_minutes",
               "keep_replay_buffers")  # fmt: skip

@@ -21,14 +21,60 @@ PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
 ALGORITHMS = tuple(ALGORITHM_CLASSES)
 
 
-def shipped_policy_paths() -> list[str]:
-    """The pretrained policies shipped with the package (may be empty)."""
-    return [str(p) for p in sorted(PRETRAINED_DIR.glob("*.zip"))]
+#: The env options a controller declares about how it reads and acts
+#: (:attr:`Controller.env_kwargs`) and those the evaluation chooses: a shipped policy's own
+#: values of these never keep it out of an evaluation (it runs with them).
+READING_OPTIONS = ("setting", "guideway_seed", "episode_length_s", "observation", "action_mode",
+                   "inverse_model", "max_force_n", "damper", "preview_points",
+                   "preview_horizon_s")  # fmt: skip
+
+
+def fits_condition(own: dict[str, Any], condition: dict[str, Any]) -> bool:
+    """Whether a policy trained with the env options ``own`` belongs in the default evaluation
+    of an env with the options ``condition`` (``{}``: the paper's env).
+
+    True when (1) every option of ``own`` other than :data:`READING_OPTIONS` has the value the
+    condition gives it (the env's default where the condition names none), i.e. the policy
+    runs in the physics it is evaluated for, and (2) the env it runs in (the condition with
+    ``own`` over it, as ``evaluate.py`` runs every controller) gives the observation columns
+    it was trained on. So ``ppo-trip`` (trained on ``CapsuleTrip-v0``) is evaluated on that
+    task and not in the paper's env, and ``ppo-measured`` on the paper's env (and any speed
+    or payload given with ``--env``) but not on the trip task, whose observation has two more
+    columns. Options that are not valid together count as not fitting."""
+    from capsule_env.config import EnvConfig
+
+    setting = {"setting": own.get("setting", condition.get("setting", "sim"))}
+    reads = {k: v for k, v in own.items() if k in READING_OPTIONS}
+    try:
+        asked = EnvConfig.from_kwargs(**{**condition, **reads, **setting})
+        runs_in = EnvConfig.from_kwargs(**{**condition, **own, **setting})
+        trained = EnvConfig.from_kwargs(**own)
+    except (ValueError, TypeError):
+        return False
+    return asked == runs_in and runs_in.observation_names == trained.observation_names
+
+
+def _training_options(zip_path: Path) -> dict[str, Any]:
+    """The env options a saved policy was trained with (its ``.json``'s ``env_kwargs``)."""
+    meta_path = sibling(readable_stem(zip_path), ".json")
+    if not meta_path.is_file():
+        return {}
+    return dict(json.loads(meta_path.read_text()).get("env_kwargs", {}))
+
+
+def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
+    """The pretrained policies shipped with the package (may be empty); with ``env_kwargs``
+    (an evaluated env's options, ``{}`` for the paper's env), only those that belong in its
+    default evaluation (:func:`fits_condition`)."""
+    paths = sorted(PRETRAINED_DIR.glob("*.zip"))
+    if env_kwargs is not None:
+        paths = [p for p in paths if fits_condition(_training_options(p), env_kwargs)]
+    return [str(p) for p in paths]
 
 
 def shipped_policies() -> dict[str, Controller]:
     """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
-    ``ppo-measured``, ``ppo-preview``). Each carries the env arguments it was trained with
+    ``ppo-measured``, ``ppo-preview``, ``ppo-trip``). Each carries the env arguments it was trained with
     (:attr:`SB3Policy.env_kwargs`: pass them to ``gymnasium.make``) and acts through
     :meth:`SB3Policy.predict`. Needs the ``rl`` extra."""
     use_one_torch_thread()

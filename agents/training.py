@@ -256,7 +256,8 @@ def prepare(args: Any) -> Plan:
         args, ckpt, ckpt_meta, hp, env_kwargs = _resumed(args, output_dir)
     else:
         hp = load_hyperparams(args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml")
-        env_kwargs = resolve_env_kwargs(hp.get("env_kwargs", {}), args.env_kwargs)
+        file_kwargs = {**hp.get("env_kwargs", {}), **task_env_kwargs(getattr(args, "task", None))}
+        env_kwargs = resolve_env_kwargs(file_kwargs, args.env_kwargs)
     norm_kwargs, algo_kwargs = normalize_kwargs_from(hp), algo_kwargs_from(hp)
     config = EnvConfig.from_kwargs(**policy_env_kwargs(env_kwargs))
     dt_s = config.dt_s
@@ -276,6 +277,21 @@ def prepare(args: Any) -> Plan:
     algo_cls = algorithm_class(args.algo)
     return Plan(args, output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs,
                 total, ckpt, ckpt_meta, _tensorboard_log(args.tensorboard))  # fmt: skip
+
+
+def task_env_kwargs(task: str | None) -> dict[str, Any]:
+    """The env arguments the task ``task`` is registered with (Gymnasium's registry; ``{}``
+    for None); ``ValueError`` listing the registered tasks for another id."""
+    if task is None:
+        return {}
+    from gymnasium.envs.registration import registry
+
+    from capsule_env.tasks import TASKS
+
+    ids = [t.env_id for t in TASKS]
+    if task not in ids or task not in registry:
+        raise ValueError(f"--task must be one of {', '.join(ids)}, got {task!r}")
+    return dict(registry[task].kwargs or {})
 
 
 def _tensorboard_log(folder: str | None) -> str | None:

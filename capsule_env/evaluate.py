@@ -201,10 +201,16 @@ def unique_name(name: str, taken: dict | set) -> str:
 
 
 def build_controllers(
-    names: list[str], policies: list[str], shipped: bool, allow_unnormalized: bool = False
+    names: list[str],
+    policies: list[str],
+    shipped: bool,
+    allow_unnormalized: bool = False,
+    env_kwargs: dict | None = None,
 ) -> dict:
     """The named classical controllers (passive always first) and the policies loaded from
-    ``policies`` (after the shipped one when ``shipped``), each under a unique name
+    ``policies`` (after the shipped ones when ``shipped``: those that belong in the evaluation
+    of the env options ``env_kwargs``, ``{}`` the paper's env,
+    :func:`capsule_env.agents.sb3_policy.fits_condition`), each under a unique name
     (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
     available = classical_controllers()
     implicit = names in (["all"], DEFAULT_CONTROLLERS)  # not named one by one
@@ -223,7 +229,7 @@ def build_controllers(
     if shipped:
         from capsule_env.agents.sb3_policy import shipped_policy_paths
 
-        paths = shipped_policy_paths() + paths
+        paths = shipped_policy_paths(env_kwargs or {}) + paths
     if paths:
         from capsule_env.agents.sb3_policy import use_one_torch_thread
 

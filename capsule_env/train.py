@@ -3,6 +3,7 @@
     python train.py                                   # PPO, defaults from hyperparams/ppo.yml
     python train.py --algo sac --total-timesteps 300000
     python train.py --env setting=sim --env reward_stroke_weight=0.2
+    python train.py --task CapsuleTrip-v0             # a registered task's env arguments
     python train.py --resume auto                     # continue runs/ppo-seed0 after a Ctrl-C
     python evaluate.py --policy runs/ppo-seed0/best_model.zip --setting hils
 
@@ -60,6 +61,10 @@ class Args:
     """vehicles simulated in parallel (default: the file's n_envs, or the resumed run's)"""
     seed: int = 0
     """random seed of torch, numpy and the vehicles (runs with different seeds share no stream)"""
+    task: str | None = None
+    """a registered task id (capsule_env.tasks, e.g. CapsuleTrip-v0): its env arguments, read
+    from Gymnasium's registry, over the hyperparameter file's env_kwargs (--env-kwargs and
+    --env over them)"""
     env_kwargs: dict = field(default_factory=dict)
     """env arguments, a JSON object or Python dict literal such as '{"speed_kmh": 600}', over
     the file's env_kwargs and the defaults (the ride task CapsuleRide-v0: setting hils,
@@ -179,8 +184,9 @@ def _learn(run: Run, model: Any, extra_callbacks: list | None) -> bool:
     that continues the run. Returns whether it was interrupted."""
     args, plan = run.args, run.plan
     callbacks = CallbackList([TrainingMonitor(run), *(extra_callbacks or [])])
-    print(f"{args.algo.upper()} on CapsuleSuspension-v0 {plan.env_kwargs}: {plan.num_envs} "
-          f"vehicles, {plan.total} timesteps, torch threads {args.threads}; output "
+    env_id = args.task or "CapsuleSuspension-v0"
+    print(f"{args.algo.upper()} on {env_id} {plan.env_kwargs}: {plan.num_envs} vehicles, "
+          f"{plan.total} timesteps, torch threads {args.threads}; output "
           f"{plan.output_dir}", flush=True)  # fmt: skip
     try:
         if plan.total > model.num_timesteps:

@@ -146,7 +146,7 @@ def checked_inputs(args: argparse.Namespace) -> tuple[list[str], list[Any]]:
     if not args.no_shipped_policy:
         from capsule_env.agents.sb3_policy import shipped_policy_paths
 
-        paths = shipped_policy_paths() + paths
+        paths = shipped_policy_paths({}) + paths  # those trained in the paper's env
     if not paths:
         return laws, []
     from capsule_env.agents.sb3_policy import SB3Policy, use_one_torch_thread

@@ -109,8 +109,11 @@ def test_evaluate_lists_the_shipped_policy(tmp_path):
     evaluate.main(["--episodes", "1", "--episode-length", "1", "--setting", "hils",
                    "--controllers", "passive", "--json", str(out)])  # fmt: skip
     names = set(json.loads(out.read_text())["settings"]["hils"]["controllers"])
-    shipped = {json.loads(files_of(p)[2].read_text()).get("name", Path(p).stem) for p in SHIPPED}
-    assert "ppo-hils" in shipped and shipped <= names
+    # the shipped policies trained in the paper's env; ppo-trip is its task's (test_trip_policy)
+    paper = [p for p in SHIPPED if Path(p).stem != "ppo-trip"]
+    shipped = {json.loads(files_of(p)[2].read_text()).get("name", Path(p).stem) for p in paper}
+    assert {"ppo-hils", "ppo-measured", "ppo-preview"} <= shipped and shipped <= names
+    assert "ppo-trip" not in names
 
 
 def test_bad_policy_path_is_a_clear_error(tmp_path):
