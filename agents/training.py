@@ -284,14 +284,9 @@ def task_env_kwargs(task: str | None) -> dict[str, Any]:
     for None); ``ValueError`` listing the registered tasks for another id."""
     if task is None:
         return {}
-    from gymnasium.envs.registration import registry
+    from capsule_env.eval_condition import task_env_kwargs as registered_kwargs
 
-    from capsule_env.tasks import TASKS
-
-    ids = [t.env_id for t in TASKS]
-    if task not in ids or task not in registry:
-        raise ValueError(f"--task must be one of {', '.join(ids)}, got {task!r}")
-    return dict(registry[task].kwargs or {})
+    return registered_kwargs(task)
 
 
 def _tensorboard_log(folder: str | None) -> str | None:

@@ -136,7 +136,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--no-shipped-policy",
         action="store_true",
-        help="do not add the pretrained policies shipped with the package (all three)",
+        help="do not add the pretrained policies shipped with the package (those trained in the evaluated physics whose observation fits)",
     )
     p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
@@ -301,11 +301,11 @@ def prepare(args: argparse.Namespace) -> dict:
     :func:`check_controllers`); returns the controllers."""
     check_args(args)
     names = [n.strip() for n in args.controllers.split(",") if n.strip()]
+    condition = _condition(args)
     ctrls = build_controllers(
         names, args.policy, shipped=not args.no_shipped_policy,
-        allow_unnormalized=args.allow_unnormalized,
+        allow_unnormalized=args.allow_unnormalized, env_kwargs=condition.env_kwargs,
     )  # fmt: skip
-    condition = _condition(args)
     check_controllers(ctrls, list(condition.settings), args.episode_length, condition.env_kwargs)
     return ctrls
 
