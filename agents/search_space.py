@@ -5,7 +5,9 @@ Every feedback law of :mod:`capsule_env.agents.classical` except the paper-repro
 constructor's names), each on a log or linear range, the gains tied to another (the hybrid
 law's ``c_ground = c_sky``) and the gain swept for the Pareto figure
 (``experiments/pareto.py``). Ranges are wide on purpose (one to six decades): the search, not
-the range, picks the value.
+the range, picks the value. A law made for another task than the env's defaults names it
+(:attr:`SearchSpace.task`, a registered id of :mod:`capsule_env.tasks`): its search runs with
+that task's env options, on the same training bank.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ class SearchSpace:
     params: tuple[Param, ...]
     tied: dict[str, str] = field(default_factory=dict)  # gain -> the free gain it equals
     sweep: str = ""  # the gain varied along the Pareto curve (default: the first)
+    task: str = ""  # the registered task whose env options the search runs in ("": defaults)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -122,4 +125,6 @@ SEARCH_SPACES: dict[str, SearchSpace] = {
     "preview-mpc-biexp-meas": _MPC,
     "mpc-biexp": _MPC,
     "preview-mpc-biexp": _MPC,
+    # speed-dependent plant: the gain-scheduled LQR, searched on the trip task
+    "lqr-sched-biexp-meas": SearchSpace(_LQR.params, sweep="r_force", task="CapsuleTrip-v0"),
 }
