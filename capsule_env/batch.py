@@ -32,22 +32,29 @@ from capsule_env.config import (
 )
 from capsule_env.env_kernel import command_path
 from capsule_env.env_params import EnvParams, EnvState
+from capsule_env.envelope_kernel import ENV_LIMIT, ENV_SPEED, ENV_START, ENV_T0
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.guideway.params import profile_length_m
 from capsule_env.guideway.sampling import n_samples
+from capsule_env.guideway.spans import span_profile
 from capsule_env.kernels import ENV, BatchedKernel, env_args
 from capsule_env.layout import (
     BODY_DISP,
     BOGIE_DISP,
+    DAMP_LEVITATION,
+    MASS_BODY,
     N_PLANT_OUTPUTS,
     N_SIGNALS,
+    N_VEHICLE_PARAMS,
     SIG_BODY_DISP,
     SIG_BOGIE_DISP,
     SIG_GUIDEWAY,
+    STIFF_LEVITATION,
 )
 from capsule_env.observations import rest_observation
-from capsule_env.plant.block import block_constants, block_kernel_mode
+from capsule_env.plant.block import block_constants, block_kernel_mode, levitation_damped
 from capsule_env.plant.params import PlantParams, Route
+from capsule_env.trips import draw_window_start_s, trip_acceleration_m_s2, trip_speed_m_s
 
 __all__ = ["CapsuleBatch", "vehicle_streams"]
 
@@ -158,14 +165,18 @@ class CapsuleBatch:
         # the columns equal to the start elevation in a reset observation (the rest are 0)
         self._rest_columns = np.flatnonzero(rest_observation(config.observation, 1.0))
         self._params = EnvParams.from_config(config, self._build_survey_error())
+        self.envelope = config.envelope
         self._build_plant()
         self._build_state()
         self._build_outputs()
-        self.kernel_mode = block_kernel_mode(self.plant.code, self.damper_params)
+        self.kernel_mode = block_kernel_mode(
+            self.plant.code, self.damper_params, self.envelope.damped or levitation_damped(
+                self.vehicle_params)
+        )  # fmt: skip
         self._kernel = BatchedKernel(
             ENV, self.plant.code, self.kernel_mode, n,
             command_path(self.params.current_mode, self.params.inverse_code),
-            preview=config.preview_points > 0,
+            preview=config.preview_points > 0, envelope=self.envelope.flags,
         )  # fmt: skip
 
     def _build_plant(self) -> None:
@@ -176,8 +187,9 @@ class CapsuleBatch:
         self._speed = np.full(n, config.speed_kmh / 3.6)
         # substeps per vehicle and current bin, and the block kernel's per-vehicle constants;
         # recomputed at each vehicle's reset when vehicles differ (config.randomizes_substeps)
+        stiffest = self._stiffest(self.vehicle_params[:1].copy())
         self._sub_table = np.ascontiguousarray(
-            np.tile(config.substep_tables(self.vehicle_params[:1], self.speed[:1]), (n, 1))
+            np.tile(config.substep_tables(stiffest, self.speed[:1]), (n, 1))
         )
         self._block_constants = block_constants(
             self.plant.code, self.damper_params, self.dt, self.sub_table
@@ -254,6 +266,20 @@ class CapsuleBatch:
 
     # ---------------------------------------------------------------- guideway bank
     def _build_bank(self) -> np.ndarray:
+        """The guideway bank: its profiles, plus the tube's spans where the configuration has
+        them (the same spans on every profile at its own pylons' settlement, drawn from a
+        stream of the guideway seed: :func:`capsule_env.guideway.spans.span_profile`)."""
+        bank = self._bank_profiles()
+        span = self.config.envelope.span
+        if span is None:
+            return bank
+        seeds = np.random.SeedSequence([self.config.guideway_seed, 2]).generate_state(len(bank))
+        length = (bank.shape[1] - 1) * self.spacing
+        for k in range(bank.shape[0]):
+            bank[k] += span_profile(length, self.spacing, span, int(seeds[k]))[: bank.shape[1]]
+        return bank
+
+    def _bank_profiles(self) -> np.ndarray:
         cfg, gw = self.config, self.guideway
         if gw.kind == "random":
             length = 4.0 * cfg.window_m
@@ -350,7 +376,8 @@ class CapsuleBatch:
             rng = self.rngs[n]
             k = int(rng.integers(self.profiles.shape[0]))
             u_offset, u_speed = rng.random(2)
-            factors = 1.0 + cfg.vehicle_randomization * rng.uniform(-1.0, 1.0, 4)
+            factors = np.ones(N_VEHICLE_PARAMS)  # four drawn: the levitation damping is not
+            factors[:4] += cfg.vehicle_randomization * rng.uniform(-1.0, 1.0, 4)
             self.noise_key[n] = np.uint64(rng.integers(0, 2**63 - 1))
             self.speed[n] = lo + (hi - lo) * u_speed
             self.vehicle_params[n] = self._nominal_vehicle * factors
@@ -378,6 +405,11 @@ class CapsuleBatch:
             self.signals[SIG_GUIDEWAY, n] = zg0
             self.obs[n] = 0.0
             self.obs[n, self._rest_columns] = zg0  # observations.rest_observation
+            if cfg.payload_range is not None:  # a stream of the noise key, as the trip's
+                u = np.random.default_rng([int(self.noise_key[n]), 2]).uniform(*cfg.payload_range)
+                self.vehicle_params[n, MASS_BODY] *= 1.0 + u
+            if self.envelope.coil is not None or self.envelope.trip is not None:
+                self._reset_envelope(n)
             if cfg.preview_points:  # from the episode's noise key: the vehicle's own stream
                 # gives the same episodes with or without preview
                 draw = np.random.default_rng(int(self.noise_key[n])).standard_normal()
@@ -385,10 +417,43 @@ class CapsuleBatch:
                 self._reset_preview(n)
         if cfg.randomizes_substeps:
             rows = np.fromiter(ids, dtype=np.int64)
-            self.sub_table[rows] = cfg.substep_tables(self.vehicle_params[rows], self.speed[rows])
+            stiffest = self._stiffest(self.vehicle_params[rows].copy(), rows)
+            self.sub_table[rows] = cfg.substep_tables(stiffest, self.speed[rows])
             self.block_constants[rows] = block_constants(
                 self.plant.code, self.damper_params[rows], self.dt, self.sub_table[rows]
             )
+
+    def _stiffest(self, vehicle_rows: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Packed vehicles as stiff as they get (the substep tables' rows): with EDS
+        levitation, ``k_p`` at its limit ``K_inf`` (from the vehicles' stored limits, or the
+        nominal one before any reset)."""
+        if self.envelope.coil is not None:
+            if rows is None:
+                vehicle_rows[:, STIFF_LEVITATION] /= self.envelope.reference_shape
+            else:
+                vehicle_rows[:, STIFF_LEVITATION] = self.env_state.envelope[ENV_LIMIT, rows]
+        return vehicle_rows
+
+    def _reset_envelope(self, n: int) -> None:
+        """Vehicle ``n``'s trip window (its start drawn from a stream of the episode's noise
+        key: the vehicle's own stream draws what it draws without a trip) and EDS levitation
+        (``k_p``, ``c_p`` at its speed now)."""
+        env, envelope = self.env_state.envelope, self.envelope
+        if envelope.trip is not None:
+            rng = np.random.default_rng([int(self.noise_key[n]), 1])
+            t0 = draw_window_start_s(rng, self.config.episode_length_s, envelope.trip)
+            env[ENV_T0, n] = t0
+            env[ENV_START, n] = self.start_position[n]
+            env[ENV_SPEED, n] = self.speed[n] = float(trip_speed_m_s(t0, envelope.trip))
+            column = self.params.trip_column
+            self.obs[n, column] = self.speed[n]
+            self.obs[n, column + 1] = float(trip_acceleration_m_s2(t0, envelope.trip))
+        if envelope.coil is not None:
+            limit = self.vehicle_params[n, STIFF_LEVITATION] / envelope.reference_shape
+            env[ENV_LIMIT, n] = limit
+            k_p, c_p = envelope.levitation_at(limit, self.speed[n])
+            self.vehicle_params[n, STIFF_LEVITATION] = k_p
+            self.vehicle_params[n, DAMP_LEVITATION] = c_p
 
     def _reset_preview(self, n: int) -> None:
         """The first observation's preview columns (the kernel writes them at every step)."""

@@ -30,10 +30,11 @@ from capsule_env._validation import (
 from capsule_env.dampers import DAMPER_NAMES, make_damper
 from capsule_env.dampers.base import DamperParamsBase
 from capsule_env.dampers.registry import MODELS
+from capsule_env.envelope import TRIP_COLUMN_BOUNDS, TRIP_COLUMN_NAMES, Envelope, build_envelope
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
 from capsule_env.inverse import INVERSE_CODES as _INVERSE_CODES
 from capsule_env.inverse import INVERSE_MODELS, inverse_models
-from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS
+from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS, STIFF_LEVITATION
 from capsule_env.metrics import wk_filter_sos
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
 from capsule_env.vehicle import VehicleParams
@@ -143,6 +144,13 @@ class EnvConfig:
     survey_offset_m: float = 5e-4
     survey_noise_m: float = 1e-4
     position_error_m: float = 0.05
+    levitation: str = "fixed"
+    levitation_params: dict = field(default_factory=dict)
+    speed_profile: str = "constant"
+    trip_params: dict = field(default_factory=dict)
+    spans: str = "none"
+    span_params: dict = field(default_factory=dict)
+    payload_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         self._check_plant_options()
@@ -219,8 +227,14 @@ class EnvConfig:
                     f"guideway_params[{key!r}] is not accepted: the env argument {arg!r} sets it "
                     "(one source of truth for the guideway and the vehicle)"
                 )
+        if self.payload_range is not None:
+            _check_payload_range(self.payload_range)
+        if self.speed_profile == "trip" and self.speed_range_kmh is not None:
+            raise ValueError("speed_range_kmh must be None with speed_profile='trip' (the trip "
+                             "sets the speed)")  # fmt: skip
         # Build everything once so that bad overrides fail here, with the parameter named.
         _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+        _ = self.envelope
         self._check_substeps()
         self.check_memory(1)
 
@@ -244,8 +258,9 @@ class EnvConfig:
         for key in kwargs:
             if key not in known:
                 raise unexpected_argument(_owner, key, known | set(_also_accepted))
-        if isinstance(kwargs.get("speed_range_kmh"), list):  # e.g. from JSON
-            kwargs["speed_range_kmh"] = tuple(kwargs["speed_range_kmh"])
+        for name in ("speed_range_kmh", "payload_range"):
+            if isinstance(kwargs.get(name), list):  # e.g. from JSON
+                kwargs[name] = tuple(kwargs[name])
         return cls(**kwargs)
 
     # ---- derived values (properties, not stored copies) ----
@@ -300,6 +315,12 @@ class EnvConfig:
         return _build("guideway_params", GuidewayParams, params)
 
     @property
+    def envelope(self) -> Envelope:
+        """The envelope options (EDS levitation, trips, spans), validated
+        (:mod:`capsule_env.envelope`)."""
+        return build_envelope(self)
+
+    @property
     def dt_s(self) -> float:
         return 1.0 / self.control_rate_hz
 
@@ -320,6 +341,9 @@ class EnvConfig:
         n = np.atleast_2d(vehicle_params).shape[0]
         if self.substeps is not None:
             return np.full((n, SUBSTEP_BINS), int(self.substeps), dtype=np.int64)
+        envelope = self.envelope
+        if envelope.trip is not None:  # the trip's highest speed, whatever the vehicle's now
+            speed_mps = np.full(n, envelope.highest_speed_m_s(0.0))
         rate = self.input_rate_rad_s(np.asarray(speed_mps, dtype=float))
         return substep_tables(self.plant_damper, self.dt_s, vehicle_params, rate)
 
@@ -347,7 +371,8 @@ class EnvConfig:
     @property
     def window_m(self) -> float:
         """Guideway one episode covers at the highest speed, plus a margin (m)."""
-        return self.speed_range_mps[1] * self.episode_length_s + 4 * self.guideway_spec.spacing_m
+        top = self.envelope.highest_speed_m_s(self.speed_range_mps[1])
+        return top * self.episode_length_s + 4 * self.guideway_spec.spacing_m
 
     @property
     def bank_samples(self) -> int:
@@ -392,7 +417,9 @@ class EnvConfig:
         """Whether vehicles differ in what sets their substeps (randomised parameters or
         speed): then each vehicle's table is computed at its reset."""
         lo, hi = self.speed_range_mps
-        return self.substeps is None and (self.vehicle_randomization > 0.0 or hi > lo)
+        varies = self.vehicle_randomization > 0.0 or hi > lo or self.speed_profile == "trip"
+        varies = varies or self.payload_range is not None
+        return self.substeps is None and varies
 
     def _check_substeps(self) -> None:
         """Refuse a configuration whose stiffest vehicle (the randomisation corner with the
@@ -401,7 +428,11 @@ class EnvConfig:
         if self.substeps is not None:
             return
         r = self.vehicle_randomization
-        corner = self.vehicle.as_array() * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r])
+        corner = self.vehicle.as_array() * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r, 1.0])
+        if self.payload_range is not None:  # the lightest car body
+            corner[0] *= 1.0 + min(self.payload_range)
+        if self.levitation == "eds":  # the stiffness at any speed is below K_inf
+            corner[STIFF_LEVITATION] /= self.envelope.reference_shape
         speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
         need = int(self.substep_tables(corner, np.array([speed])).max())
         if need > MAX_AUTO_SUBSTEPS:
@@ -415,8 +446,10 @@ class EnvConfig:
 
     @property
     def observation_names(self) -> tuple[str, ...]:
-        """The observation's columns: the chosen set, then the preview points (if any)."""
-        return OBSERVATION_NAMES[self.observation] + self.preview_names
+        """The observation's columns: the chosen set, then the trip's (speed and longitudinal
+        acceleration, with ``speed_profile="trip"``), then the preview points (if any)."""
+        trip = TRIP_COLUMN_NAMES if self.speed_profile == "trip" else ()
+        return OBSERVATION_NAMES[self.observation] + trip + self.preview_names
 
     @property
     def preview_names(self) -> tuple[str, ...]:
@@ -467,9 +500,22 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
     [-0.5, i_max + 0.5] A so that its noise is not clipped on one side): each column's
     ``low`` and ``high`` in :data:`capsule_env.observations.OBSERVABLES`, then the preview's."""
     low, high = _observations.bounds(config.observation, config.stroke_limit_m, i_max)
+    if config.speed_profile == "trip":
+        low += [b[0] for b in TRIP_COLUMN_BOUNDS]
+        high += [b[1] for b in TRIP_COLUMN_BOUNDS]
     high += [1.0] * config.preview_points
     low += [-1.0] * config.preview_points
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+def _check_payload_range(value: Any) -> None:
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise TypeError(f"payload_range must be None or (low, high), fractions of the car body "
+                        f"mass, got {value!r}")  # fmt: skip
+    lo = check_in_range("payload_range[0]", value[0], -0.9, 10.0)
+    hi = check_in_range("payload_range[1]", value[1], -0.9, 10.0)
+    if hi < lo:
+        raise ValueError(f"payload_range must be (low, high) with high >= low, got {value!r}")
 
 
 def _check_speed_range(value: Any) -> None:

@@ -29,6 +29,8 @@ from capsule_env.env_params import (
     CSDC_Z,
     EST_BODY,
     EST_BOGIE,
+    HIGH,
+    LOW,
     OBS_FULL_STATE,
     OBS_MEASURED,
     OBS_SENSORS,
@@ -165,7 +167,6 @@ def command_path(current_mode: bool, inverse_code: int) -> int:
 
 
 #: Rows of ``EnvParams.obs_bounds``.
-LOW, HIGH = 0, 1
 
 
 def __getattr__(name: str) -> object:

@@ -27,7 +27,12 @@ from capsule_env.layout import (
     STATE_SIZE,
     VEHICLE_FLOAT_NAMES,
 )
-from capsule_env.observations import OBSERVATION_SETS, SENSOR_NOISE_STD, noise_channels_read
+from capsule_env.observations import (
+    OBSERVATION_NAMES,
+    OBSERVATION_SETS,
+    SENSOR_NOISE_STD,
+    noise_channels_read,
+)
 from capsule_env.plant.params import Route
 
 if TYPE_CHECKING:
@@ -77,6 +82,12 @@ _GROUPS = {
     ),
     "position_error": ("position_error_m",),
     "reward_filter": tuple(n for n in VEHICLE_FLOAT_NAMES if n.startswith("reward_filter_")),
+    "envelope": (
+        "trip_time_at_start_s",
+        "route_start_m",
+        "route_speed_m_s",
+        "levitation_stiffness_limit_n_per_m",
+    ),
 }
 
 
@@ -93,6 +104,9 @@ _CSDC, _CSDC_STOP = _rows("csdc")
 _EST, _EST_STOP = _rows("estimator")
 _POSITION_ERROR = _rows("position_error")[0]
 _REWARD_FILTER, _REWARD_FILTER_STOP = _rows("reward_filter")
+_ENVELOPE, _ENVELOPE_STOP = _rows("envelope")
+#: Rows of the observation bounds (``EnvParams.obs_bounds``).
+LOW, HIGH = 0, 1
 
 
 # The named groups of EnvState.vehicle_floats as the kernel reads them (views; inlined, so
@@ -130,6 +144,12 @@ def reward_filter(state):
     return state.vehicle_floats[_REWARD_FILTER:_REWARD_FILTER_STOP]
 
 
+@njit(**FAST, **BORROWED, inline="always")
+def envelope(state):
+    """(4, N) the envelope's per-vehicle values (``capsule_env.envelope_kernel.ENV_*`` rows)."""
+    return state.vehicle_floats[_ENVELOPE:_ENVELOPE_STOP]
+
+
 def noise_pairs(observation: int) -> np.ndarray:
     """The Box-Muller pairs an observation set needs drawn (pair ``c // 2`` for channel ``c``):
     those of its columns' noise channels and of the measurements'."""
@@ -165,6 +185,9 @@ class EnvParams(NamedTuple):
     preview_step_s: float  # time between preview points
     survey_error: np.ndarray  # (K, L) the survey map's error, on the profiles' grid (m)
     reward_filter: np.ndarray  # (S, 6) second-order sections of the reward's acceleration filter
+    trip: np.ndarray  # (5,) the trip's (a, b, t1, t2, t3), zeros without (capsule_env.envelope)
+    eds: np.ndarray  # (2,) the EDS coil's (v_c, tau)
+    trip_column: int  # first of the trip's observation columns (-1: none)
 
     @classmethod
     def from_config(cls, config: EnvConfig, survey_error: np.ndarray | None = None) -> EnvParams:
@@ -175,6 +198,7 @@ class EnvParams(NamedTuple):
 
         i_max = config.max_current_a
         code = OBSERVATION_CODES[config.observation]
+        envelope = config.envelope
         noise_std = SENSOR_NOISE_STD * config.effective_sensor_noise
         return cls(
             max_force_n=float(config.max_force_n),
@@ -202,6 +226,9 @@ class EnvParams(NamedTuple):
             preview_step_s=float(config.preview_horizon_s / max(config.preview_points, 1)),
             survey_error=np.zeros((1, 1)) if survey_error is None else survey_error,
             reward_filter=config.reward_filter_sos(),
+            trip=envelope.trip_array(),
+            eds=envelope.eds_array(),
+            trip_column=len(OBSERVATION_NAMES[config.observation]) if envelope.trip else -1,
         )
 
 
@@ -245,6 +272,7 @@ class EnvState(NamedTuple):
     estimator = _group_view("estimator", estimator.__doc__)
     position_error = _group_view("position_error", position_error.__doc__)
     reward_filter = _group_view("reward_filter", reward_filter.__doc__)
+    envelope = _group_view("envelope", envelope.__doc__)
 
     @property
     def floats(self) -> np.ndarray:

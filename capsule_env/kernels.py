@@ -60,7 +60,16 @@ from capsule_env.env_kernel import (
     env_sense,
 )
 from capsule_env.env_params import applied_current
-from capsule_env.plant.block import BLOCK, KERNEL_SCALAR, block_scratch, block_step
+from capsule_env.envelope import ENVELOPE_EDS_PER_STEP, ENVELOPE_TRIP
+from capsule_env.envelope_kernel import envelope_interval, envelope_observe
+from capsule_env.plant.block import (
+    BLOCK,
+    KERNEL_LEVITATION_DAMPED,
+    KERNEL_SCALAR,
+    block_scratch,
+    block_step,
+    kernel_family,
+)
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.scalar import scalar_step
 
@@ -120,22 +129,30 @@ def env_args(params, plant, state, obs, reward, terminated, plant_out):  # noqa:
     return _new_env_args(params, plant, state, obs, reward, terminated, plant_out)
 
 
-def _make_kernels(kind: int, model: int, mode: int, command: int, preview: bool) -> tuple[Any, Any]:
+def _make_kernels(
+    kind: int, model: int, mode: int, command: int, preview: bool, envelope: int
+) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # plant kernel takes them apart into arrays and scalars before the loop and puts them
     # together again in each chunk (the env kernel's EnvArgs can be captured as it is).
     # Called from Python (a CPython wrapper), never through a C pointer (no cfunc wrapper).
     # Each variant gets a name of its own (_jit.unique_symbol): see there.
     variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
+    if envelope:  # the paper's kernels keep their names (and numba's cache files)
+        variant += f"_e{envelope}"
     if kind == ENV:
-        return _env_kernels(variant, model, mode, command, preview)
+        return _env_kernels(variant, model, mode, command, preview, envelope)
     return _plant_kernels(variant, model, mode)
 
 
 def _env_kernels(
-    variant: str, model: int, mode: int, command: int, preview: bool
+    variant: str, model: int, mode: int, command: int, preview: bool, envelope: int
 ) -> tuple[Any, Any]:
-    """The env kernels ``(serial, parallel)``: commands -> plant -> sense -> observe."""
+    """The env kernels ``(serial, parallel)``: commands -> (envelope) -> plant -> sense ->
+    observe."""
+    family, damped = kernel_family(mode), (mode & KERNEL_LEVITATION_DAMPED) != 0
+    trip = (envelope & ENVELOPE_TRIP) != 0
+    eds_per_step = (envelope & ENVELOPE_EDS_PER_STEP) != 0
 
     @njit(cache=True, no_cfunc_wrapper=True)
     @unique_symbol(variant)
@@ -148,15 +165,19 @@ def _env_kernels(
         for b in range(lo, hi, BLOCK):
             e = min(hi, b + BLOCK)
             env_commands(command, b, e, actions, params, state, out)
+            if trip:
+                envelope_interval(b, e, params, plant, state, eds_per_step)
             x, i_cmd, route = state.plant, applied_current(state), state.route
-            if mode == KERNEL_SCALAR:
-                scalar_step(model, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
+            if family == KERNEL_SCALAR:
+                scalar_step(model, damped, b, e, plant, x, i_cmd, route, params.dt_s, out.plant)
             else:
                 block_step(
                     model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
                     lanes, counts,
                 )  # fmt: skip
             env_sense(b, e, params, plant, state, out, sense)
+            if trip:
+                envelope_observe(b, e, params, state, out.obs)
             if preview:
                 env_preview(b, e, params, plant, state, out.obs)
 
@@ -172,6 +193,7 @@ def _env_kernels(
 
 def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
     """The plant kernels ``(serial, parallel)``: the plant alone over a control interval."""
+    family, damped = kernel_family(mode), (mode & KERNEL_LEVITATION_DAMPED) != 0
 
     @njit(cache=True, no_cfunc_wrapper=True)
     @unique_symbol(variant)
@@ -179,8 +201,8 @@ def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
         lanes, counts = block_scratch()
         for b in range(lo, hi, BLOCK):
             e = min(hi, b + BLOCK)
-            if mode == KERNEL_SCALAR:
-                scalar_step(model, b, e, plant, x, i_cmd, route, dt, out)
+            if family == KERNEL_SCALAR:
+                scalar_step(model, damped, b, e, plant, x, i_cmd, route, dt, out)
             else:
                 block_step(model, mode, b, e, plant, x, i_cmd, route, dt, out, lanes, counts)
 
@@ -198,18 +220,20 @@ def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
     return serial, parallel
 
 
-_KERNELS: dict[tuple[int, int, int, int, bool], tuple[Any, Any]] = {}
+_KERNELS: dict[tuple[int, int, int, int, bool, int], tuple[Any, Any]] = {}
 
 
 def kernels(
-    kind: int, model: int, mode: int, command: int = 0, preview: bool = False
+    kind: int, model: int, mode: int, command: int = 0, preview: bool = False, envelope: int = 0
 ) -> tuple[Any, Any]:
     """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode,
-    and for ``ENV`` kernels a command path (``env_kernel.command_path``) and whether the
-    observations carry guideway preview (memoised; compiled when first called, then loaded
-    from numba's disk cache)."""
+    and for ``ENV`` kernels a command path (``env_kernel.command_path``), whether the
+    observations carry guideway preview and the envelope's flags (``Envelope.flags``: trips,
+    EDS levitation per step) (memoised; compiled when first called, then loaded from numba's
+    disk cache)."""
     env = kind == ENV
-    key = (int(kind), int(model), int(mode), int(command) if env else 0, bool(preview) and env)
+    key = (int(kind), int(model), int(mode), int(command) if env else 0, bool(preview) and env,
+           int(envelope) if env else 0)  # fmt: skip
     if key not in _KERNELS:
         _KERNELS[key] = _make_kernels(*key)
     return _KERNELS[key]
@@ -222,10 +246,10 @@ class BatchedKernel:
 
     def __init__(
         self, kind: int, model: int, mode: int, num_envs: int, command: int = 0,
-        preview: bool = False,
+        preview: bool = False, envelope: int = 0,
     ) -> None:  # fmt: skip
-        self._key = (kind, model, mode, num_envs, command, preview)
-        self.serial, self.parallel = kernels(kind, model, mode, command, preview)
+        self._key = (kind, model, mode, num_envs, command, preview, envelope)
+        self.serial, self.parallel = kernels(kind, model, mode, command, preview, envelope)
         self.num_envs = num_envs
         self._threaded = num_envs >= PARALLEL_THRESHOLD
         # compiled entry points with their leading arguments bound, by "threaded"; _entry is

@@ -16,7 +16,7 @@ longest model's parameters, each model's parameter slots from its own module's n
 | array | shape | layout |
 | --- | --- | --- |
 | plant state | (N, STATE_SIZE) | :data:`STATE_NAMES` |
-| vehicle parameters | (N, 4) | :data:`VEHICLE_PARAM_NAMES` |
+| vehicle parameters | (N, 5) | :data:`VEHICLE_PARAM_NAMES` |
 | damper parameters | (N, N_DAMPER_PARAMS) | :data:`DAMPER_PARAM_NAMES` per model, then the shared slots |
 | plant outputs | (N, N_PLANT_OUTPUTS) | :data:`PLANT_OUTPUT_NAMES` |
 | env signals (``info``) | (N_SIGNALS, N) | :data:`SIGNAL_NAMES` |
@@ -74,8 +74,11 @@ VEHICLE_PARAM_NAMES = (
     "bogie_mass_kg",
     "secondary_stiffness_n_per_m",
     "levitation_stiffness_n_per_m",
+    "levitation_damping_n_s_per_m",
 )
-MASS_BODY, MASS_BOGIE, STIFF_SECONDARY, STIFF_LEVITATION = range(len(VEHICLE_PARAM_NAMES))
+MASS_BODY, MASS_BOGIE, STIFF_SECONDARY, STIFF_LEVITATION, DAMP_LEVITATION = range(
+    len(VEHICLE_PARAM_NAMES)
+)
 N_VEHICLE_PARAMS = len(VEHICLE_PARAM_NAMES)
 
 # --------------------------------------------------------------------------- dampers
@@ -154,7 +157,9 @@ N_MEASUREMENTS = len(MEASUREMENT_NAMES)
 #: after the control delay), the two states of each velocity estimator's filter, and the error
 #: of the vehicle's own estimate of its position along the guideway (for the preview), and the
 #: states of the reward's acceleration filter (two per second-order section, at most
-#: :data:`MAX_REWARD_FILTER_SECTIONS`).
+#: :data:`MAX_REWARD_FILTER_SECTIONS`), then the envelope's (:mod:`capsule_env.envelope_kernel`):
+#: the trip time at the episode's start, the route's start and speed then, and the levitation's
+#: stiffness limit ``K_inf``.
 VEHICLE_FLOAT_NAMES = (
     "csdc_z_estimate",
     "csdc_last_stroke_m",
@@ -165,6 +170,10 @@ VEHICLE_FLOAT_NAMES = (
     "bogie_estimator_state_2",
     "position_error_m",
     *(f"reward_filter_state_{k}" for k in range(1, 2 * 4 + 1)),
+    "trip_time_at_start_s",
+    "route_start_m",
+    "route_speed_m_s",
+    "levitation_stiffness_limit_n_per_m",
 )
 (VF_CSDC_Z, VF_CSDC_STROKE, VF_APPLIED, VF_EST_BODY_1, VF_EST_BODY_2, VF_EST_BOGIE_1,
  VF_EST_BOGIE_2, VF_POSITION_ERROR) = range(VEHICLE_FLOAT_NAMES.index("reward_filter_state_1"))  # fmt: skip

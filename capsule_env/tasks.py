@@ -10,6 +10,10 @@ for ``CapsuleRide-v0`` means one thing:
 ``CapsuleRide-v0``            the realistic ride task: ``hils`` plant (coil lag, sensor noise,
                               one-step delay) and the ``measured`` signals a capsule has
 ``CapsuleRidePreview-v0``     the same with the surveyed guideway ahead (32 points, 0.5 s)
+``CapsuleTrip-v0``            the ride task across the operating envelope: EDS levitation
+                              against speed, 10 s windows of a trip from lift-off (150 km/h)
+                              to cruise (1000 km/h), the tube's spans on pylons, the payload
+                              randomised (-30 % to +40 % of the car body mass)
 ============================  =============================================================
 
 Every task keeps the env's reward (docs/env.md) and is reported with the ISO 2631-1
@@ -66,6 +70,15 @@ TASKS: tuple[Task, ...] = (
          "the measured signals and the preview of the surveyed guideway",
          {"setting": "hils", "observation": "measured", "preview_points": 32,
           "preview_horizon_s": 0.5}, "hils", "preview-lq-biexp-meas", "ppo-preview"),
+    Task("CapsuleTrip-v0",
+         "The ride task across the operating envelope: EDS levitation whose stiffness and "
+         "damping follow the speed, each episode a 10 s window of a trip (lift-off at 150 "
+         "km/h, 1.0 m/s^2 to a 1000 km/h cruise, braking), the tube's sag between pylons "
+         "every 30 m, the payload drawn per episode (-30 % to +40 % of the car body mass).",
+         "the measured signals, the speed and the longitudinal acceleration",
+         {"setting": "hils", "observation": "measured", "levitation": "eds",
+          "speed_profile": "trip", "spans": "continuous", "payload_range": (-0.3, 0.4)},
+         "hils", "lqr-clipped-biexp-meas", ""),
 )  # fmt: skip
 
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"

@@ -36,6 +36,7 @@ _RANGES = {
     "secondary_stiffness_n_per_m": (1.0, 1e10),
     "levitation_stiffness_n_per_m": (1.0, 1e10),
     "passive_damping_n_s_per_m": (0.0, 1e9),
+    "levitation_damping_n_s_per_m": (-1e7, 1e9),
 }
 
 
@@ -56,11 +57,16 @@ class VehicleParams:
         2.25e6; the paper models the primary suspension as this spring with no damping.
     passive_damping_n_s_per_m : c_s, the passive secondary damper of the passive baseline
         (N s/m), default 1.5e4. It is *not* part of the MR-damped plant.
+    levitation_damping_n_s_per_m : c_p, the levitation's damping on the bogie's velocity
+        relative to the guideway (N s/m), default 0 (the paper's undamped primary suspension).
+        An EDS levitation's electromagnetic damping is small and negative at high speed
+        (:mod:`capsule_env.levitation`; the env's ``levitation="eds"`` sets it per speed), hence
+        negative values are accepted.
 
     Notes
     -----
-    Accepted ranges: masses 1 kg to 1e6 kg, stiffnesses 1 to 1e10 N/m, damping 0 to 1e9 N s/m
-    (``ValueError`` naming the field otherwise).
+    Accepted ranges: masses 1 kg to 1e6 kg, stiffnesses 1 to 1e10 N/m, passive damping 0 to
+    1e9 N s/m, levitation damping -1e7 to 1e9 N s/m (``ValueError`` naming the field otherwise).
     """
 
     car_body_mass_kg: float = 6000.0
@@ -68,6 +74,7 @@ class VehicleParams:
     secondary_stiffness_n_per_m: float = 4.95e5
     levitation_stiffness_n_per_m: float = 2.25e6
     passive_damping_n_s_per_m: float = 1.5e4
+    levitation_damping_n_s_per_m: float = 0.0
 
     def __post_init__(self) -> None:
         # Physically plausible ranges, wide enough for scaled test rigs and other vehicles; an
@@ -87,13 +94,15 @@ class VehicleParams:
         return np.array([[ks, -ks], [-ks, ks + kp]])
 
     def as_array(self) -> np.ndarray:
-        """Packed float64 vector ``[m_c, m_b, k_s, k_p]`` used by the compiled kernels."""
+        """Packed float64 vector ``[m_c, m_b, k_s, k_p, c_p]`` used by the compiled kernels
+        (``layout.VEHICLE_PARAM_NAMES``)."""
         return np.array(
             [
                 self.car_body_mass_kg,
                 self.bogie_mass_kg,
                 self.secondary_stiffness_n_per_m,
                 self.levitation_stiffness_n_per_m,
+                self.levitation_damping_n_s_per_m,
             ]
         )
 
@@ -145,18 +154,20 @@ def state_space(
     Returns
     -------
     A : (4, 4), B : (4, 1) for the damper force F (N), E : (4, 1) for the guideway z_g (m), with
-    state ``[z_c, z_c', z_b, z_b']``.
+    state ``[z_c, z_c', z_b, z_b']``. The levitation's damping ``c_p`` is in ``A``; its
+    guideway-rate term ``c_p z_g' / m_b`` is not in ``E`` (0 for the paper's undamped levitation).
     """
     params = params or VehicleParams()
     c = check_nonnegative("secondary_damping_n_s_per_m", secondary_damping_n_s_per_m)
     mc, mb = params.car_body_mass_kg, params.bogie_mass_kg
     ks, kp = params.secondary_stiffness_n_per_m, params.levitation_stiffness_n_per_m
+    cp = params.levitation_damping_n_s_per_m
     a = np.array(
         [
             [0.0, 1.0, 0.0, 0.0],
             [-ks / mc, -c / mc, ks / mc, c / mc],
             [0.0, 0.0, 0.0, 1.0],
-            [ks / mb, c / mb, -(ks + kp) / mb, -c / mb],
+            [ks / mb, c / mb, -(ks + kp) / mb, -(c + cp) / mb],
         ]
     )
     b = np.array([[0.0], [-1.0 / mc], [0.0], [1.0 / mb]])

@@ -72,7 +72,7 @@ def test_lqr_gain_stabilises_the_linear_plant():
     damped at the body mode than the passive damper."""
     ctrl = ClippedOptimalController()
     v = VehicleParams()
-    mc, mb, ks, kp = v.as_array()
+    mc, mb, ks, kp, _ = v.as_array()
     a = np.array([[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]])
     b = np.array([[0], [-1 / mc], [0], [1 / mb]])
     closed = np.linalg.eigvals(a - b @ ctrl.gain[None, :])

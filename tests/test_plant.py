@@ -511,7 +511,8 @@ def _block_inputs(damper, n: int, seed: int = 4):
     rng = np.random.default_rng(seed)
     spacing = 0.25
     profiles = np.stack([random_profile(600.0, spacing, seed=s) for s in (31, 32)])
-    vp = np.tile(VehicleParams().as_array(), (n, 1)) * rng.uniform(0.9, 1.1, (n, 4))
+    vp = np.tile(VehicleParams().as_array(), (n, 1))
+    vp[:, :4] *= rng.uniform(0.9, 1.1, (n, 4))
     return dict(
         dp=np.ascontiguousarray(np.tile(damper.as_array(), (n, 1))),
         vp=np.ascontiguousarray(vp),

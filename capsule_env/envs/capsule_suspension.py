@@ -159,6 +159,11 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     estimated position (the true one plus an episode-constant error drawn with standard
     deviation ``position_error_m``). Defaults (all [reconstructed]): 0.5 mm, 0.1 mm, 0.05 m.
 
+    **Trips** (``speed_profile="trip"``, any observation set): two more columns after the set's
+    own (before any preview), ``speed_m_s`` (m/s) and ``longitudinal_acceleration_m_s2``
+    (m/s^2, > 0 speeding up), exact (the propulsion control knows them). With trips the
+    preview looks ahead at the current speed.
+
     ## Rewards
 
     A ride-comfort cost with stroke and energy terms, per step::
@@ -236,7 +241,17 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     - Overrides: ``vehicle_params``, ``damper_params`` (plant), ``inverse_params`` (the model
       the controller inverts), each a dict of dataclass fields.
     - Domain randomisation per episode: ``vehicle_randomization`` (relative half-width of a
-      uniform factor on each of m_c, m_b, k_s, k_p) and ``speed_range_kmh`` (low, high).
+      uniform factor on each of m_c, m_b, k_s, k_p), ``speed_range_kmh`` (low, high) and
+      ``payload_range`` (low, high: a uniform change of the car body mass, as a fraction, e.g.
+      ``(-0.3, 0.4)``).
+    - The operating envelope (:mod:`capsule_env.envelope`, docs/model.md section 13; each off by
+      default): ``levitation`` (``"fixed"`` | ``"eds"``: the levitation's stiffness and damping
+      follow the speed, ``levitation_params`` :class:`capsule_env.levitation.EdsParams`
+      fields), ``speed_profile`` (``"constant"`` | ``"trip"``: each episode a window of a trip
+      from lift-off to cruise and back, ``trip_params`` :class:`capsule_env.trips.TripParams`
+      fields), ``spans`` (``"none"`` | ``"continuous"`` | ``"simply_supported"``: the tube's
+      sag between pylons and their settlement added to the guideway, ``span_params``
+      :class:`capsule_env.guideway.spans.SpanParams` fields but ``shape``).
     - ``render_mode``: ``"rgb_array"``: ``render()`` draws the vehicle now, one frame per
       control step; ``metadata["render_fps"]`` is this env's control rate (``control_rate_hz``,
       200 by default, set per instance), so a video written by Gymnasium's ``RecordVideo`` (or
@@ -251,7 +266,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     - v0: initial release; later additions keep v0 (new options default to the old behaviour):
       the ``measured`` observation set and its velocity estimator; per-vehicle substeps; the
       branch blend of the sign-of-stroke damper models; independent seed streams per vehicle;
-      the guideway preview; the Wk-weighted reward acceleration.
+      the guideway preview; the Wk-weighted reward acceleration; the operating envelope
+      (EDS levitation against speed, trips, tube spans, payload).
     """
 
     #: Class defaults; each instance sets ``render_fps`` to its own control rate.

@@ -47,7 +47,7 @@ from capsule_env.layout import (
     STATE_SIZE,
 )
 from capsule_env.plant import PlantParams, Route, make_plant_params
-from capsule_env.plant.block import HALF, block_kernel_mode
+from capsule_env.plant.block import HALF
 
 __all__ = [
     "FD_RELATIVE_STEP",
@@ -212,6 +212,13 @@ class OracleEpisodes:
     ) -> None:
         kwargs = {"episode_length_s": episode_length_s, **env_kwargs}
         self.config = EnvConfig.from_kwargs(**kwargs)
+        if self.config.speed_profile != "constant":
+            # its open-loop runs step the plant alone, on the route of the reset: a trip's
+            # route and levitation change every step (the env kernel's envelope_interval)
+            raise ValueError(
+                "speed_profile must be 'constant' for the clairvoyant oracle (it does not "
+                f"follow a trip), got {self.config.speed_profile!r}"
+            )
         self.seeds = tuple(int(s) for s in seeds)
         batch = CapsuleBatch(self.config, len(self.seeds))
         batch.seed(list(self.seeds))
@@ -230,7 +237,7 @@ class OracleEpisodes:
         self.search_tables = np.ascontiguousarray(
             np.broadcast_to(self.env_tables.max(axis=1, keepdims=True), self.env_tables.shape)
         )
-        self.mode = block_kernel_mode(self.code, self.damper_params)
+        self.mode = batch.kernel_mode
         self.columns = active_state_columns(self.code, self.damper_params[0])
         self._fd_cache: dict[int, tuple[PlantParams, Route, BatchedKernel]] = {}
 

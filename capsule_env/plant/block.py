@@ -29,6 +29,7 @@ from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.layout import (
     COIL_CURRENT,
     COIL_TAU,
+    DAMP_LEVITATION,
     I_MAX,
     MASS_BODY,
     MASS_BOGIE,
@@ -57,6 +58,10 @@ __all__ = [
     "KERNEL_BLOCK",
     "KERNEL_BLOCK_TANH_UNLOAD",
     "KERNEL_UNIFORM",
+    "KERNEL_LEVITATION_DAMPED",
+    "KERNEL_FLAGS",
+    "kernel_family",
+    "levitation_damped",
     "block_constants",
     "block_kernel_mode",
     "guideway_elevation",
@@ -69,6 +74,12 @@ KERNEL_SCALAR, KERNEL_BLOCK, KERNEL_BLOCK_TANH_UNLOAD = 0, 1, 2
 #: Flag added to a block mode when every row has the same damper parameters (an env's plant):
 #: the kernel then reads them as constants instead of copying them into every vehicle's lane.
 KERNEL_UNIFORM = 4
+#: Flag added to a kernel mode when the levitation has damping (``c_p``, a vehicle parameter):
+#: its term is compiled only into those kernels, so the paper's undamped plant runs the
+#: arithmetic it always ran.
+KERNEL_LEVITATION_DAMPED = 8
+#: The flags of a kernel mode (the rest is its family).
+KERNEL_FLAGS = KERNEL_UNIFORM | KERNEL_LEVITATION_DAMPED
 
 # Scratch rows of one half of a block: the state, then the per-vehicle values of the interval,
 # the Riccati constants and the damper parameters (each row HALF long).
@@ -76,8 +87,8 @@ KERNEL_UNIFORM = 4
 # STATE_NAMES order, then the interval's values).
 _SCRATCH_ROWS = LANE_INPUT_NAMES
 (_W_ZC, _W_VC, _W_ZB, _W_VB, _W_Z, _W_Y, _W_I, _W_T, _W_H, _W_ICMD, _W_EHALF, _W_INV_MC,
- _W_INV_MB, _W_KS, _W_KP, _W_ZG0, _W_ZGH, _W_ZG1) = (_SCRATCH_ROWS.index(n)
-                                                    for n in _SCRATCH_ROWS)  # fmt: skip
+ _W_INV_MB, _W_KS, _W_KP, _W_CP, _W_ZG0, _W_ZGH, _W_ZG1) = (_SCRATCH_ROWS.index(n)
+                                                           for n in _SCRATCH_ROWS)  # fmt: skip
 #: After the last substep, the plant's outputs go into rows the substeps no longer read.
 _W_OUT_FORCE, _W_OUT_ACC_C, _W_OUT_ACC_B = _W_ZGH, _W_ZG1, _W_H
 _W_A = len(_SCRATCH_ROWS)  # N_RICCATI_CONSTANTS rows
@@ -97,16 +108,34 @@ _C_NSUB_OF, _C_BIN_OF, _C_NSUB, _C_ORDER, _C_START = range(COUNT_ROWS)
 _D_EHALF = N_RICCATI_CONSTANTS
 
 
-def block_kernel_mode(damper_code: int, damper_params: np.ndarray) -> int:
+def block_kernel_mode(
+    damper_code: int, damper_params: np.ndarray, levitation_damped: bool = False
+) -> int:
     """Which kernel steps these damper rows: ``KERNEL_SCALAR`` (Bouc-Wen, or Spencer rows whose
     unloading branch is not of tanh/linear form, or rows that disagree on it),
     ``KERNEL_BLOCK`` or ``KERNEL_BLOCK_TANH_UNLOAD`` (Spencer with beta > gamma), plus
-    ``KERNEL_UNIFORM`` when all rows are equal (the same numbers, fewer copies)."""
+    ``KERNEL_UNIFORM`` when all rows are equal (the same numbers, fewer copies), plus
+    ``KERNEL_LEVITATION_DAMPED`` when ``levitation_damped`` (a vehicle's ``c_p`` may be
+    non-zero)."""
     mode = _block_kernel_family(damper_code, damper_params)
     p = np.asarray(damper_params).reshape(-1, np.shape(damper_params)[-1])
     if mode != KERNEL_SCALAR and np.all(p == p[:1]):
         mode |= KERNEL_UNIFORM
+    if levitation_damped:
+        mode |= KERNEL_LEVITATION_DAMPED
     return mode
+
+
+def levitation_damped(vehicle_params: np.ndarray) -> bool:
+    """Whether any of these packed vehicles (rows ``layout.VEHICLE_PARAM_NAMES``) has a
+    levitation damping ``c_p`` other than 0 (its kernels then compile the damping term)."""
+    return bool(np.any(np.atleast_2d(vehicle_params)[:, DAMP_LEVITATION] != 0.0))
+
+
+def kernel_family(mode: int) -> int:
+    """The family of a kernel mode (``KERNEL_SCALAR``, ``KERNEL_BLOCK`` or
+    ``KERNEL_BLOCK_TANH_UNLOAD``), without its flags."""
+    return mode & ~KERNEL_FLAGS
 
 
 def _block_kernel_family(damper_code: int, damper_params: np.ndarray) -> int:
@@ -174,7 +203,7 @@ def _lane_values(wv, j):
         wv[j + 5 * HALF], wv[j + 6 * HALF], wv[j + 7 * HALF], wv[j + 8 * HALF],
         wv[j + 9 * HALF], wv[j + 10 * HALF], wv[j + 11 * HALF], wv[j + 12 * HALF],
         wv[j + 13 * HALF], wv[j + 14 * HALF], wv[j + 15 * HALF], wv[j + 16 * HALF],
-        wv[j + 17 * HALF],
+        wv[j + 17 * HALF], wv[j + 18 * HALF],
     )  # fmt: skip
 
 
@@ -250,8 +279,8 @@ def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
         w[o + _W_ZG1 * HALF] = g * guideway_elevation(profiles, k, spacing, last, p0 + sp * (t + h))
 
 
-@specialised("model", "hysteresis", "uniform", plain=("first",))
-def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
+@specialised("model", "hysteresis", "uniform", "damped", plain=("first",))
+def substep_lanes(model, hysteresis, uniform, damped, w, first, nb, p_uniform, hc_uniform):
     """One RK4 substep of the sorted vehicles ``first .. nb-1``: the SIMD loop.
 
     Each iteration advances two vehicles, one from each half of the scratch array (even and odd
@@ -260,10 +289,11 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
     The view starts at the first column and every access is a constant offset from it, so LLVM
     sees no negative indices and no overlap and vectorises the loop. With ``uniform`` the damper
     parameters and Riccati constants are ``p_uniform``/``hc_uniform`` (loop constants) instead of
-    scratch rows. Compiled once per (model, hysteresis, uniform)."""
-    m, hyst, uni = model, hysteresis, uniform
+    scratch rows. ``damped``: the levitation has damping. Compiled once per (model,
+    hysteresis, uniform, damped)."""
+    m, hyst, uni, dmp = model, hysteresis, uniform, damped
 
-    def impl(model, hysteresis, uniform, w, first, nb, p_uniform, hc_uniform):
+    def impl(model, hysteresis, uniform, damped, w, first, nb, p_uniform, hc_uniform):
         col0 = first >> 1
         first_a = (first + 1) >> 1  # first active column of the even half
         end = (nb + 1) >> 1
@@ -279,26 +309,28 @@ def substep_lanes(model, hysteresis, uniform, w, first, nb, p_uniform, hc_unifor
             else:
                 p_a, p_b = _lane_params(wv, j), _lane_params(wv, jb)
                 hc_a, hc_b = _lane_constants(wv, j), _lane_constants(wv, jb)
-            new_a = rk4_substep(m, hyst, _lane_values(wv, j), p_a, hc_a)
-            new_b = rk4_substep(m, hyst, _lane_values(wv, jb), p_b, hc_b)
+            new_a = rk4_substep(m, hyst, dmp, _lane_values(wv, j), p_a, hc_a)
+            new_b = rk4_substep(m, hyst, dmp, _lane_values(wv, jb), p_b, hc_b)
             _store_lane(wv, j, new_a, col >= first_a and col < end)
             _store_lane(wv, jb, new_b, col < end_b)
 
     return impl
 
 
-@specialised("model", "uniform")
-def output_lanes(model, uniform, wv, count, p_uniform):
+@specialised("model", "uniform", "damped")
+def output_lanes(model, uniform, damped, wv, count, p_uniform):
     """Force and accelerations at the end of the interval (into the output rows) of the first
-    ``count`` columns of one half. Compiled once per (model, uniform)."""
-    m, uni = model, uniform
+    ``count`` columns of one half; with ``damped``, the guideway's rate is its mean over the
+    last half substep. Compiled once per (model, uniform, damped)."""
+    m, uni, dmp = model, uniform, damped
 
-    def impl(model, uniform, wv, count, p_uniform):
+    def impl(model, uniform, damped, wv, count, p_uniform):
         for j in range(count):
             v = _lane_values(wv, j)
             p = p_uniform if uni else _lane_params(wv, j)
-            vehicle = (v[_W_INV_MC], v[_W_INV_MB], v[_W_KS], v[_W_KP])
-            force, acc_c, acc_b = plant_outputs(m, p, v[0:7], v[_W_ZG0], vehicle)
+            vehicle = (v[_W_INV_MC], v[_W_INV_MB], v[_W_KS], v[_W_KP], v[_W_CP])
+            zg_rate = (v[_W_ZG1] - v[_W_ZGH]) * 2.0 / v[_W_H] if dmp else 0.0
+            force, acc_c, acc_b = plant_outputs(m, dmp, p, v[0:7], v[_W_ZG0], zg_rate, vehicle)
             wv[j + _W_OUT_FORCE * HALF] = force
             wv[j + _W_OUT_ACC_C * HALF] = acc_c
             wv[j + _W_OUT_ACC_B * HALF] = acc_b
@@ -353,7 +385,8 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, coun
     damper = model_of_code(m)
     uses_current = damper.uses_current
     uni = (md & KERNEL_UNIFORM) != 0
-    family = md & ~KERNEL_UNIFORM
+    damped = (md & KERNEL_LEVITATION_DAMPED) != 0
+    family = md & ~KERNEL_FLAGS
     if damper.hysteresis is None:
         hyst = HYST_NONE
     elif family == KERNEL_BLOCK_TANH_UNLOAD:
@@ -377,12 +410,13 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, coun
         s = 0
         while first < nb:
             _guideway_lanes(w, first, nb, order, plant.profiles, plant.spacing_m, route)
-            substep_lanes(m, hyst, uni, w, first, nb, p_uniform, hc_uniform)
+            substep_lanes(m, hyst, uni, damped, w, first, nb, p_uniform, hc_uniform)
             s += 1
             while first < nb and nsub[first] <= s:
                 first += 1
-        output_lanes(m, uni, w[:_W_HALF_SIZE], min(HALF, (((nb + 1) >> 1) + 3) & -4), p_uniform)
-        output_lanes(m, uni, w[_W_HALF_SIZE:], min(HALF, ((nb >> 1) + 3) & -4), p_uniform)
+        half_a, half_b = w[:_W_HALF_SIZE], w[_W_HALF_SIZE:]
+        output_lanes(m, uni, damped, half_a, min(HALF, (((nb + 1) >> 1) + 3) & -4), p_uniform)
+        output_lanes(m, uni, damped, half_b, min(HALF, ((nb >> 1) + 3) & -4), p_uniform)
         _store_results(w, nb, order, x, out)
 
     return impl
@@ -456,6 +490,7 @@ def _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uniform, co
         w[o + _W_INV_MB * HALF] = 1.0 / vp[n, MASS_BOGIE]
         w[o + _W_KS * HALF] = vp[n, STIFF_SECONDARY]
         w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
+        w[o + _W_CP * HALF] = vp[n, DAMP_LEVITATION]
         position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
         w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
             profiles, route.profile[n], spacing, last, position

@@ -3,11 +3,14 @@
 ::
 
     m_c z_c'' = -k_s (z_c - z_b) - F
-    m_b z_b'' =  k_s (z_c - z_b) + F - F_lev,      F_lev = k_p (z_b - z_g)
+    m_b z_b'' =  k_s (z_c - z_b) + F - F_lev,      F_lev = k_p (z_b - z_g) + c_p (z_b' - z_g')
 
 ``F``: the damper force (N, > 0 resisting a positive stroke rate, acting as ``-F`` on the car
 body and ``+F`` on the bogie); ``F_lev``: the EDS levitation's restoring force on the bogie
-(the primary suspension, undamped, its stiffness taken at the design speed). Every RK4 stage
+(the primary suspension; the paper's is undamped, ``c_p = 0``, its stiffness taken at the
+design speed; ``levitation="eds"`` makes both follow the speed, :mod:`capsule_env.levitation`).
+The damping term is compiled only into the kernels of plants that have it (the ``damped``
+flag): the paper's plant runs the arithmetic it always ran, bit for bit. Every RK4 stage
 of the plant (:mod:`capsule_env.plant.rk4`) and its outputs call :func:`accelerations`; a
 change of the vehicle (a speed-dependent levitation, a second body) is made here.
 
@@ -19,7 +22,7 @@ that a loop over vehicles vectorises.
 
 from __future__ import annotations
 
-from capsule_env._jit import kernel_function
+from capsule_env._jit import kernel_function, specialised
 
 __all__ = [
     "VEHICLE_LANE_NAMES",
@@ -27,20 +30,34 @@ __all__ = [
     "INV_M_B",
     "K_S",
     "K_P",
+    "C_P",
     "levitation_force",
     "accelerations",
 ]
 
 #: The per-vehicle values of :func:`accelerations` and :func:`levitation_force`: inverse car
-#: body and bogie masses (1/kg), secondary and levitation stiffnesses (N/m).
-VEHICLE_LANE_NAMES = ("inv_m_c", "inv_m_b", "k_s", "k_p")
-INV_M_C, INV_M_B, K_S, K_P = (VEHICLE_LANE_NAMES.index(n) for n in VEHICLE_LANE_NAMES)
+#: body and bogie masses (1/kg), secondary and levitation stiffnesses (N/m), levitation
+#: damping (N s/m).
+VEHICLE_LANE_NAMES = ("inv_m_c", "inv_m_b", "k_s", "k_p", "c_p")
+INV_M_C, INV_M_B, K_S, K_P, C_P = (VEHICLE_LANE_NAMES.index(n) for n in VEHICLE_LANE_NAMES)
 
 
-@kernel_function(inline=True)
-def levitation_force(bogie_disp_m: float, guideway_m: float, vehicle) -> float:
-    """The levitation's force on the bogie, ``k_p (z_b - z_g)`` (N, > 0 pulling it down)."""
-    return vehicle[K_P] * (bogie_disp_m - guideway_m)
+@specialised("damped")
+def levitation_force(damped, gap_m, gap_rate_m_s, vehicle):
+    """The levitation's force on the bogie (N, > 0 pulling it down) at the gap change
+    ``z_b - z_g`` and its rate: ``k_p (z_b - z_g)``, plus ``c_p (z_b' - z_g')`` when ``damped``
+    (a compile-time flag)."""
+    if damped:
+
+        def impl(damped, gap_m, gap_rate_m_s, vehicle):
+            return vehicle[K_P] * gap_m + vehicle[C_P] * gap_rate_m_s
+
+    else:
+
+        def impl(damped, gap_m, gap_rate_m_s, vehicle):
+            return vehicle[K_P] * gap_m
+
+    return impl
 
 
 @kernel_function(inline=True)

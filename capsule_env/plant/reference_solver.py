@@ -37,7 +37,14 @@ from capsule_env.dampers import DamperParams, damper_eval
 from capsule_env.dampers import hysteresis_params as _hysteresis_params
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_rate, saturation_level
-from capsule_env.layout import COIL_TAU, MASS_BODY, MASS_BOGIE, STIFF_LEVITATION, STIFF_SECONDARY
+from capsule_env.layout import (
+    COIL_TAU,
+    DAMP_LEVITATION,
+    MASS_BODY,
+    MASS_BOGIE,
+    STIFF_LEVITATION,
+    STIFF_SECONDARY,
+)
 from capsule_env.plant.block import guideway_elevation
 from capsule_env.vehicle import VehicleParams
 
@@ -58,6 +65,18 @@ def _rhs_of(model: int) -> Any:
     return _RHS[model]
 
 
+@njit
+def _slope(profiles, spacing, position):  # type: ignore[no-untyped-def]
+    """The slope (m/m) of profile 0, linear between samples, at ``position`` (m; 0 beyond
+    its ends, where :func:`guideway_elevation` holds the end values)."""
+    s = position / spacing
+    last = profiles.shape[1] - 1
+    if s < 0.0 or s >= last:
+        return 0.0
+    j = int(s)
+    return (profiles[0, j + 1] - profiles[0, j]) / spacing
+
+
 def _make_rhs(model: int) -> Any:
     @njit
     def rhs(t, s, p, vp, i_cmd, route, profiles, spacing):  # type: ignore[no-untyped-def]
@@ -71,7 +90,9 @@ def _make_rhs(model: int) -> Any:
         sec = vp[STIFF_SECONDARY] * (zc - zb) + force
         out = np.empty(7)
         out[0], out[1] = vc, -sec / vp[MASS_BODY]
-        out[2], out[3] = vb, (sec - vp[STIFF_LEVITATION] * (zb - zg)) / vp[MASS_BOGIE]
+        zg_rate = route[2] * route[1] * _slope(profiles, spacing, route[0] + route[1] * t)
+        lev = vp[STIFF_LEVITATION] * (zb - zg) + vp[DAMP_LEVITATION] * (vb - zg_rate)
+        out[2], out[3] = vb, (sec - lev) / vp[MASS_BOGIE]
         out[4] = hysteresis_rate(z, w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
         out[5] = y_dot
         out[6] = (i_cmd - ic) / tau if tau > 0.0 else 0.0

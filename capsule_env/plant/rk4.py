@@ -7,7 +7,10 @@ internal displacement), with
   Bouc-Wen update over the stage's deformation increment (:mod:`capsule_env.hysteresis`);
 - the coil current following its command through the first-order lag, solved exactly
   (``e_half = exp(-h / (2 tau))`` per half substep; 0 without lag);
-- the guideway elevation at the start, middle and end of the substep given by the caller.
+- the guideway elevation at the start, middle and end of the substep given by the caller;
+  where the levitation is damped (``damped``, a compile-time flag), its rate taken as the
+  substep's mean, ``(z_g(t + h) - z_g(t)) / h`` (exact for the guideway's piecewise-linear
+  profile when the substep lies between two samples).
 
 Everything is written without branches or library calls in the vectorised variants (the
 damper laws of :mod:`capsule_env.dampers`, :func:`~capsule_env.hysteresis.hysteresis_update_fast`),
@@ -87,14 +90,15 @@ def _advance_z(model, hysteresis, z, du, p, hc):
 
 
 @kernel_function(inline=True)
-def _rates(model, p, x, pre, zg, vehicle):
+def _rates(model, damped, p, x, pre, zg, zg_rate, vehicle):
     """The time derivatives of the state ``x = (z_c, z_c', z_b, z_b', z, y, i)`` (the first
     7 of ``layout.STATE_NAMES``) but ``z`` and ``i`` (advanced in closed form):
-    ``(z_c', z_c'', z_b', z_b'', y')`` at guideway elevation ``zg``; ``pre``: the damper
-    model's ``prepare`` at current ``i``."""
+    ``(z_c', z_c'', z_b', z_b'', y')`` at guideway elevation ``zg`` (rising at ``zg_rate``,
+    read where ``damped``); ``pre``: the damper model's ``prepare`` at current ``i``."""
     zc, vc, zb, vb, z, y, i = x
     force, y_dot = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, i, pre)
-    acc_c, acc_b = accelerations(zc, zb, force, levitation_force(zb, zg, vehicle), vehicle)
+    lev = levitation_force(damped, zb - zg, vb - zg_rate, vehicle)
+    acc_c, acc_b = accelerations(zc, zb, force, lev, vehicle)
     return vc, acc_c, vb, acc_b, y_dot
 
 
@@ -118,12 +122,14 @@ def _combine(x, k1, k2, k3, k4, wt):
 
 
 @kernel_function(inline=True)
-def rk4_substep(model, hysteresis, v, p, hc):
+def rk4_substep(model, hysteresis, damped, v, p, hc):
     """One RK4 substep of one vehicle: ``v`` the :data:`LANE_INPUT_NAMES` values, ``p`` the
-    damper parameters and ``hc`` the Riccati constants (tuples). Returns the new
+    damper parameters and ``hc`` the Riccati constants (tuples); ``damped``: whether the
+    levitation has damping (compile-time). Returns the new
     ``(z_c, z_c', z_b, z_b', z, y, i, t, zg_end)``."""
     zc, vc, zb, vb, z, y, ic, t, h, i_cmd, e_half = v[0:11]
-    vehicle, (zg0, zgh, zg1) = v[11:15], v[15:18]
+    vehicle, (zg0, zgh, zg1) = v[11:16], v[16:19]
+    zg_rate = (zg1 - zg0) / h if damped else 0.0
     ic_half = i_cmd + (ic - i_cmd) * e_half
     ic1 = i_cmd + (ic_half - i_cmd) * e_half
     pre_0 = inv_dashpots(model, p, ic)
@@ -131,27 +137,32 @@ def rk4_substep(model, hysteresis, v, p, hc):
     pre_1 = inv_dashpots(model, p, ic1)
     x0 = (zc, vc, zb, vb, y)
     u0 = zc - zb - y  # the deformation that drives z, at the start
-    k1 = _rates(model, p, (zc, vc, zb, vb, z, y, ic), pre_0, zg0, vehicle)
+    k1 = _rates(model, damped, p, (zc, vc, zb, vb, z, y, ic), pre_0, zg0, zg_rate, vehicle)
     a = _stage(x0, k1, 0.5 * h)
     zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
-    k2 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh, vehicle)
+    k2 = _rates(model, damped, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh,
+                zg_rate, vehicle)  # fmt: skip
     a = _stage(x0, k2, 0.5 * h)
     zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
-    k3 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh, vehicle)
+    k3 = _rates(model, damped, p, (a[0], a[1], a[2], a[3], zs, a[4], ic_half), pre_h, zgh,
+                zg_rate, vehicle)  # fmt: skip
     a = _stage(x0, k3, h)
     zs = _advance_z(model, hysteresis, z, a[0] - a[2] - a[4] - u0, p, hc)
-    k4 = _rates(model, p, (a[0], a[1], a[2], a[3], zs, a[4], ic1), pre_1, zg1, vehicle)
+    k4 = _rates(model, damped, p, (a[0], a[1], a[2], a[3], zs, a[4], ic1), pre_1, zg1, zg_rate,
+                vehicle)  # fmt: skip
     zc, vc, zb, vb, y_new = _combine(x0, k1, k2, k3, k4, h / 6.0)
     z = _advance_z(model, hysteresis, z, zc - zb - y_new - u0, p, hc)
     return zc, vc, zb, vb, z, y_new, ic1, t + h, zg1
 
 
 @kernel_function
-def plant_outputs(model, p, x, zg, vehicle):
+def plant_outputs(model, damped, p, x, zg, zg_rate, vehicle):
     """``(damper force, body acceleration, bogie acceleration)`` at a state ``x = (z_c, z_c',
-    z_b, z_b', z, y, i)`` and guideway elevation ``zg``."""
+    z_b, z_b', z, y, i)``, guideway elevation ``zg`` and its rate ``zg_rate`` (read where
+    ``damped``)."""
     zc, vc, zb, vb, z, y, ic = x
     force, _ = damper_force_and_rate(model, p, zc - zb, vc - vb, y, z, ic,
                                      inv_dashpots(model, p, ic))  # fmt: skip
-    acc_c, acc_b = accelerations(zc, zb, force, levitation_force(zb, zg, vehicle), vehicle)
+    lev = levitation_force(damped, zb - zg, vb - zg_rate, vehicle)
+    acc_c, acc_b = accelerations(zc, zb, force, lev, vehicle)
     return force, acc_c, acc_b

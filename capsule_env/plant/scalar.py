@@ -20,6 +20,7 @@ from capsule_env.layout import (
     BOGIE_VEL,
     COIL_CURRENT,
     COIL_TAU,
+    DAMP_LEVITATION,
     DAMPER_Y,
     HYST_Z,
     I_MAX,
@@ -41,18 +42,19 @@ __all__ = ["scalar_step"]
 _NO_CONSTANTS = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
 
 
-@specialised("model")
-def scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
+@specialised("model", "damped")
+def scalar_step(model, damped, lo, hi, plant, x, i_cmd, route, dt, out):
     """Advance vehicles ``lo .. hi-1`` by ``dt``, one at a time (any number of them).
 
     The number of substeps is ``plant.substeps[n, bin]`` for the bin of the highest current in
-    the interval (the damper's stiffness grows with current). Compiled once per model."""
-    m = model
+    the interval (the damper's stiffness grows with current). ``damped``: the levitation has
+    damping (its rate term compiled in). Compiled once per (model, damped)."""
+    m, dmp = model, damped
     damper = model_of_code(m)
     uses_current = damper.uses_current
     hyst = HYST_NONE if damper.hysteresis is None else HYST_GENERAL
 
-    def impl(model, lo, hi, plant, x, i_cmd, route, dt, out):
+    def impl(model, damped, lo, hi, plant, x, i_cmd, route, dt, out):
         dp, vp, table = plant.damper, plant.vehicle, plant.substeps
         profiles, spacing = plant.profiles, plant.spacing_m
         last = profiles.shape[1] - 1.0
@@ -70,24 +72,26 @@ def scalar_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
             if tau <= 0.0:
                 ic = cmd
             inv_mc, inv_mb = 1.0 / vp[n, MASS_BODY], 1.0 / vp[n, MASS_BOGIE]
-            ks, kp = vp[n, STIFF_SECONDARY], vp[n, STIFF_LEVITATION]
+            ks, kp, cp = vp[n, STIFF_SECONDARY], vp[n, STIFF_LEVITATION], vp[n, DAMP_LEVITATION]
             k, g = route.profile[n], route.gain[n]
             start, speed = route.start_m[n], route.speed_mps[n]
             zc, vc, zb, vb = x[n, BODY_DISP], x[n, BODY_VEL], x[n, BOGIE_DISP], x[n, BOGIE_VEL]
             z, y, t = x[n, HYST_Z], x[n, DAMPER_Y], x[n, TIME]
             zg0 = g * guideway_elevation(profiles, k, spacing, last, start + speed * t)
+            zgh = zg1 = zg0
             for _ in range(n_sub):
                 zgh = g * guideway_elevation(
                     profiles, k, spacing, last, start + speed * (t + 0.5 * h)
                 )
                 zg1 = g * guideway_elevation(profiles, k, spacing, last, start + speed * (t + h))
-                v = (zc, vc, zb, vb, z, y, ic, t, h, cmd, e_half, inv_mc, inv_mb, ks, kp, zg0,
-                     zgh, zg1)  # fmt: skip
-                zc, vc, zb, vb, z, y, ic, t, zg0 = rk4_substep(m, hyst, v, p, _NO_CONSTANTS)
+                v = (zc, vc, zb, vb, z, y, ic, t, h, cmd, e_half, inv_mc, inv_mb, ks, kp, cp,
+                     zg0, zgh, zg1)  # fmt: skip
+                zc, vc, zb, vb, z, y, ic, t, zg0 = rk4_substep(m, hyst, dmp, v, p, _NO_CONSTANTS)
             x[n, BODY_DISP], x[n, BODY_VEL], x[n, BOGIE_DISP], x[n, BOGIE_VEL] = zc, vc, zb, vb
             x[n, HYST_Z], x[n, DAMPER_Y], x[n, COIL_CURRENT], x[n, TIME] = z, y, ic, t
-            force, acc_c, acc_b = plant_outputs(m, p, (zc, vc, zb, vb, z, y, ic), zg0,
-                                                (inv_mc, inv_mb, ks, kp))  # fmt: skip
+            zg_rate = (zg1 - zgh) * 2.0 / h if dmp else 0.0
+            force, acc_c, acc_b = plant_outputs(m, dmp, p, (zc, vc, zb, vb, z, y, ic), zg0,
+                                                zg_rate, (inv_mc, inv_mb, ks, kp, cp))  # fmt: skip
             out[n, OUT_FORCE], out[n, OUT_BODY_ACC] = force, acc_c
             out[n, OUT_BOGIE_ACC], out[n, OUT_GUIDEWAY] = acc_b, zg0
 

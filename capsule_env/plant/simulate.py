@@ -23,7 +23,7 @@ from capsule_env.layout import (
     STATE_SIZE,
     TIME,
 )
-from capsule_env.plant.block import block_constants, block_kernel_mode
+from capsule_env.plant.block import block_constants, block_kernel_mode, levitation_damped
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.substeps import as_substep_table, substep_table
 from capsule_env.vehicle import VehicleParams
@@ -84,7 +84,7 @@ def step_batch(
     """
     from capsule_env.kernels import PLANT, BatchedKernel
 
-    mode = block_kernel_mode(damper_code, plant.damper)
+    mode = block_kernel_mode(damper_code, plant.damper, levitation_damped(plant.vehicle))
     BatchedKernel(PLANT, damper_code, mode, state.shape[0])(
         plant, state, current_command_a, route, float(dt_s), out
     )
@@ -129,7 +129,8 @@ def simulate(
     states[0] = state[0]
     out = np.empty((1, N_PLANT_OUTPUTS))
     cmd = np.empty(1)
-    kernel = BatchedKernel(PLANT, damper.code, block_kernel_mode(damper.code, plant.damper), 1)
+    mode = block_kernel_mode(damper.code, plant.damper, levitation_damped(plant.vehicle))
+    kernel = BatchedKernel(PLANT, damper.code, mode, 1)
     for step in range(n_steps):
         cmd[0] = commands[step]
         kernel(plant, state, cmd, route, float(dt_s), out)
