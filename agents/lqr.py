@@ -29,15 +29,15 @@ def lqr_gain(
     q_levitation: float,
     r_force: float,
     levitation_stiffness_n_per_m: float | None = None,
-    levitation_damping_n_s_per_m: float = 0.0,
+    levitation_damping_n_s_per_m: float | None = None,
 ) -> np.ndarray:
     """The LQR gain ``K`` (4,) with ``F = -K x`` minimising
     ``J = integral(a_c^2 + q_stroke (z_c - z_b)^2 + q_lev (z_b - z_g)^2 + r F^2)``, with
     ``a_c = (-k_s (z_c - z_b) - F) / m_c`` the car-body acceleration (the cross term kept).
 
     The levitation is a spring ``k_p`` (default: the vehicle's, the paper's 810 km/h value)
-    and a damper ``c_p`` (N s/m, default 0: the paper's undamped levitation) between the bogie
-    and the guideway: ``m_b z_b'' = k_s (z_c - z_b) + F - k_p (z_b - z_g) - c_p (z_b' - z_g')``,
+    and a damper ``c_p`` (N s/m, default: the vehicle's, 0 for the paper's undamped
+    levitation) between the bogie and the guideway: ``m_b z_b'' = k_s (z_c - z_b) + F - k_p (z_b - z_g) - c_p (z_b' - z_g')``,
     the guideway's velocity a disturbance. The gain-scheduled law
     (:mod:`capsule_env.agents.scheduled_lqr`) gives the EDS values at each speed."""
     mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
@@ -45,7 +45,9 @@ def lqr_gain(
     kp = vehicle.levitation_stiffness_n_per_m
     if levitation_stiffness_n_per_m is not None:
         kp = float(levitation_stiffness_n_per_m)
-    cp = float(levitation_damping_n_s_per_m)
+    cp = vehicle.levitation_damping_n_s_per_m
+    if levitation_damping_n_s_per_m is not None:
+        cp = float(levitation_damping_n_s_per_m)
     a = np.array(
         [
             [0.0, 1.0, 0.0, -1.0],

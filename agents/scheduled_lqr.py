@@ -54,6 +54,7 @@ from capsule_env.agents.tuned import tuned_gains
 
 from capsule_env._validation import check_choice, check_in_range
 from capsule_env.config import OBSERVATION_NAMES
+from capsule_env.envelope import LEVITATION_MODELS, TRIP_COLUMN_NAMES
 from capsule_env.levitation import (
     EdsParams,
     check_levitating,
@@ -73,10 +74,8 @@ __all__ = [
     "levitation_schedule",
 ]
 
-#: The observation column the law reads the speed from (m/s).
-SPEED_COLUMN = "speed_m_s"
-#: The levitation models a schedule can be designed for (the env's ``levitation`` option).
-LEVITATION_MODELS = ("eds", "fixed")
+#: The observation column the law reads the speed from (m/s): the first a trip adds.
+SPEED_COLUMN = TRIP_COLUMN_NAMES[0]
 #: Defaults of the speed grid: its top (km/h) and its step (km/h).
 TOP_SPEED_KMH = 1200.0
 GRID_STEP_KMH = 25.0
@@ -96,12 +95,13 @@ def levitation_schedule(
     speeds_m_s: np.ndarray, vehicle: VehicleParams, levitation: str, eds: EdsParams
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(k_p (N/m), c_p (N s/m))`` at each speed: the EDS coil model calibrated to
-    ``vehicle`` (:mod:`capsule_env.levitation`), or with ``"fixed"`` the vehicle's stiffness
-    and no damping at every speed (the paper's levitation)."""
+    ``vehicle`` (:mod:`capsule_env.levitation`, the env's formula), or with ``"fixed"`` the
+    vehicle's stiffness and damping at every speed (the paper's levitation: no damping)."""
     check_choice("levitation", levitation, LEVITATION_MODELS)
     speeds = np.asarray(speeds_m_s, dtype=float)
     if levitation == "fixed":
-        return np.full(speeds.shape, vehicle.levitation_stiffness_n_per_m), np.zeros(speeds.shape)
+        stiffness = np.full(speeds.shape, vehicle.levitation_stiffness_n_per_m)
+        return stiffness, np.full(speeds.shape, vehicle.levitation_damping_n_s_per_m)
     coil = eds_coil(vehicle, eds)
     check_levitating("the design speeds", speeds, coil)
     stiffness = levitation_stiffness_n_per_m(speeds, coil)

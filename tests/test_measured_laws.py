@@ -19,6 +19,7 @@ from capsule_env.agents.lqr import lqr_gain
 from capsule_env.agents.search_space import SEARCH_SPACES
 
 from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
+from capsule_env.envelope import TRIP_COLUMN_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 from capsule_env.vehicle import VehicleParams
 
@@ -38,9 +39,7 @@ def _meas(body_vel=0.0, body_acc=0.0, rel_vel=0.0, stroke=0.0, gap=0.0, bogie_ve
 
 def _trip_names(ctrl) -> tuple[str, ...]:
     """The columns a trip adds after the set's own (a law that asks for a trip reads them)."""
-    if ctrl.env_kwargs.get("speed_profile") != "trip":
-        return ()
-    return ("speed_m_s", "longitudinal_acceleration_m_s2")
+    return TRIP_COLUMN_NAMES if ctrl.env_kwargs.get("speed_profile") == "trip" else ()
 
 
 def test_mixed_skyhook_add_switches_as_savaresi_and_spelta():

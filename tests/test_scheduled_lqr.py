@@ -138,3 +138,29 @@ def test_bad_input_is_refused_naming_the_parameter():
         ScheduledLQRController(r_force=0.0)
     with pytest.raises(ValueError, match="lift_off_speed_kmh"):
         ScheduledLQRController(levitation_params={"lift_off_speed_kmh": 900.0})
+
+
+def test_on_a_trip_env_the_law_reads_the_env_speed_column():
+    from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+
+    sched = ScheduledLQRController(observation="measured", **WEIGHTS)
+    env = CapsuleSuspensionVectorEnv(num_envs=3, setting="hils", episode_length_s=0.1,
+                                     **sched.env_kwargs)  # fmt: skip
+    names = env.config.observation_names
+    assert names.index(SPEED_COLUMN) == len(MEASURED_NAMES)  # where the law reads it
+    assert env.config.levitation == "eds"
+    obs, _ = env.reset(seed=[0, 1, 2])
+    speeds = obs[:, names.index(SPEED_COLUMN)]
+    assert np.all(speeds >= 150.0 * KMH - 1e-6) and np.all(speeds <= 1000.0 * KMH + 1e-6)
+    assert len(set(speeds.tolist())) > 1  # each vehicle its own window of the trip
+    for _ in range(5):
+        action, _ = sched.predict(obs)
+        obs, *_ = env.step(action)
+    env.close()
+    # without a trip the env has no speed column: the law says which one it misses
+    env = CapsuleSuspensionVectorEnv(num_envs=1, setting="hils", episode_length_s=0.1,
+                                     **{**sched.env_kwargs, "speed_profile": "constant"})  # fmt: skip
+    obs, _ = env.reset(seed=[0])
+    with pytest.raises(ValueError, match="speed_m_s"):
+        sched.predict(obs)
+    env.close()
