@@ -71,12 +71,43 @@ def rows(retune: bool) -> dict[str, Any]:
     return out
 
 
-def measure(ctrl: Any, episodes: int, seed: int) -> tuple[np.ndarray, float]:
-    """Per-episode Wk (m/s^2) and the worst max |stroke| (m) on the held-out episodes."""
+def measure(
+    ctrl: Any, episodes: int, seed: int, speed_kmh: float | None = None
+) -> tuple[np.ndarray, float]:
+    """Per-episode Wk (m/s^2) and the worst max |stroke| (m) on the held-out episodes; with
+    ``speed_kmh``, on a trip that stays at that speed (lift-off = cruise: the task's plant at
+    one operating point, the speed column still there)."""
     env = {**task_named(TASK).kwargs, **ctrl.env_kwargs, "guideway_seed": EVALUATION_GUIDEWAY_SEED}
+    if speed_kmh is not None:
+        env["trip_params"] = {"cruise_speed_kmh": speed_kmh, "lift_off_speed_kmh": speed_kmh}
     roll = run_episodes(ctrl, env, episodes, seed, 10.0)
     wk = metrics.wk_weighted_rms(roll.signals["car_body_acceleration_m_s2"], roll.dt_s)
     return wk, float(np.abs(roll.signals["stroke_m"]).max())
+
+
+def compare(
+    ctrls: dict[str, Any], episodes: int, seed: int, speed_kmh: float | None = None
+) -> dict[str, Any]:
+    """Each row's figures (printed, and returned by row name), the ratios to the fixed LQR's
+    on the same episodes."""
+    out: dict[str, Any] = {}
+    reference = None
+    for name, ctrl in ctrls.items():
+        wk, stroke = measure(ctrl, episodes, seed, speed_kmh)
+        reference = wk if name == FIXED else reference
+        row = {"wk_rms_body_acc_m_s2": float(wk.mean()), "max_stroke_m": stroke,
+               "gains": ctrl.gains()}  # fmt: skip
+        extra = ""
+        if reference is not None:
+            ratio = wk / reference
+            row["ratio_to_fixed"] = float(wk.mean() / reference.mean())
+            row["episode_ratio_range"] = [float(ratio.min()), float(ratio.max())]
+            extra = (f"  x{row['ratio_to_fixed']:.4f} of the fixed LQR (episodes "
+                     f"{ratio.min():.3f}..{ratio.max():.3f})")  # fmt: skip
+        out[name] = row
+        print(f"{name:48s} Wk {wk.mean():.4f} m/s^2  max stroke {1e3 * stroke:5.1f} mm{extra}",
+              flush=True)  # fmt: skip
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,6 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
     p.add_argument("--retune-fixed", action="store_true",
                    help="also the fixed LQR re-tuned on the trip's training bank (slow)")  # fmt: skip
+    p.add_argument("--speeds", default="",
+                   help="comma-separated speeds (km/h, >= 150): also each row at each constant "
+                   "speed")  # fmt: skip
     p.add_argument("--json", type=Path, help="write the figures to this JSON file")
     args = p.parse_args(argv)
     if args.episodes < 1 or args.seed < 0:
@@ -95,22 +129,19 @@ def main(argv: list[str] | None = None) -> int:
             check_writable_file(args.json, "--json")
         except (ValueError, OSError) as exc:
             p.error(str(exc))
+    try:
+        speeds = [float(v) for v in args.speeds.split(",") if v.strip()]
+    except ValueError:
+        p.error(f"--speeds must be comma-separated numbers (km/h), got {args.speeds!r}")
+    if any(not 150.0 <= v <= 2000.0 for v in speeds):
+        p.error(f"--speeds must lie in [150, 2000] km/h (lift-off and up), got {args.speeds!r}")
     results: dict[str, Any] = {"task": TASK, "guideway_seed": EVALUATION_GUIDEWAY_SEED,
-                               "seeds": [args.seed, args.seed + args.episodes - 1], "rows": {}}  # fmt: skip
-    reference = None
-    for name, ctrl in rows(args.retune_fixed).items():
-        wk, stroke = measure(ctrl, args.episodes, args.seed)
-        reference = wk if name == FIXED else reference
-        ratio = wk / reference if reference is not None else None
-        results["rows"][name] = {"wk_rms_body_acc_m_s2": float(wk.mean()), "max_stroke_m": stroke,
-                                 "gains": ctrl.gains(),
-                                 "ratio_to_fixed": None if ratio is None else float(wk.mean() / reference.mean()),
-                                 "episode_ratio_range": None if ratio is None else [float(ratio.min()), float(ratio.max())]}  # fmt: skip
-        row = results["rows"][name]
-        extra = "" if ratio is None else (f"  x{row['ratio_to_fixed']:.4f} of the fixed LQR "
-                                          f"(episodes {ratio.min():.3f}..{ratio.max():.3f})")  # fmt: skip
-        print(f"{name:48s} Wk {wk.mean():.4f} m/s^2  max stroke {1e3 * stroke:5.1f} mm{extra}",
-              flush=True)  # fmt: skip
+                               "seeds": [args.seed, args.seed + args.episodes - 1],
+                               "trip": compare(rows(args.retune_fixed), args.episodes, args.seed)}  # fmt: skip
+    ctrls = rows(False)
+    for v in speeds:
+        print(f"-- at a constant {v:g} km/h")
+        results[f"{v:g}_kmh"] = compare(ctrls, args.episodes, args.seed, v)
     if args.json is not None:
         atomic_write_text(args.json, json.dumps(results, indent=2) + "\n")
         print(f"wrote {args.json}")
