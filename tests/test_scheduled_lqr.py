@@ -164,3 +164,26 @@ def test_on_a_trip_env_the_law_reads_the_env_speed_column():
     with pytest.raises(ValueError, match="speed_m_s"):
         sched.predict(obs)
     env.close()
+
+
+def test_experiment_script_compares_on_the_same_episodes(tmp_path, capsys):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "scheduled_lqr.py"
+    spec = importlib.util.spec_from_file_location("scheduled_lqr_experiment", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    out = tmp_path / "s.json"
+    assert script.main(["--episodes", "2", "--speeds", "810", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["guideway_seed"] == 2026 and data["seeds"] == [1000, 1001]
+    for block in (data["trip"], data["810_kmh"]):
+        assert block["lqr-clipped-biexp-meas"]["ratio_to_fixed"] == 1.0
+        sched = block["lqr-sched-biexp-meas"]
+        assert 0.5 < sched["ratio_to_fixed"] < 2.0 and sched["ratio_to_fixed"] != 1.0
+        assert "ratio_to_fixed" not in block["passive"]
+    with pytest.raises(SystemExit):
+        script.main(["--speeds", "100"])
+    assert "--speeds must lie in [150, 2000]" in capsys.readouterr().err
