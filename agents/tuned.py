@@ -33,3 +33,15 @@ def tuned_gains(name: str, path: Path = TUNED_GAINS_PATH) -> dict[str, float] | 
     """The shipped gains of controller ``name`` (keys with units), or None if not tuned."""
     entry = load_tuned(path).get("controllers", {}).get(name)
     return None if entry is None else dict(entry["gains"])
+
+
+def tuning_env_kwargs(path: Path = TUNED_GAINS_PATH) -> dict[str, Any]:
+    """The env options the shipped gains were tuned in, besides each controller's own
+    options: the ``setting`` of the file's ``settings`` (the search runs a controller in its
+    own options and that setting, every other option at the env's default, on the training
+    bank: :func:`capsule_env.agents.tuning._training_rollout`; the settings'
+    ``stroke_limit_m`` is the search's constraint, not the env's option)."""
+    from capsule_env.agents.tuning import TuningSettings  # the search's default setting
+
+    settings = load_tuned(path).get("settings", {})
+    return {"setting": settings.get("setting", TuningSettings.setting)}

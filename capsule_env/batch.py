@@ -127,14 +127,23 @@ class CapsuleBatch:
     """
 
     profiles = _bound("profiles", "(K, L) guideway bank (m)")
+    offsets = _bound("offsets", "(K, L) the tube's spans added after the gain (m), or (0, 0)")
     damper_params = _bound("damper_params", "(N, N_DAMPER_PARAMS) each vehicle's packed damper")
     vehicle_params = _bound("vehicle_params", "(N, 4) each vehicle's packed masses, stiffnesses")
-    speed = _bound("speed", "(N,) each vehicle's speed (m/s)")
+    speed = _bound(
+        "speed",
+        "(N,) each vehicle's speed (m/s); on a trip, the slope of the "
+        "current interval's route (its chord)",
+    )
     sub_table = _bound("sub_table", "(N, SUBSTEP_BINS) RK4 substeps per vehicle, current bin")
     block_constants = _bound("block_constants", "(N, ...) the block kernel's constants")
     state = _bound("state", "(N, STATE_SIZE) plant state, columns layout.STATE_NAMES")
     profile_index = _bound("profile_index", "(N,) int64 each vehicle's profile in the bank")
-    start_position = _bound("start_position", "(N,) each vehicle's start on its profile (m)")
+    start_position = _bound(
+        "start_position",
+        "(N,) each vehicle's start on its profile (m); on a "
+        "trip, the intercept of the current interval's route",
+    )
     gain = _bound("gain", "(N,) each vehicle's profile scale")
     step_count = _bound("step_count", "(N,) int64 steps since each vehicle's reset")
     noise_key = _bound("noise_key", "(N,) uint64 each episode's sensor-noise key")
@@ -159,6 +168,7 @@ class CapsuleBatch:
         self.guideway = config.guideway_spec
         self.spacing = self.guideway.spacing_m
         self._profiles = self._build_bank()
+        self._offsets = self._build_offsets()
         self.rngs = vehicle_streams(None, n)
         self._nominal_vehicle = self.vehicle.as_array()
         self._fresh_signals = bool(fresh_signals)
@@ -196,7 +206,7 @@ class CapsuleBatch:
         )
         self._plant_params = PlantParams(
             self.damper_params, self.vehicle_params, self.sub_table, self.block_constants,
-            self.profiles, float(self.spacing),
+            self.profiles, float(self.spacing), self.offsets,
         )  # fmt: skip
 
     def _build_state(self) -> None:
@@ -265,21 +275,22 @@ class CapsuleBatch:
         self.signals = self._signals_buf[:, : self.num_envs]
 
     # ---------------------------------------------------------------- guideway bank
-    def _build_bank(self) -> np.ndarray:
-        """The guideway bank: its profiles, plus the tube's spans where the configuration has
-        them (the same spans on every profile at its own pylons' settlement, drawn from a
-        stream of the guideway seed: :func:`capsule_env.guideway.spans.span_profile`)."""
-        bank = self._bank_profiles()
+    def _build_offsets(self) -> np.ndarray:
+        """The tube's spans on the bank's grid, one row per profile, added to the guideway
+        after the route's gain (so that the random irregularity keeps its peak and the sag
+        its size): the same spans on every profile with its own pylons' settlement, drawn
+        from a stream of the guideway seed (:func:`capsule_env.guideway.spans.span_profile`);
+        an empty (0, 0) array without spans."""
         span = self.config.envelope.span
         if span is None:
-            return bank
+            return np.zeros((0, 0))
+        bank = self.profiles
         seeds = np.random.SeedSequence([self.config.guideway_seed, 2]).generate_state(len(bank))
         length = (bank.shape[1] - 1) * self.spacing
-        for k in range(bank.shape[0]):
-            bank[k] += span_profile(length, self.spacing, span, int(seeds[k]))[: bank.shape[1]]
-        return bank
+        rows = [span_profile(length, self.spacing, span, int(s))[: bank.shape[1]] for s in seeds]
+        return np.ascontiguousarray(np.stack(rows))
 
-    def _bank_profiles(self) -> np.ndarray:
+    def _build_bank(self) -> np.ndarray:
         cfg, gw = self.config, self.guideway
         if gw.kind == "random":
             length = 4.0 * cfg.window_m
@@ -308,7 +319,8 @@ class CapsuleBatch:
         cfg = self.config
         if cfg.preview_points == 0:
             return 0.0
-        return cfg.speed_range_mps[1] * cfg.preview_horizon_s + 6.0 * cfg.position_error_m
+        top = cfg.envelope.highest_speed_m_s(cfg.speed_range_mps[1])  # a trip's cruise
+        return top * cfg.preview_horizon_s + 6.0 * cfg.position_error_m
 
     def _run_samples(self) -> int:
         """Samples of a bank profile that runs drive over (all but a deterministic profile's
@@ -388,10 +400,12 @@ class CapsuleBatch:
                 window = self.profiles[k, j0 : j0 + window_samples]
                 self.gain[n] = 1.0 if gw.peak_m is None else gw.peak_m / np.max(np.abs(window))
                 zg0 = self.gain[n] * self.profiles[k, j0]
+                if self.offsets.size:  # the spans, after the gain
+                    zg0 += self.offsets[k, j0]
             else:
                 self.start_position[n] = 0.0
                 self.gain[n] = 1.0
-                zg0 = self.profiles[k, 0]
+                zg0 = self.profiles[k, 0] + (self.offsets[k, 0] if self.offsets.size else 0.0)
             self.state[n] = 0.0
             self.state[n, BODY_DISP] = zg0  # static equilibrium over the start elevation
             self.state[n, BOGIE_DISP] = zg0
@@ -426,12 +440,16 @@ class CapsuleBatch:
     def _stiffest(self, vehicle_rows: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Packed vehicles as stiff as they get (the substep tables' rows): with EDS
         levitation, ``k_p`` at its limit ``K_inf`` (from the vehicles' stored limits, or the
-        nominal one before any reset)."""
-        if self.envelope.coil is not None:
+        nominal one before any reset) and ``c_p`` at its largest, ``K_inf tau`` (0 km/h)."""
+        coil = self.envelope.coil
+        if coil is not None:
             if rows is None:
                 vehicle_rows[:, STIFF_LEVITATION] /= self.envelope.reference_shape
             else:
                 vehicle_rows[:, STIFF_LEVITATION] = self.env_state.envelope[ENV_LIMIT, rows]
+            vehicle_rows[:, DAMP_LEVITATION] = (
+                vehicle_rows[:, STIFF_LEVITATION] * coil.time_constant_s
+            )
         return vehicle_rows
 
     def _reset_envelope(self, n: int) -> None:

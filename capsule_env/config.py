@@ -348,19 +348,25 @@ class EnvConfig:
         return substep_tables(self.plant_damper, self.dt_s, vehicle_params, rate)
 
     def input_rate_rad_s(self, speed_mps: np.ndarray | float) -> np.ndarray:
-        """Highest angular frequency of the guideway input at ``speed_mps`` (rad/s)."""
+        """Highest angular frequency of the guideway input at ``speed_mps`` (rad/s); with the
+        tube's spans, at least their fourth harmonic (``8 pi v / span_m``)."""
         gw = self.guideway_spec
         speed = np.asarray(speed_mps, dtype=float)
+        span = 4.0 * math.pi * speed * 2.0 / self.span_params.get("span_m", 30.0)
+        spans = self.spans != "none"
         if gw.kind == "sine":
-            return np.full_like(speed, 2.0 * math.pi * gw.frequency_hz)
+            rate = np.full_like(speed, 2.0 * math.pi * gw.frequency_hz)
+            return np.maximum(rate, span) if spans else rate
         if gw.kind == "swept_sine":
-            return np.full_like(speed, 2.0 * math.pi * max(gw.start_hz, gw.stop_hz))
+            rate = np.full_like(speed, 2.0 * math.pi * max(gw.start_hz, gw.stop_hz))
+            return np.maximum(rate, span) if spans else rate
         shortest = {
             "random": gw.min_wavelength_m,
             "bump": gw.bump_length_m,
             "step": max(2.0 * gw.ramp_length_m, 4.0 * gw.spacing_m),
         }[gw.kind]
-        return 2.0 * math.pi * speed / shortest
+        rate = 2.0 * math.pi * speed / shortest
+        return np.maximum(rate, span) if spans else rate
 
     @property
     def speed_range_mps(self) -> tuple[float, float]:

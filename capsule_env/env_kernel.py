@@ -93,7 +93,7 @@ from capsule_env.observations import (
     MEASUREMENT_SOURCES,
     QUANTITIES,
 )
-from capsule_env.plant.block import BLOCK, guideway_elevation, row_params
+from capsule_env.plant.block import BLOCK, guideway_elevation, route_elevation, row_params
 
 __all__ = [
     "env_commands",
@@ -499,11 +499,11 @@ def preview_row(n, params, plant, state, obs):
     first = obs.shape[1] - params.preview_points
     k, g, speed = route.profile[n], route.gain[n], route.speed_mps[n]
     here = route.start_m[n] + speed * state.plant[n, TIME] + position_error(state)[n]
-    ref = g * guideway_elevation(profiles, k, spacing, last, here)
+    ref = route_elevation(profiles, plant.offsets, k, g, spacing, last, here)
     ref += guideway_elevation(err, k, spacing, last, here)
     for j in range(params.preview_points):
         ahead = here + speed * (j + 1) * params.preview_step_s
-        z = g * guideway_elevation(profiles, k, spacing, last, ahead)
+        z = route_elevation(profiles, plant.offsets, k, g, spacing, last, ahead)
         obs[n, first + j] = z + guideway_elevation(err, k, spacing, last, ahead) - ref
 
 

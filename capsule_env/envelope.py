@@ -71,7 +71,10 @@ def _build(name: str, cls: type, overrides: dict, exclude: tuple[str, ...] = ())
     for key in overrides:
         if key not in known:
             raise ValueError(f"unknown key {key!r} in {name}; accepted: {', '.join(sorted(known))}")
-    return cls(**overrides)
+    try:
+        return cls(**overrides)
+    except ValueError as exc:  # say which dict the field came from (two have lift-off speeds)
+        raise ValueError(f"{name}: {exc}") from None
 
 
 def _lift_shape(r: float) -> float:
@@ -143,6 +146,16 @@ def build_envelope(config: Any) -> Envelope:
     check_choice("spans", config.spans, SPAN_OPTIONS)
     eds = _build("levitation_params", EdsParams, config.levitation_params)
     trip = _build("trip_params", TripParams, config.trip_params)
+    if config.speed_profile == "trip" and config.speed_kmh != 810.0:
+        raise ValueError(
+            f"speed_kmh must be left at its default (810) with speed_profile='trip': the trip "
+            f"sets the speed (trip_params), got {config.speed_kmh}"
+        )
+    if config.levitation == "eds" and "levitation_damping_n_s_per_m" in config.vehicle_params:
+        raise ValueError(
+            "vehicle_params['levitation_damping_n_s_per_m'] must not be set with "
+            "levitation='eds': the coil model sets the damping at each speed"
+        )
     _build("span_params", SpanParams, config.span_params, exclude=("shape",))  # validates
     if config.levitation == "fixed" and config.levitation_params:
         raise ValueError("levitation_params needs levitation='eds'")
@@ -153,12 +166,21 @@ def build_envelope(config: Any) -> Envelope:
     coil = None
     if config.levitation == "eds":
         vehicle: VehicleParams = config.vehicle
-        coil = eds_coil(vehicle, eds)
+        try:
+            coil = eds_coil(vehicle, eds)
+        except ValueError as exc:
+            raise ValueError(
+                f"levitation_params and vehicle_params do not calibrate an EDS coil "
+                f"(levitation_stiffness_n_per_m {vehicle.levitation_stiffness_n_per_m:g} N/m at "
+                f"{eds.reference_speed_kmh:g} km/h, lift-off {eds.lift_off_speed_kmh:g} km/h): "
+                f"{exc}"
+            ) from None
         if config.speed_profile == "trip":
             check_levitating("trip_params['lift_off_speed_kmh']", trip.lift_off_speed_kmh / 3.6,
                              coil)  # fmt: skip
         else:
-            check_levitating("speed_kmh", config.speed_range_mps[0], coil)
+            name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"
+            check_levitating(name, config.speed_range_mps[0], coil)
     if config.speed_profile == "trip" and trip.duration_s < config.episode_length_s:
         raise ValueError(
             f"episode_length_s must be at most the trip's duration {trip.duration_s:.1f} s "

@@ -3,6 +3,8 @@
     python evaluate.py                          # both settings, the default controllers
     python evaluate.py --setting hils --episodes 20 --json out/eval.json --plots out/plots
     python evaluate.py --policy runs/ppo/best_model.zip   # add a trained SB3 policy
+    python evaluate.py --task CapsuleRide-v0              # on a registered task
+    python evaluate.py --setting hils --env speed_kmh=400 --env vehicle_params='{"car_body_mass_kg": 8400}'
 
 Read top to bottom: arguments; controllers; the checks made before anything runs; for each
 setting the passive run and every controller on the same guideway seeds; metrics; the tables
@@ -15,7 +17,12 @@ when that name is taken (by a classical controller or an earlier ``--policy``), 
 Bad arguments or files (a missing, empty, corrupt or mismatched policy, a policy without its
 ``.vecnormalize.pkl`` unless ``--allow-unnormalized``, an episode too short for the spectra,
 an unwritable ``--json``/``--plots`` path) stop the script before the run with one line on
-stderr and exit status 1 (2 for argument syntax).
+stderr and exit status 1 (2 for argument syntax, an unknown ``--task`` and a bad ``--env``).
+
+``--task ID`` and ``--env KEY=VALUE`` set the evaluated env (:mod:`capsule_env.eval_condition`
+says how they combine with ``--setting``, ``--episode-length`` and each controller's own
+options); the tables and the JSON (``condition``) name them, and ``--plots DIR`` then writes
+into the sub-folder ``DIR/<task>+KEY=VALUE...`` so that the paper run's figures stay.
 """
 
 from __future__ import annotations
@@ -34,11 +41,21 @@ from capsule_env._cli import ArgumentParser
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.base import OBSERVATION_GROUPS
 from capsule_env.agents.classical import PAPER_FIXED
+from capsule_env.agents.tuned import tuning_env_kwargs
 from capsule_env.config import EnvConfig
+from capsule_env.eval_condition import (
+    Condition,
+    build_condition,
+    controller_env,
+    headline,
+    table_notes,
+    tuned_condition_changes,
+)
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.table_key import key_lines, on_off_note
+from capsule_env.tasks import TASKS
 from capsule_env.vehicle import natural_frequencies_hz
 
 #: The paper's published vibration-reduction effects (per cent) that survived extraction
@@ -97,9 +114,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = ArgumentParser(
         prog="evaluate.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
-    p.add_argument("--setting", choices=["sim", "hils", "both"], default="both",
+    p.add_argument("--setting", choices=["sim", "hils", "both"], default=None,
                    help="sim: plant damper = inverted model; hils: reference damper with coil "
-                   "lag, noise, delay (default: both)")  # fmt: skip
+                   "lag, noise, delay (default: the --task's or --env's setting, else both)")  # fmt: skip
+    p.add_argument("--task", metavar="ID",
+                   help="evaluate on a registered task (capsule_env.tasks: "
+                   + ", ".join(t.env_id for t in TASKS) + "): its env options, its setting")  # fmt: skip
+    p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
+                   help="one env option of the evaluated env (VALUE JSON or a Python literal, "
+                   "a bare word a string; over the --task's), repeatable, as train.py's: "
+                   "--env speed_kmh=400 --env setting=hils")  # fmt: skip
     p.add_argument("--controllers", default=",".join(DEFAULT_CONTROLLERS),
                    help="comma-separated controller names, or 'all' (classical: "
                    + ", ".join(classical_controllers()) + ")")  # fmt: skip
@@ -116,16 +140,24 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
-    p.add_argument("--episode-length", type=float, default=10.0,
-                   help="seconds per episode (at least 0.335 s at the default 200 Hz control "
-                   "rate: the spectra need a line in each mode band)")  # fmt: skip
+    p.add_argument("--episode-length", type=float, default=None,
+                   help="seconds per episode (default: the --task's or --env's "
+                   "episode_length_s, else 10; at least 0.335 s at the default 200 Hz "
+                   "control rate: the spectra need a line in each mode band)")  # fmt: skip
     p.add_argument("--oracle", action="store_true",
                    help="also search the clairvoyant bound (capsule_env.oracle) on the same "
                    "episodes: an 'oracle' row per setting and each controller's share of the "
                    "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
-    p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder")
-    return p.parse_args(argv)
+    p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
+                   "--task or --env: to its sub-folder named after them)")  # fmt: skip
+    args = p.parse_args(argv)
+    try:  # the evaluated env: --task, --setting, --episode-length, --env (eval_condition.py)
+        args.condition = build_condition(args.task, args.env, args.setting, args.episode_length)
+    except (ValueError, TypeError) as exc:
+        p.error(str(exc))
+    args.episode_length = args.condition.episode_length_s
+    return args
 
 
 def check_args(args: argparse.Namespace) -> None:
@@ -138,7 +170,24 @@ def check_args(args: argparse.Namespace) -> None:
     if args.json is not None:
         check_writable_file(args.json, "--json")
     if args.plots is not None:
-        check_writable_dir(args.plots, "--plots")
+        check_writable_dir(plots_dir(args), "--plots")
+
+
+def plots_dir(args: argparse.Namespace) -> Path:
+    """The folder of the figures: ``--plots``, or its sub-folder named by the condition
+    (:meth:`capsule_env.eval_condition.Condition.label`) with ``--task`` or ``--env``."""
+    label = _condition(args).label()
+    return args.plots if label is None else args.plots / label
+
+
+def _condition(args: argparse.Namespace) -> Condition:
+    """The evaluated env of ``args`` (a namespace built by hand: ``--setting`` and
+    ``--episode-length`` alone, as before ``--task``/``--env``)."""
+    condition = getattr(args, "condition", None)
+    if condition is None:
+        condition = build_condition(None, [], getattr(args, "setting", None),
+                                    getattr(args, "episode_length", None))  # fmt: skip
+    return condition
 
 
 def unique_name(name: str, taken: dict | set) -> str:
@@ -207,17 +256,22 @@ def _without_missing_solver(names: list[str], implicit: bool) -> list[str]:
     return [n for n in names if n not in mpc]
 
 
-def check_controllers(ctrls: dict, settings: list[str], episode_length_s: float) -> None:
-    """Before the run: each controller's env arguments are valid in each setting, the episode
-    is long enough for the metrics at its control rate, and each policy's observation and
-    action sizes are the env's. Raises ``ValueError`` naming the controller (and file)."""
+def check_controllers(
+    ctrls: dict, settings: list[str], episode_length_s: float, env_kwargs: dict | None = None
+) -> None:
+    """Before the run: each controller's env arguments (its own over the evaluated env's
+    ``env_kwargs``, :func:`capsule_env.eval_condition.controller_env`) are valid in each
+    setting, the episode is long enough for the metrics at its control rate, and each
+    policy's observation and action sizes are the env's. Raises ``ValueError`` naming the
+    controller (and file)."""
     for name, ctrl in ctrls.items():
         where = f"{name} ({ctrl.path})" if getattr(ctrl, "path", None) else name
         for setting in settings:
+            env, _ = controller_env(env_kwargs or {}, ctrl.env_kwargs, setting)
             try:
-                config = EnvConfig.from_kwargs(**{**ctrl.env_kwargs, "setting": setting})
+                config = EnvConfig.from_kwargs(**env)
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"{where}: bad env arguments {ctrl.env_kwargs}: {exc}") from None
+                raise ValueError(f"{where}: bad env arguments {env}: {exc}") from None
             check_episode_length(episode_length_s, config.dt_s, "--episode-length")
             model = getattr(ctrl, "model", None)
             if model is None:
@@ -245,21 +299,20 @@ def prepare(args: argparse.Namespace) -> dict:
         names, args.policy, shipped=not args.no_shipped_policy,
         allow_unnormalized=args.allow_unnormalized,
     )  # fmt: skip
-    check_controllers(ctrls, _settings(args), args.episode_length)
+    condition = _condition(args)
+    check_controllers(ctrls, list(condition.settings), args.episode_length, condition.env_kwargs)
     return ctrls
-
-
-def _settings(args: argparse.Namespace) -> list[str]:
-    return ["sim", "hils"] if args.setting == "both" else [args.setting]
 
 
 def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
     """Run every controller (``ctrls``, default :func:`prepare`'s) in each setting; returns
     the results (metrics per setting and controller, the policies' files)."""
-    settings = _settings(args)
+    condition = _condition(args)
     if ctrls is None:
         ctrls = prepare(args)
     results: dict = {
+        "condition": condition.describe(),
+        "gains_tuned_env_kwargs": tuning_env_kwargs(),
         "natural_frequencies_hz": [float(f) for f in natural_frequencies_hz()],
         "bands_hz": {k: list(v) for k, v in DEFAULT_BANDS_HZ.items()},
         "episodes": args.episodes,
@@ -268,19 +321,24 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
         "settings": {},
     }
     rollouts: dict = {}
-    total = len(settings) * len(ctrls)
     done, t0 = 0, time.perf_counter()
-    for setting in settings:
+    total = len(condition.settings) * len(ctrls)
+    for setting in condition.settings:
         results["settings"][setting] = {"controllers": {}}
         passive = None
         for name, ctrl in ctrls.items():
-            env_kwargs = {**ctrl.env_kwargs, "setting": setting}
+            env_kwargs, kept = controller_env(condition.env_kwargs, ctrl.env_kwargs, setting)
             roll = run_episodes(ctrl, env_kwargs, args.episodes, args.seed, args.episode_length)
             if name == "passive":
                 passive = roll
             rollouts[(setting, name)] = roll
             entry = episode_metrics(roll, passive if name != "passive" else None)
             entry.update(describe(ctrl))
+            entry.update(env_kwargs=env_kwargs, own_options_kept=kept)
+            if entry["gains_tuned"]:
+                entry["tuned_condition_differs"] = tuned_condition_changes(
+                    env_kwargs, ctrl.env_kwargs, results["gains_tuned_env_kwargs"]
+                )
             results["settings"][setting]["controllers"][name] = entry
             done += 1
             _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
@@ -291,7 +349,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
     if args.plots:
         from capsule_env.plots import evaluation_figures
 
-        evaluation_figures(rollouts, args.plots)
+        evaluation_figures(rollouts, plots_dir(args))
     return results
 
 
@@ -306,7 +364,8 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
     from capsule_env.oracle import clairvoyant_bound
 
     seeds = range(args.seed, args.seed + args.episodes)
-    oracle_kwargs = {"setting": setting}
+    condition_kwargs = _condition(args).env_kwargs
+    oracle_kwargs = {**condition_kwargs, "setting": setting}
     result = clairvoyant_bound(oracle_kwargs, seeds, args.episode_length)
     entry = episode_metrics(result.rollout, passive)
     summary = result.summary()
@@ -322,7 +381,8 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
     headroom = wk_passive - entry["wk_rms_body_acc_m_s2"]
     for name, m in controllers.items():
         ctrl = ctrls.get(name)
-        env = {**(ctrl.env_kwargs if ctrl is not None else {}), "setting": setting}
+        own = ctrl.env_kwargs if ctrl is not None else {}
+        env, _ = controller_env(condition_kwargs, own, setting)
         same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant
         if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
             m["oracle_headroom_captured_rel"] = (
@@ -418,6 +478,9 @@ def format_tables(results: dict) -> str:
         f"{results['episodes']} guideway seeds per controller ({results['seeds'][0]}.."
         f"{results['seeds'][1]}); mode bands of the VRE: {_bands(results)}",
     ]
+    condition_line = headline(results)
+    if condition_line:
+        lines += _wrap(condition_line, 100, "  ")
     for setting, block in results["settings"].items():
         table = "5" if setting == "sim" else "6"
         lines += [
@@ -425,15 +488,17 @@ def format_tables(results: dict) -> str:
             f"== {setting}: vibration reduction effect, % (paper Table {table} analogue) ==",
         ]
         header = "".join(f"{COLUMNS[k][0]:>{COLUMNS[k][1]}}" for k in columns)
-        lines += [f"{'controller':<{NAME_WIDTH}}{header}", "-" * (NAME_WIDTH + len(header))]
         controllers = block["controllers"]
+        for note in table_notes(controllers, results.get("gains_tuned_env_kwargs", {})):
+            lines += _wrap(note, NAME_WIDTH + len(header), "  ")
+        lines += [f"{'controller':<{NAME_WIDTH}}{header}", "-" * (NAME_WIDTH + len(header))]
         for group, names in _grouped(controllers):
             lines.append(f"[{OBSERVATION_GROUPS.get(group, group)}]")
             lines.extend(_row(setting, n, controllers[n], columns) for n in names)
         lines.append(PAPER_TEXT[setting])
-        note = on_off_note(controllers)
-        if note:
-            lines += _wrap(note, NAME_WIDTH + len(header), "  ")
+        on_off = on_off_note(controllers)
+        if on_off:
+            lines += _wrap(on_off, NAME_WIDTH + len(header), "  ")
     if results.get("policies"):
         lines += [
             "",

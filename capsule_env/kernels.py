@@ -209,12 +209,12 @@ def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
     @njit(cache=True, parallel=True, no_cfunc_wrapper=True)
     @unique_symbol(variant)
     def parallel(n, plant, x, i_cmd, route, dt, out):
-        dp, vp, table, constants, profiles, spacing = plant
+        dp, vp, table, constants, profiles, spacing, offsets = plant
         r0, r1, r2, r3 = route
         chunk = work_item_size(n)
         for c in prange((n + chunk - 1) // chunk):
             serial(c * chunk, min(n, (c + 1) * chunk),
-                   PlantParams(dp, vp, table, constants, profiles, spacing), x, i_cmd,
+                   PlantParams(dp, vp, table, constants, profiles, spacing, offsets), x, i_cmd,
                    Route(r0, r1, r2, r3), dt, out)  # fmt: skip
 
     return serial, parallel

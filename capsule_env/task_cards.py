@@ -15,38 +15,54 @@ from pathlib import Path
 
 from capsule_env.tasks import TASKS, Task, normalised_score
 
-__all__ = ["task_cards", "sync_page"]
+__all__ = ["task_cards", "load_results", "sync_page"]
 
 
 def _card(task: Task, results: dict) -> list[str]:
     controllers = results["settings"][task.setting]["controllers"]
     wk = {name: controllers[name]["wk_rms_body_acc_m_s2"] for name in controllers}
+    has_oracle = "oracle" in wk
     rows = [("passive", "passive damper")]
     rows += [(task.best_classical, "best tuned classical law")]
     if task.shipped_policy:
         rows += [(task.shipped_policy, "shipped PPO policy")]
-    rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
+    if has_oracle:
+        rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
     lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
              f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
              "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
              "acceleration on guideway seeds "
-             f"{results['seeds'][0]}..{results['seeds'][1]}.", "",
-             "| controller | what it is | reads | Wk (m/s²) | normalised score |",
-             "|---|---|---|---|---|"]  # fmt: skip
+             f"{results['seeds'][0]}..{results['seeds'][1]} (`docs/figures/{task.results}`).",
+             ""]  # fmt: skip
+    if not has_oracle:
+        lines += ["No normalised score: the clairvoyant oracle does not follow trips "
+                  "(docs/model.md, section 13), so the scale has no upper end.", ""]  # fmt: skip
+    lines += ["| controller | what it is | reads | Wk (m/s²) | normalised score |",
+              "|---|---|---|---|---|"]  # fmt: skip
     for name, what in rows:
-        score = normalised_score(wk[name], wk["passive"], wk["oracle"])
+        score = (
+            f"{normalised_score(wk[name], wk['passive'], wk['oracle']):.3f}"
+            if has_oracle
+            else "n/a"
+        )
         reads = controllers[name]["observation"] + (" + preview" if
                                                     controllers[name]["preview"] else "")  # fmt: skip
-        lines.append(f"| `{name}` | {what} | {reads} | {wk[name]:.4f} | {score:.3f} |")
+        lines.append(f"| `{name}` | {what} | {reads} | {wk[name]:.4f} | {score} |")
     return lines + [""]
 
 
-def task_cards(results: dict) -> str:
-    """The task cards as Markdown, reference scores from an ``evaluate.py --json`` file's
-    contents (run with ``--oracle``)."""
+def load_results(folder: Path) -> dict[str, dict]:
+    """Every evaluation file the tasks' cards read (``Task.results``), by file name, from
+    ``folder`` (docs/figures)."""
+    return {t.results: json.loads((folder / t.results).read_text()) for t in TASKS}
+
+
+def task_cards(results: dict[str, dict]) -> str:
+    """The task cards as Markdown, reference scores from ``evaluate.py --json`` files'
+    contents by file name (:func:`load_results`; run with ``--oracle`` where the task allows)."""
     lines: list[str] = []
     for task in TASKS:
-        lines += _card(task, results)
+        lines += _card(task, results[task.results])
     return "\n".join(lines)
 
 
@@ -58,7 +74,7 @@ def sync_page(page: Path, results_json: Path) -> bool:
     text = page.read_text()
     head, _, rest = text.partition(BEGIN)
     _, _, tail = rest.partition(END)
-    cards = task_cards(json.loads(results_json.read_text()))
+    cards = task_cards(load_results(results_json.parent))
     new = f"{head}{BEGIN}\n\n{cards}\n{END}{tail}"
     if new != text:
         page.write_text(new)

@@ -39,8 +39,9 @@ __all__ = ["Task", "TASKS", "register_tasks", "task_named", "normalised_score"]
 
 @dataclass(frozen=True)
 class Task:
-    """One registered task: its id, what it models, what the agent reads, its env options and
-    the evaluation's names of its reference controllers."""
+    """One registered task: its id, what it models, what the agent reads, its env options,
+    the evaluation's names of its reference controllers and the evaluation file (under
+    docs/figures/) its card's scores come from."""
 
     env_id: str
     summary: str
@@ -49,6 +50,7 @@ class Task:
     setting: str = "sim"
     best_classical: str = ""
     shipped_policy: str = ""
+    results: str = "evaluation.json"
 
 
 TASKS: tuple[Task, ...] = (
@@ -78,7 +80,7 @@ TASKS: tuple[Task, ...] = (
          "the measured signals, the speed and the longitudinal acceleration",
          {"setting": "hils", "observation": "measured", "levitation": "eds",
           "speed_profile": "trip", "spans": "continuous", "payload_range": (-0.3, 0.4)},
-         "hils", "lqr-clipped-biexp-meas", ""),
+         "hils", "mpc-biexp-meas", "", "evaluation-CapsuleTrip-v0.json"),
 )  # fmt: skip
 
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"

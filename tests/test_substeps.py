@@ -127,3 +127,29 @@ def test_too_stiff_a_configuration_is_refused_not_run_with_a_million_substeps():
     # an explicit substeps is the user's choice; the cap only limits the automatic rule
     assert EnvConfig(substeps=2000).substeps == 2000
     assert MAX_AUTO_SUBSTEPS >= 100
+
+
+@pytest.mark.parametrize("damper", ["reference", "bouc_wen"])
+def test_force_accuracy_across_the_operating_envelope(damper):
+    """On trips with EDS levitation, spans and payload (CapsuleTrip-v0's physics), every
+    vehicle's force within the bound at every speed of its window: the tables are computed at
+    the trip's highest speed and the levitation's stiffness limit."""
+    kwargs = {"damper": damper, "setting": "hils", "levitation": "eds", "speed_profile": "trip",
+              "spans": "continuous", "payload_range": (-0.3, 0.4), "vehicle_randomization": 0.3}  # fmt: skip
+    err = _relative_errors(kwargs, vehicles=24)
+    assert err.max() < TOLERANCE, f"worst vehicle {err.argmax()}: {100 * err.max():.3f} %"
+
+
+@pytest.mark.parametrize("shape", ["continuous", "simply_supported"])
+def test_force_accuracy_on_short_spans(shape):
+    """Spans shorter than the random irregularity's shortest wavelength: the substeps follow
+    their harmonics (``config.input_rate_rad_s``)."""
+    kwargs = {"setting": "sim", "spans": shape, "span_params": {"span_m": 1.0, "sag_m": 0.01}}
+    assert _relative_errors(kwargs, vehicles=8).max() < TOLERANCE
+
+
+@pytest.mark.parametrize("c_p", [-2e4, 2e4])
+@pytest.mark.parametrize("setting", ["sim", "hils"])
+def test_force_accuracy_at_the_ends_of_the_levitation_damping_range(setting, c_p):
+    kwargs = {"setting": setting, "vehicle_params": {"levitation_damping_n_s_per_m": c_p}}
+    assert _relative_errors(kwargs, vehicles=8).max() < TOLERANCE

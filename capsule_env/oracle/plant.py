@@ -233,6 +233,7 @@ class OracleEpisodes:
         self.state0 = batch.state.copy()
         self.route = Route(*(np.array(r, copy=True) for r in batch.env_state.route))
         self.profiles, self.spacing_m = batch.profiles, float(batch.spacing)
+        self.offsets = batch.offsets
         self.env_tables = batch.sub_table.copy()
         self.search_tables = np.ascontiguousarray(
             np.broadcast_to(self.env_tables.max(axis=1, keepdims=True), self.env_tables.shape)
@@ -247,7 +248,7 @@ class OracleEpisodes:
         rows = np.repeat(lanes, repeat)
         return make_plant_params(
             self.code, _tile(self.damper_params, rows), _tile(self.vehicle_params, rows),
-            _tile(tables, rows), self.profiles, self.spacing_m, self.dt_s,
+            _tile(tables, rows), self.profiles, self.spacing_m, self.dt_s, self.offsets,
         )  # fmt: skip
 
     def _route(self, lanes: np.ndarray, repeat: int = 1) -> Route:

@@ -186,6 +186,16 @@ def guideway_elevation(profiles, k, spacing, last, position):
 
 
 @njit(**FAST, inline="always")
+def route_elevation(profiles, offsets, k, gain, spacing, last, position):
+    """The guideway under a vehicle: ``gain`` times profile ``k`` at ``position`` (m), plus the
+    offsets' row ``k`` there when the plant has offsets (the tube's spans)."""
+    z = gain * guideway_elevation(profiles, k, spacing, last, position)
+    if offsets.shape[0] > 0:
+        z += guideway_elevation(offsets, k, spacing, last, position)
+    return z
+
+
+@njit(**FAST, inline="always")
 def _slot(rank):
     """Flat offset of the sorted vehicle ``rank`` in the scratch array: even ranks in the first
     half, odd ranks in the second, ``rank // 2`` within it (rows ``HALF`` apart)."""
@@ -264,7 +274,7 @@ def _store_lane(wv, j, new, active):
 
 
 @njit(**FAST, **BORROWED)
-def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
+def _guideway_lanes(w, first, nb, order, profiles, offsets, spacing, route):
     """Guideway elevation at the middle and end of the substep of the sorted vehicles
     ``first .. nb-1`` (a gather from the profile bank, kept out of the SIMD loop)."""
     last = profiles.shape[1] - 1.0
@@ -273,10 +283,12 @@ def _guideway_lanes(w, first, nb, order, profiles, spacing, route):
         o = _slot(rank)
         t, h = w[o + _W_T * HALF], w[o + _W_H * HALF]
         k, g, p0, sp = route.profile[n], route.gain[n], route.start_m[n], route.speed_mps[n]
-        w[o + _W_ZGH * HALF] = g * guideway_elevation(
-            profiles, k, spacing, last, p0 + sp * (t + 0.5 * h)
+        w[o + _W_ZGH * HALF] = route_elevation(
+            profiles, offsets, k, g, spacing, last, p0 + sp * (t + 0.5 * h)
         )
-        w[o + _W_ZG1 * HALF] = g * guideway_elevation(profiles, k, spacing, last, p0 + sp * (t + h))
+        w[o + _W_ZG1 * HALF] = route_elevation(
+            profiles, offsets, k, g, spacing, last, p0 + sp * (t + h)
+        )
 
 
 @specialised("model", "hysteresis", "uniform", "damped", plain=("first",))
@@ -409,7 +421,9 @@ def block_step(model, mode, lo, hi, plant, x, i_cmd, route, dt, out, lanes, coun
         first = np.int64(0)
         s = 0
         while first < nb:
-            _guideway_lanes(w, first, nb, order, plant.profiles, plant.spacing_m, route)
+            _guideway_lanes(
+                w, first, nb, order, plant.profiles, plant.offsets, plant.spacing_m, route
+            )
             substep_lanes(m, hyst, uni, damped, w, first, nb, p_uniform, hc_uniform)
             s += 1
             while first < nb and nsub[first] <= s:
@@ -492,8 +506,8 @@ def _load_lanes(w, lo, nb, plant, x, i_cmd, route, dt, uses_current, uniform, co
         w[o + _W_KP * HALF] = vp[n, STIFF_LEVITATION]
         w[o + _W_CP * HALF] = vp[n, DAMP_LEVITATION]
         position = route.start_m[n] + route.speed_mps[n] * w[o + TIME * HALF]
-        w[o + _W_ZG0 * HALF] = route.gain[n] * guideway_elevation(
-            profiles, route.profile[n], spacing, last, position
+        w[o + _W_ZG0 * HALF] = route_elevation(
+            profiles, plant.offsets, route.profile[n], route.gain[n], spacing, last, position
         )
         if not uniform:  # else read as loop constants
             for j in range(N_DAMPER_PARAMS):

@@ -24,6 +24,8 @@ class PlantParams(NamedTuple):
         (:func:`capsule_env.plant.block.block_constants`).
     profiles : (K, L) guideway elevation profiles (m), sampled every ``spacing_m``.
     spacing_m : profile sample spacing (m).
+    offsets : (K, L) elevation added to each profile after its route's gain (m; the tube's
+        spans, :mod:`capsule_env.guideway.spans`), or an empty (0, 0) array: none.
     """
 
     damper: np.ndarray
@@ -32,11 +34,12 @@ class PlantParams(NamedTuple):
     constants: np.ndarray
     profiles: np.ndarray
     spacing_m: float
+    offsets: np.ndarray
 
 
 class Route(NamedTuple):
     """Where each vehicle runs: profile ``profile[n]`` read at ``start_m[n] + speed_mps[n] t``,
-    scaled by ``gain[n]``."""
+    scaled by ``gain[n]`` (plus the plant's ``offsets[profile[n]]`` there, unscaled)."""
 
     profile: np.ndarray  # (N,) int64
     start_m: np.ndarray  # (N,)

@@ -34,7 +34,7 @@ from capsule_env.layout import (
     STIFF_SECONDARY,
     TIME,
 )
-from capsule_env.plant.block import guideway_elevation, row_params
+from capsule_env.plant.block import route_elevation, row_params
 from capsule_env.plant.rk4 import HYST_GENERAL, HYST_NONE, plant_outputs, rk4_substep
 
 __all__ = ["scalar_step"]
@@ -56,7 +56,7 @@ def scalar_step(model, damped, lo, hi, plant, x, i_cmd, route, dt, out):
 
     def impl(model, damped, lo, hi, plant, x, i_cmd, route, dt, out):
         dp, vp, table = plant.damper, plant.vehicle, plant.substeps
-        profiles, spacing = plant.profiles, plant.spacing_m
+        profiles, spacing, offsets = plant.profiles, plant.spacing_m, plant.offsets
         last = profiles.shape[1] - 1.0
         n_bins = table.shape[1]
         for n in range(lo, hi):
@@ -77,13 +77,15 @@ def scalar_step(model, damped, lo, hi, plant, x, i_cmd, route, dt, out):
             start, speed = route.start_m[n], route.speed_mps[n]
             zc, vc, zb, vb = x[n, BODY_DISP], x[n, BODY_VEL], x[n, BOGIE_DISP], x[n, BOGIE_VEL]
             z, y, t = x[n, HYST_Z], x[n, DAMPER_Y], x[n, TIME]
-            zg0 = g * guideway_elevation(profiles, k, spacing, last, start + speed * t)
+            zg0 = route_elevation(profiles, offsets, k, g, spacing, last, start + speed * t)
             zgh = zg1 = zg0
             for _ in range(n_sub):
-                zgh = g * guideway_elevation(
-                    profiles, k, spacing, last, start + speed * (t + 0.5 * h)
+                zgh = route_elevation(
+                    profiles, offsets, k, g, spacing, last, start + speed * (t + 0.5 * h)
                 )
-                zg1 = g * guideway_elevation(profiles, k, spacing, last, start + speed * (t + h))
+                zg1 = route_elevation(
+                    profiles, offsets, k, g, spacing, last, start + speed * (t + h)
+                )
                 v = (zc, vc, zb, vb, z, y, ic, t, h, cmd, e_half, inv_mc, inv_mb, ks, kp, cp,
                      zg0, zgh, zg1)  # fmt: skip
                 zc, vc, zb, vb, z, y, ic, t, zg0 = rk4_substep(m, hyst, dmp, v, p, _NO_CONSTANTS)

@@ -44,16 +44,21 @@ def make_plant_params(
     profiles: np.ndarray,
     spacing_m: float,
     dt_s: float,
+    offsets: np.ndarray | None = None,
 ) -> PlantParams:
     """The :class:`PlantParams` of ``N`` vehicles (``N`` rows of packed damper and vehicle
     parameters; ``substeps`` an int, one (bins,) table or (N, bins) tables), with the block
-    kernel's per-vehicle constants computed for the control interval ``dt_s``."""
+    kernel's per-vehicle constants computed for the control interval ``dt_s``; ``offsets``:
+    (K, L) elevation added to the profiles after the routes' gains (None: none)."""
     dp = np.ascontiguousarray(np.atleast_2d(damper_params), dtype=np.float64)
     vp = np.ascontiguousarray(np.atleast_2d(vehicle_params), dtype=np.float64)
     table = as_substep_table(substeps, dp.shape[0])
     constants = block_constants(damper_code, dp, dt_s, table)
     profiles = np.ascontiguousarray(np.atleast_2d(profiles), dtype=np.float64)
-    return PlantParams(dp, vp, table, constants, profiles, float(spacing_m))
+    off = np.zeros((0, 0)) if offsets is None else np.ascontiguousarray(offsets, dtype=np.float64)
+    if off.size and off.shape != profiles.shape:
+        raise ValueError(f"offsets must have the profiles' shape {profiles.shape}, got {off.shape}")
+    return PlantParams(dp, vp, table, constants, profiles, float(spacing_m), off)
 
 
 def step_batch(

@@ -65,7 +65,7 @@ def stiffness_rates(
     damper: DamperParams, vehicle_params: np.ndarray, current_a: np.ndarray | float
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(rate, omega)``: per vehicle (rows of the packed ``vehicle_params``, ``[m_c, m_b, k_s,
-    k_p]``) and current (columns), the largest ``|Re lambda|`` (1/s) and ``|Im lambda|``
+    k_p, c_p]``; ``c_p`` 0 where absent) and current (columns), the largest ``|Re lambda|`` (1/s) and ``|Im lambda|``
     (rad/s) over the eigenvalues of the plant with its damper linearised near rest in each of
     its regimes (:func:`_linearised_damper`). A light vehicle turns Spencer's pre-yield
     relaxation into a lightly damped oscillation: hence two numbers and two bounds."""
@@ -91,6 +91,8 @@ def stiffness_rates(
             m[..., row, 3] = -sign * fv / mass
             m[..., row, 4] = sign * fy / mass
         m[..., 3, 2] -= kp / mb
+        if vp.shape[1] > 4:  # the levitation's damping (0 for the paper's plant)
+            m[..., 3, 3] -= vp[:, 4, None] / mb
         m[..., 4, 0] = big_k * inv_c
         m[..., 4, 2] = -big_k * inv_c
         m[..., 4, 1] = c * inv_c

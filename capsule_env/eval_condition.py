@@ -1,0 +1,281 @@
+"""The condition an evaluation runs in: ``evaluate.py --task ID`` and ``--env KEY=VALUE``.
+
+An evaluation's env options come from, in order (each over the one before):
+
+1. the registered task ``--task ID`` (its env kwargs read from Gymnasium's registration,
+   :mod:`capsule_env.tasks`; none without ``--task``);
+2. ``--setting`` and ``--episode-length`` when given on the command line;
+3. the ``--env KEY=VALUE`` items (any :class:`~capsule_env.config.EnvConfig` option, read as
+   ``train.py`` reads them: :func:`capsule_env._cli.parse_env_item`); an item naming
+   ``setting`` or ``episode_length_s`` that contradicts ``--setting`` /
+   ``--episode-length`` given too is refused.
+
+Without ``--task`` and without a setting from ``--setting`` or ``--env`` both settings are
+run (the paper's two tables); with ``--task`` its setting (the env's default, ``sim``, when
+the task names none). Every controller runs on these options, except those it declares itself
+(:attr:`capsule_env.agents.base.Controller.env_kwargs`: what it reads and how it acts, e.g. the
+passive row's ``damper="passive"``, a law's ``observation`` and ``inverse_model``, a policy's
+training options): a controller keeps its own value, and the results say so
+(:func:`controller_env`). A controller whose gains were tuned (``agents/tuned_gains.json``)
+keeps them; :func:`tuned_condition_changes` names the options in which the evaluated env
+differs from the one they were tuned in.
+
+Nothing here lists the env's options by hand: they are the fields of ``EnvConfig``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from capsule_env._cli import parse_env_item
+from capsule_env.config import SETTINGS, EnvConfig
+from capsule_env.tasks import TASKS
+
+__all__ = [
+    "Condition",
+    "build_condition",
+    "task_env_kwargs",
+    "controller_env",
+    "tuned_condition_changes",
+    "format_options",
+    "headline",
+    "table_notes",
+]
+
+#: The options an evaluation chooses for every controller and compares across conditions
+#: only by design: the guideway bank and the episode length.
+EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
+#: Both of the paper's settings, run when nothing names one.
+BOTH_SETTINGS = ("sim", "hils")
+#: Longest name of a ``--plots`` sub-folder before it is shortened with a digest.
+MAX_LABEL_CHARS = 100
+
+
+@dataclass(frozen=True)
+class Condition:
+    """The evaluated env options, resolved from ``--task``, ``--setting``,
+    ``--episode-length`` and ``--env``.
+
+    Attributes
+    ----------
+    task : the registered task id, or None (``CapsuleSuspension-v0`` with its defaults).
+    task_env_kwargs : the task's registered env kwargs (``{}`` without a task).
+    env_overrides : the ``--env`` items, ``{KEY: VALUE}`` in command-line order (a later
+        item of the same KEY replaces an earlier one).
+    settings : the settings to run, one table each.
+    episode_length_s : seconds per episode.
+    env_kwargs : every other option set for all controllers: the task's kwargs and the
+        ``--env`` items over them, without ``setting`` and ``episode_length_s``.
+    """
+
+    task: str | None
+    task_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    env_overrides: dict[str, Any] = field(default_factory=dict)
+    settings: tuple[str, ...] = BOTH_SETTINGS
+    episode_length_s: float = 10.0
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def is_default(self) -> bool:
+        """True for the paper's run: no ``--task`` and no ``--env`` item."""
+        return self.task is None and not self.env_overrides
+
+    def label(self) -> str | None:
+        """The ``--plots`` sub-folder of a non-default condition (None for the paper's run):
+        the task id (``CapsuleSuspension-v0`` without one), then ``+KEY=VALUE`` per ``--env``
+        item; characters other than letters, digits and ``._=+-`` become ``_``, and a name
+        over :data:`MAX_LABEL_CHARS` is cut and ends with a digest of the whole."""
+        if self.is_default:
+            return None
+        parts = [self.task or "CapsuleSuspension-v0"]
+        parts += [f"{k}={_compact(v)}" for k, v in self.env_overrides.items()]
+        label = re.sub(r"[^A-Za-z0-9._=+-]", "_", "+".join(parts))
+        if len(label) > MAX_LABEL_CHARS:
+            digest = hashlib.sha256(label.encode()).hexdigest()[:12]
+            label = f"{label[: MAX_LABEL_CHARS - 13]}-{digest}"
+        return label
+
+    def describe(self) -> dict[str, Any]:
+        """The JSON's ``condition`` entry (what the result file was run in)."""
+        return {
+            "task": self.task,
+            "task_env_kwargs": dict(self.task_env_kwargs),
+            "env_overrides": dict(self.env_overrides),
+            "env_kwargs": dict(self.env_kwargs),
+            "settings": list(self.settings),
+            "episode_length_s": self.episode_length_s,
+        }
+
+
+def _compact(value: Any) -> str:
+    """``value`` as a short text: a string as it is, anything else as compact JSON."""
+    if isinstance(value, str):
+        return value
+    try:
+        return json.dumps(value, separators=(",", ":"), sort_keys=True)
+    except (TypeError, ValueError):
+        return repr(value)
+
+
+def format_options(options: dict[str, Any]) -> str:
+    """``KEY=VALUE, ...`` with each value's ``repr`` (``setting='hils', speed_kmh=400``)."""
+    return ", ".join(f"{k}={v!r}" for k, v in options.items())
+
+
+def task_env_kwargs(task_id: str) -> dict[str, Any]:
+    """The env kwargs ``task_id`` is registered with (Gymnasium's registry); ``ValueError``
+    listing the registered task ids when it is not one of :data:`capsule_env.tasks.TASKS`."""
+    from gymnasium.envs.registration import registry
+
+    import capsule_env  # noqa: F401  (registers the tasks)
+
+    ids = [task.env_id for task in TASKS]
+    if task_id not in ids or task_id not in registry:
+        raise ValueError(f"--task must be one of {', '.join(ids)}, got {task_id!r}")
+    return dict(registry[task_id].kwargs or {})
+
+
+def _env_items(items: list[str]) -> dict[str, Any]:
+    """The ``--env`` items as ``{KEY: VALUE}``; ``ValueError`` for an item without ``=`` or
+    a KEY that is not an env option (the message lists the options)."""
+    known = {f.name for f in dataclasses.fields(EnvConfig)}
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, value = parse_env_item(item)
+        if key not in known:
+            raise ValueError(f"--env {item!r}: {key!r} is not an env option; accepted: "
+                             f"{', '.join(sorted(known))}")  # fmt: skip
+        overrides[key] = value
+    return overrides
+
+
+def _pick(name: str, overrides: dict, given: Any, option: str, task_kwargs: dict) -> Any:
+    """The value of ``name``: the ``--env`` item, else the ``option`` given on the command
+    line (``given``, None when not given), else the task's; None when none says.
+    ``ValueError`` when the ``--env`` item and the option both say, differently."""
+    if name in overrides:
+        if given is not None and given != overrides[name]:
+            raise ValueError(f"--env {name}={overrides[name]!r} contradicts {option} {given!r}: "
+                             "give one of them")  # fmt: skip
+        return overrides[name]
+    if given is not None:
+        return given
+    return task_kwargs.get(name)
+
+
+def build_condition(
+    task: str | None, env_items: list[str], setting: str | None, episode_length_s: float | None
+) -> Condition:
+    """The :class:`Condition` of the command line: ``--task`` (None: none), the ``--env``
+    items, ``--setting`` (``"sim"``, ``"hils"``, ``"both"``; None when not given) and
+    ``--episode-length`` (None when not given). Checks every option with
+    :class:`~capsule_env.config.EnvConfig` in each setting; raises ``ValueError`` (or
+    ``TypeError``) naming the option and what it accepts."""
+    task_kwargs = task_env_kwargs(task) if task is not None else {}
+    overrides = _env_items(env_items)
+    if overrides.get("setting") == "both":  # --setting's word, not an env option
+        raise ValueError(f"--env setting must be one of {', '.join(SETTINGS)} (--setting both "
+                         "runs both), got 'both'")  # fmt: skip
+    defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    setting = _pick("setting", overrides, setting, "--setting", task_kwargs)
+    if setting == "both":
+        settings: tuple[str, ...] = BOTH_SETTINGS
+    elif setting is not None:
+        settings = (setting,)
+    else:
+        settings = BOTH_SETTINGS if task is None else (defaults["setting"],)
+    length = _pick("episode_length_s", overrides, episode_length_s, "--episode-length",
+                   task_kwargs)  # fmt: skip
+    length = defaults["episode_length_s"] if length is None else length
+    merged = {**task_kwargs, **overrides}
+    env_kwargs = {k: v for k, v in merged.items() if k not in ("setting", "episode_length_s")}
+    where = "--env" if task is None else f"--task {task} / --env"
+    for one in settings:
+        try:
+            EnvConfig.from_kwargs(**env_kwargs, setting=one, episode_length_s=length)
+        except (ValueError, TypeError) as exc:
+            raise type(exc)(f"{where}: {exc}") from None
+    return Condition(task, task_kwargs, overrides, settings, float(length), env_kwargs)
+
+
+def controller_env(
+    condition_kwargs: dict[str, Any], own: dict[str, Any], setting: str
+) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """A controller's env options in ``setting``: the condition's (``condition_kwargs``) with
+    the controller's own (``own``, :attr:`Controller.env_kwargs`) over them, and the options
+    where the controller's own value replaced another of the condition's,
+    ``{KEY: {"controller": own value, "condition": condition's value}}``."""
+    kept = {
+        key: {"controller": own[key], "condition": value}
+        for key, value in condition_kwargs.items()
+        if key in own and own[key] != value
+    }
+    return {**condition_kwargs, **own, "setting": setting}, kept
+
+
+def tuned_condition_changes(
+    env_kwargs: dict[str, Any], own: dict[str, Any], tuning: dict[str, Any]
+) -> dict[str, dict[str, Any]]:
+    """The options in which the env a tuned controller is evaluated in (``env_kwargs``)
+    differs from the env its gains were tuned in (``tuning``, e.g. ``{"setting": "hils"}``:
+    ``capsule_env.agents.tuned.tuning_env_kwargs``, with the controller's own options
+    ``own`` over it), compared as whole :class:`EnvConfig` values (defaults included), the
+    guideway bank and the episode length left out: ``{KEY: {"tuned": value, "evaluated":
+    value}}``."""
+    tuned = dataclasses.asdict(EnvConfig.from_kwargs(**{**tuning, **own}))
+    evaluated = dataclasses.asdict(EnvConfig.from_kwargs(**env_kwargs))
+    return {
+        key: {"tuned": tuned[key], "evaluated": value}
+        for key, value in evaluated.items()
+        if key not in EVALUATION_CHOSEN and tuned[key] != value
+    }
+
+
+# ----------------------------------------------------------------------------- the tables' notes
+def headline(results: dict[str, Any]) -> str | None:
+    """The tables' line naming the task and the ``--env`` items of ``results`` (None for the
+    paper's run, or results without a ``condition``)."""
+    described = results.get("condition")
+    if not described or (described["task"] is None and not described["env_overrides"]):
+        return None
+    task = described["task"] or "CapsuleSuspension-v0 (no --task)"
+    if described["task_env_kwargs"]:
+        task += f" [{format_options(described['task_env_kwargs'])}]"
+    env = format_options(described["env_overrides"]) if described["env_overrides"] else "none"
+    return (f"evaluated env: task {task}; --env overrides: {env}; episode "
+            f"{described['episode_length_s']:g} s. Each controller keeps the options it "
+            "declares itself (JSON: env_kwargs, own_options_kept).")  # fmt: skip
+
+
+def table_notes(controllers: dict[str, dict[str, Any]], tuning: dict[str, Any]) -> list[str]:
+    """One setting's notes under its title: the options some controllers kept over the
+    evaluated env's (``own_options_kept``), and where the env differs from the one the tuned
+    gains were tuned in (``tuning``; the rows' ``tuned_condition_differs``); ``[]`` when
+    neither applies."""
+    notes = []
+    kept: dict[tuple[str, str], list[str]] = {}
+    for name, entry in controllers.items():
+        for key, values in entry.get("own_options_kept", {}).items():
+            kept.setdefault((key, repr(values["controller"])), []).append(name)
+    if kept:
+        notes.append("own options kept over the evaluated env's: " + "; ".join(
+            f"{key}={value} ({', '.join(names)})" for (key, value), names in kept.items()))  # fmt: skip
+    differs: dict[str, dict[str, Any]] = {}
+    for entry in controllers.values():
+        for key, values in entry.get("tuned_condition_differs", {}).items():
+            differs.setdefault(key, values)
+    if differs:
+        where = format_options(tuning) or "the env's defaults"
+        notes.append(
+            f"note: the tuned gains (agents/tuned_gains.json) were tuned at {where} (other "
+            "options the env's defaults) and are kept as shipped; this table's env differs in "
+            + ", ".join(
+                f"{k}={v['evaluated']!r} (tuned: {v['tuned']!r})" for k, v in differs.items()
+            )  # fmt: skip
+        )
+    return notes

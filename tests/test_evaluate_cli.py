@@ -1,0 +1,215 @@
+"""``evaluate.py --env KEY=VALUE`` and ``--task ID`` (issue 28, section 3).
+
+The overridden env is checked against a rollout made without evaluate.py (``gymnasium.make``
+with the same options, one env per seed, the passive law's action); a task against the same
+options given as ``--env`` items written here by hand; bad input against the project's rule
+(one line on stderr, exit status 2). Tiny budgets: 2 episodes of 1 s.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from capsule_env import eval_condition, evaluate, metrics
+from capsule_env.tasks import TASKS, Task
+
+ROOT = Path(__file__).resolve().parent.parent
+#: Two 1 s episodes on the evaluation bank's first seeds, no shipped policy (seconds per run).
+QUICK = ["--episodes", "2", "--seed", "1000", "--no-shipped-policy"]
+
+
+def run(tmp_path: Path, name: str, *argv: str) -> tuple[dict, str]:
+    """evaluate.py's JSON and printed tables for ``argv`` (after :data:`QUICK`)."""
+    out = tmp_path / f"{name}.json"
+    assert evaluate.main([*QUICK, *argv, "--json", str(out)]) == 0
+    return json.loads(out.read_text()), out.name
+
+
+def direct_passive_wk(seeds: list[int], **env_kwargs) -> float:
+    """Mean Wk-weighted RMS body acceleration of the passive damper, each episode a single
+    ``gym.make`` env seeded ``seed`` on the evaluation bank (2026), stepped with the passive
+    law's action (0: the action is ignored by the passive damper) to its end."""
+    values = []
+    for seed in seeds:
+        env = gym.make("CapsuleSuspension-v0", damper="passive", action_mode="current",
+                       guideway_seed=2026, **env_kwargs)  # fmt: skip
+        env.reset(seed=seed)
+        acc, done = [], False
+        while not done:
+            _, _, terminated, truncated, info = env.step(np.zeros(1, dtype=np.float32))
+            acc.append(info["car_body_acceleration_m_s2"])
+            done = terminated or truncated
+        env.close()
+        dt_s = 1.0 / env.unwrapped.config.control_rate_hz
+        values.append(float(metrics.wk_weighted_rms(np.asarray(acc, dtype=float), dt_s)))
+    return float(np.mean(values))
+
+
+def test_env_override_changes_the_env_of_every_controller(tmp_path, capsys):
+    names = "passive,skyhook-cont-biexp-meas"
+    base, _ = run(tmp_path, "base", "--setting", "sim", "--episode-length", "1",
+                  "--controllers", names)  # fmt: skip
+    fast, _ = run(tmp_path, "slow", "--setting", "sim", "--env", "speed_kmh=400",
+                  "--env", "episode_length_s=1", "--controllers", names)  # fmt: skip
+    printed = capsys.readouterr().out
+    wk = {k: r["settings"]["sim"]["controllers"]["passive"]["wk_rms_body_acc_m_s2"]
+          for k, r in (("base", base), ("fast", fast))}  # fmt: skip
+    # 400 km/h excites the modes with other wavelengths of the same guideway: another ride
+    assert abs(wk["fast"] - wk["base"]) > 0.01 * wk["base"]
+    # the same figure from gym.make on the same seeds, without evaluate.py's plumbing (the
+    # vector env's vehicle k is the single env seeded k: equal to rounding)
+    direct = direct_passive_wk([1000, 1001], speed_kmh=400, setting="sim", episode_length_s=1.0)
+    assert wk["fast"] == pytest.approx(direct, rel=1e-9)
+    for name, entry in fast["settings"]["sim"]["controllers"].items():
+        assert entry["env_kwargs"]["speed_kmh"] == 400, name
+        assert entry["own_options_kept"] == {}
+    assert fast["condition"]["env_overrides"] == {"speed_kmh": 400, "episode_length_s": 1}
+    assert fast["condition"]["task"] is None and fast["condition"]["episode_length_s"] == 1.0
+    assert base["condition"]["env_overrides"] == {}
+    assert "--env overrides: speed_kmh=400, episode_length_s=1" in printed.replace("\n  ", " ")
+
+
+def test_task_equals_its_options_given_as_env_items(tmp_path, capsys):
+    names = ["--controllers", "passive,skyhook-cont-biexp-meas,skyhook-cont-biexp"]
+    task, _ = run(tmp_path, "task", "--task", "CapsuleRide-v0", "--env", "episode_length_s=1",
+                  *names)  # fmt: skip
+    items, _ = run(tmp_path, "items", "--env", "setting=hils", "--env", "observation=measured",
+                   "--episode-length", "1", *names)  # fmt: skip
+    printed = capsys.readouterr().out
+    assert list(task["settings"]) == ["hils"] == list(items["settings"])  # the task's setting
+    for name, entry in task["settings"]["hils"]["controllers"].items():
+        other = items["settings"]["hils"]["controllers"][name]
+        assert entry["wk_rms_body_acc_m_s2"] == other["wk_rms_body_acc_m_s2"], name
+        assert entry.get("vre_pct") == other.get("vre_pct"), name
+        assert entry["env_kwargs"] == other["env_kwargs"], name
+    assert task["condition"]["task"] == "CapsuleRide-v0"
+    assert task["condition"]["task_env_kwargs"] == {"setting": "hils", "observation": "measured"}
+    # a law on ideal sensors keeps what it reads, and the results say so
+    kept = task["settings"]["hils"]["controllers"]["skyhook-cont-biexp"]["own_options_kept"]
+    assert kept == {"observation": {"controller": "full_state", "condition": "measured"}}
+    assert "own options kept over the evaluated env's: observation='full_state' " in printed
+    # the tuned gains were tuned in hils: no note on this condition
+    assert "tuned gains (agents/tuned_gains.json) were tuned at" not in printed
+
+
+def test_tuned_gains_are_kept_and_the_condition_change_is_stated(tmp_path, capsys):
+    from capsule_env.agents import classical_controllers
+
+    shipped = classical_controllers()["skyhook-cont-biexp-meas"].gains()
+    result, _ = run(tmp_path, "tuned", "--setting", "hils", "--env", "speed_kmh=400",
+                    "--episode-length", "1", "--controllers", "skyhook-cont-biexp-meas")  # fmt: skip
+    printed = capsys.readouterr().out
+    entry = result["settings"]["hils"]["controllers"]["skyhook-cont-biexp-meas"]
+    assert entry["gains_tuned"] and entry["gains"] == shipped
+    assert entry["tuned_condition_differs"] == {"speed_kmh": {"tuned": 810.0, "evaluated": 400}}
+    note = printed.replace("\n  ", " ")
+    assert "were tuned at setting='hils'" in note and "speed_kmh=400 (tuned: 810.0)" in note
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--task", "CapsuleNope-v0"], "CapsuleSuspension-v0, CapsuleRide-v0"),
+        (["--env", "speed_mph=400"], "'speed_mph' is not an env option; accepted: "),
+        (["--env", "speed_kmh=-4"], "speed_kmh must be in [0.001, 10000.0], got -4"),
+        (["--env", "speed_kmh"], "--env expects KEY=VALUE, got 'speed_kmh'"),
+        (["--env", "setting=both"], "--env setting must be one of sim, hils"),
+        (["--env", "setting=lab"], "setting"),
+        (["--env", "setting=sim", "--setting", "hils"], "contradicts --setting 'hils'"),
+        (["--env", "episode_length_s=2", "--episode-length", "3"], "contradicts --episode-length"),
+        (["--task", "CapsuleRide-v0", "--env", "vehicle_params=[1]"], "vehicle_params must be"),
+        (["--env", "observation=ideal"], "observation"),
+    ],
+)
+def test_bad_task_or_env_is_one_line_and_exit_2(argv, needle, capsys):
+    with pytest.raises(SystemExit) as stop:
+        evaluate.main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("evaluate.py: error: ") and err.count("\n") == 1, err
+    assert needle in err
+
+
+def test_the_script_itself_says_one_line_without_traceback():
+    proc = subprocess.run([sys.executable, "evaluate.py", "--task", "Capsule-v9"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr == (
+        "evaluate.py: error: --task must be one of "
+        + ", ".join(t.env_id for t in TASKS)
+        + ", got 'Capsule-v9'\n"
+    )
+
+
+def test_settings_and_episode_length_resolution():
+    def condition(*argv: str) -> eval_condition.Condition:
+        return evaluate.parse_args(list(argv)).condition
+
+    assert condition().settings == ("sim", "hils") and condition().is_default
+    assert condition("--env", "speed_kmh=600").settings == ("sim", "hils")
+    assert condition("--task", "CapsuleSuspension-v0").settings == ("sim",)  # env's default
+    assert condition("--task", "CapsuleRide-v0").settings == ("hils",)
+    ride_sim = condition("--task", "CapsuleRide-v0", "--setting", "sim")
+    assert ride_sim.settings == ("sim",) and ride_sim.env_kwargs == {"observation": "measured"}
+    assert condition("--env", "setting=hils", "--setting", "hils").settings == ("hils",)
+    assert condition().episode_length_s == 10.0
+    assert condition("--env", "episode_length_s=2.5").episode_length_s == 2.5
+    args = evaluate.parse_args(["--env", "episode_length_s=2.5"])
+    assert args.episode_length == 2.5
+    # a later item of the same key wins, as in train.py
+    assert condition("--env", "speed_kmh=500", "--env", "speed_kmh=700").env_kwargs == {
+        "speed_kmh": 700
+    }
+    # values read as train.py reads them: numbers, bools, JSON objects, bare words
+    parsed = condition("--env", 'vehicle_params={"car_body_mass_kg": 7000}', "--env",
+                       "guideway=random", "--env", "preview_points=4").env_kwargs  # fmt: skip
+    assert parsed == {"vehicle_params": {"car_body_mass_kg": 7000}, "guideway": "random",
+                      "preview_points": 4}  # fmt: skip
+
+
+def test_plots_go_to_a_sub_folder_named_after_the_condition(tmp_path):
+    def folder(*argv: str) -> Path:
+        return evaluate.plots_dir(evaluate.parse_args([*argv, "--plots", str(tmp_path)]))
+
+    assert folder() == tmp_path  # the paper's run: the folder itself
+    assert folder("--task", "CapsuleRide-v0") == tmp_path / "CapsuleRide-v0"
+    assert folder("--env", "speed_kmh=400", "--env", "setting=hils") == (
+        tmp_path / "CapsuleSuspension-v0+speed_kmh=400+setting=hils"
+    )
+    odd = folder("--task", "CapsuleRide-v0", "--env", 'vehicle_params={"car_body_mass_kg": 7e3}')
+    assert odd.parent == tmp_path
+    assert odd.name == "CapsuleRide-v0+vehicle_params=__car_body_mass_kg__7000.0_"
+    long = folder("--env", "survey_offset_m=0.001", "--env", "velocity_estimator_damping=0.8",
+                  "--env", "velocity_estimator_corner_hz=0.2", "--env", "position_error_m=0.1",
+                  "--env", "reward_stroke_weight=0.2")  # fmt: skip
+    whole = ("CapsuleSuspension-v0+survey_offset_m=0.001+velocity_estimator_damping=0.8+"
+             "velocity_estimator_corner_hz=0.2+position_error_m=0.1+reward_stroke_weight=0.2")  # fmt: skip
+    assert len(long.name) == eval_condition.MAX_LABEL_CHARS and long.parent == tmp_path
+    assert long.name.startswith(whole[:80])
+    assert long.name.endswith(hashlib.sha256(whole.encode()).hexdigest()[:12])
+
+
+def test_a_task_registered_later_needs_no_edit(monkeypatch):
+    """A task added to capsule_env.tasks (and registered) is evaluated with its registered
+    kwargs, read from Gymnasium's registry."""
+    from gymnasium.envs.registration import register, registry
+
+    from capsule_env.tasks import ENTRY_POINT
+
+    task = Task("CapsuleTestSlow-v0", "a test task", "sensors", {"speed_kmh": 600.0})
+    monkeypatch.setattr(eval_condition, "TASKS", (*TASKS, task))
+    register(id=task.env_id, entry_point=ENTRY_POINT, kwargs={"speed_kmh": 600.0})
+    try:
+        got = eval_condition.build_condition(task.env_id, ["reward_stroke_weight=0.2"], None, None)
+    finally:
+        del registry[task.env_id]
+    assert got.env_kwargs == {"speed_kmh": 600.0, "reward_stroke_weight": 0.2}
+    assert got.settings == ("sim",)
