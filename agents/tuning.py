@@ -127,7 +127,7 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
     candidate meets the stroke limit."""
     space = SEARCH_SPACES[name]
     t0 = time.perf_counter()
-    limit = settings.stroke_limit_m
+    limit = space.stroke_limit_m or settings.stroke_limit_m
     seen: dict[tuple[float, ...], Record] = {}
 
     def run(units: np.ndarray) -> None:
@@ -166,6 +166,8 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
     }
     if space.task:  # searched in a registered task's env options
         entry["task"] = space.task
+    if space.stroke_limit_m:  # the task's own stroke limit
+        entry["stroke_limit_m"] = space.stroke_limit_m
     if log is not None:
         listed = ", ".join(f"{k} {v:.4g}" for k, v in gains.items())
         print(f"{name:<24} Wk {wk:.4f} m/s^2  max stroke {1e3 * stroke:5.2f} mm  "
