@@ -34,6 +34,7 @@ from typing import Any
 
 from capsule_env._cli import parse_env_item
 from capsule_env.config import SETTINGS, EnvConfig
+from capsule_env.evaluation import check_episode_length
 from capsule_env.tasks import TASKS
 
 __all__ = [
@@ -197,9 +198,13 @@ def build_condition(
     where = "--env" if task is None else f"--task {task} / --env"
     for one in settings:
         try:
-            EnvConfig.from_kwargs(**env_kwargs, setting=one, episode_length_s=length)
+            config = EnvConfig.from_kwargs(**env_kwargs, setting=one)
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from None
+        if "episode_length_s" in overrides:  # --episode-length: checked with the controllers
+            check_episode_length(length, config.dt_s, "--env episode_length_s")
+        elif "episode_length_s" in task_kwargs and episode_length_s is None:
+            check_episode_length(length, config.dt_s, f"--task {task}'s episode_length_s")
     return Condition(task, task_kwargs, overrides, settings, float(length), env_kwargs)
 
 

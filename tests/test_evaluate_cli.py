@@ -138,6 +138,8 @@ def test_a_law_tuned_on_a_task_is_compared_with_that_task(tmp_path):
         (["--env", "episode_length_s=2", "--episode-length", "3"], "contradicts --episode-length"),
         (["--task", "CapsuleRide-v0", "--env", "vehicle_params=[1]"], "vehicle_params must be"),
         (["--env", "observation=ideal"], "observation"),
+        (["--env", "episode_length_s=0.001"], "--env episode_length_s 0.001 s is shorter than"),
+        (["--env", "episode_length_s=0.2"], "--env episode_length_s 0.2 s (40 control steps) is"),
     ],
 )
 def test_bad_task_or_env_is_one_line_and_exit_2(argv, needle, capsys):
