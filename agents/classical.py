@@ -11,6 +11,9 @@ Open loop (read no signal): ``passive`` (the linear damper c_s), ``mr-0A`` and `
   ``skyhook-cont-biexp-meas``, ``hybrid-biexp-meas``, ``add-meas``, ``sh-add-meas``,
   ``lqr-clipped-biexp-meas``. A force law keeps its inverse model's tag; a two-state law
   (current mode) has none;
+- on a speed-dependent plant (``levitation="eds"``, ``speed_profile="trip"``): the
+  gain-scheduled clipped LQR ``lqr-sched-biexp-meas`` (:mod:`capsule_env.agents.scheduled_lqr`),
+  measured signals and the speed;
 - with guideway preview (the surveyed elevations ahead, :mod:`capsule_env.agents.preview_lq`):
   ``preview-lq-biexp-meas`` (measured signals) and ``preview-lq-biexp`` (ideal sensors);
 - semi-active model predictive control (:mod:`capsule_env.agents.mpc`): ``mpc-biexp-meas``,
@@ -30,6 +33,7 @@ from capsule_env.agents.base import Controller
 from capsule_env.agents.lqr import ClippedOptimalController
 from capsule_env.agents.mpc import MPCController
 from capsule_env.agents.preview_lq import PreviewLQController
+from capsule_env.agents.scheduled_lqr import ScheduledLQRController
 from capsule_env.agents.skyhook import INVERSE_TAG, HybridController, SkyhookController
 from capsule_env.agents.two_state import (
     ADDController,
@@ -96,6 +100,10 @@ FACTORIES.update(
         "sh-add-meas": MixedSkyhookADDController,
         "lqr-clipped-biexp-meas": partial(
             ClippedOptimalController, "bi_exponential", observation="measured"
+        ),
+        # speed-dependent plant (levitation="eds" on a trip): gains scheduled on the speed
+        "lqr-sched-biexp-meas": partial(
+            ScheduledLQRController, "bi_exponential", observation="measured"
         ),
         # guideway preview (the surveyed elevations ahead)
         "preview-lq-biexp": partial(

@@ -10,6 +10,8 @@ velocity estimate (:mod:`capsule_env.agents.law`). Force mode: the law asks for 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import solve_continuous_are
@@ -22,19 +24,36 @@ STATE_SIGNALS = ("stroke", "body_velocity", "gap", "bogie_velocity")
 
 
 def lqr_gain(
-    vehicle: VehicleParams, q_stroke: float, q_levitation: float, r_force: float
+    vehicle: VehicleParams,
+    q_stroke: float,
+    q_levitation: float,
+    r_force: float,
+    levitation_stiffness_n_per_m: float | None = None,
+    levitation_damping_n_s_per_m: float | None = None,
 ) -> np.ndarray:
     """The LQR gain ``K`` (4,) with ``F = -K x`` minimising
     ``J = integral(a_c^2 + q_stroke (z_c - z_b)^2 + q_lev (z_b - z_g)^2 + r F^2)``, with
-    ``a_c = (-k_s (z_c - z_b) - F) / m_c`` the car-body acceleration (the cross term kept)."""
+    ``a_c = (-k_s (z_c - z_b) - F) / m_c`` the car-body acceleration (the cross term kept).
+
+    The levitation is a spring ``k_p`` (default: the vehicle's, the paper's 810 km/h value)
+    and a damper ``c_p`` (N s/m, default: the vehicle's, 0 for the paper's undamped
+    levitation) between the bogie and the guideway: ``m_b z_b'' = k_s (z_c - z_b) + F - k_p (z_b - z_g) - c_p (z_b' - z_g')``,
+    the guideway's velocity a disturbance. The gain-scheduled law
+    (:mod:`capsule_env.agents.scheduled_lqr`) gives the EDS values at each speed."""
     mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
+    ks = vehicle.secondary_stiffness_n_per_m
+    kp = vehicle.levitation_stiffness_n_per_m
+    if levitation_stiffness_n_per_m is not None:
+        kp = float(levitation_stiffness_n_per_m)
+    cp = vehicle.levitation_damping_n_s_per_m
+    if levitation_damping_n_s_per_m is not None:
+        cp = float(levitation_damping_n_s_per_m)
     a = np.array(
         [
             [0.0, 1.0, 0.0, -1.0],
             [-ks / mc, 0.0, 0.0, 0.0],
             [0.0, 0.0, 0.0, 1.0],
-            [ks / mb, 0.0, -kp / mb, 0.0],
+            [ks / mb, 0.0, -kp / mb, 0.0 - cp / mb],  # 0.0 - 0.0 is +0.0: today's matrix
         ]
     )
     b = np.array([[0.0], [-1.0 / mc], [0.0], [1.0 / mb]])
@@ -45,6 +64,40 @@ def lqr_gain(
     n = c_acc.T @ d_acc
     p = solve_continuous_are(a, b, q, r, s=n)
     return np.linalg.solve(r, b.T @ p + n.T)[0]
+
+
+#: The weights' units (the suffixes of their keys in :meth:`~ClippedOptimalController.gains`)
+#: and their values when no tuned ones exist [reconstructed].
+WEIGHT_UNITS = {"q_stroke": "1_s4", "q_levitation": "1_s4", "r_force": "1_kg2"}
+FALLBACK_WEIGHTS = {"q_stroke": 1.0e3, "q_levitation": 1.0e3, "r_force": 1.0e-9}
+
+
+def set_weights(
+    law: ForceLaw, given: dict[str, float | np.ndarray | None], fallback: dict[str, float]
+) -> list[np.ndarray]:
+    """Store an LQR law's weights (``law._set_gains``: ``given`` where not None, else the
+    tuned values, else ``fallback``), check them and return them broadcast together
+    (``[q_stroke, q_levitation, r_force]``). Raises ``ValueError`` for negative state weights
+    or a force weight that is not positive."""
+    law._set_gains(WEIGHT_UNITS, given, fallback)
+    weights = np.broadcast_arrays(law.q_stroke, law.q_levitation, law.r_force)
+    if np.any(weights[0] < 0) or np.any(weights[1] < 0) or np.any(weights[2] <= 0):
+        raise ValueError("q_stroke and q_levitation must be >= 0 and r_force > 0")
+    return weights
+
+
+def design_per_vehicle(
+    weights: list[np.ndarray], design: Callable[[float, float, float], np.ndarray]
+) -> np.ndarray:
+    """``design(q_stroke, q_levitation, r_force)`` for each vehicle's weights (each distinct
+    triple designed once), shaped ``(*weights' shape, *design's shape)``."""
+    cache: dict[tuple[float, float, float], np.ndarray] = {}
+    rows = []
+    for triple in zip(*(w.ravel().tolist() for w in weights)):
+        if triple not in cache:
+            cache[triple] = design(*triple)
+        rows.append(cache[triple])
+    return np.array(rows).reshape(*weights[0].shape, *rows[0].shape)
 
 
 class ClippedOptimalController(ForceLaw):
@@ -80,23 +133,10 @@ class ClippedOptimalController(ForceLaw):
         observation: str = "full_state",
     ) -> None:
         super().__init__("lqr-clipped", inverse_model, max_force_n, observation)
-        self._set_gains(
-            {"q_stroke": "1_s4", "q_levitation": "1_s4", "r_force": "1_kg2"},
-            {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force},
-            {"q_stroke": 1.0e3, "q_levitation": 1.0e3, "r_force": 1.0e-9},
-        )
-        weights = np.broadcast_arrays(self.q_stroke, self.q_levitation, self.r_force)
-        if np.any(weights[0] < 0) or np.any(weights[1] < 0) or np.any(weights[2] <= 0):
-            raise ValueError("q_stroke and q_levitation must be >= 0 and r_force > 0")
+        given = {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force}
+        weights = set_weights(self, given, FALLBACK_WEIGHTS)
         vehicle = vehicle or VehicleParams()
-        cache: dict[tuple[float, float, float], np.ndarray] = {}
-        flat = [w.ravel() for w in weights]
-        rows = []
-        for triple in zip(*(w.tolist() for w in flat)):
-            if triple not in cache:
-                cache[triple] = lqr_gain(vehicle, *triple)
-            rows.append(cache[triple])
-        self.gain = np.array(rows).reshape(*weights[0].shape, 4)
+        self.gain = design_per_vehicle(weights, lambda *triple: lqr_gain(vehicle, *triple))
 
     def gains(self) -> dict:
         out = super().gains()

@@ -45,3 +45,15 @@ def tuning_env_kwargs(path: Path = TUNED_GAINS_PATH) -> dict[str, Any]:
 
     settings = load_tuned(path).get("settings", {})
     return {"setting": settings.get("setting", TuningSettings.setting)}
+
+
+def tuning_task_kwargs(name: str, path: Path = TUNED_GAINS_PATH) -> dict[str, Any]:
+    """The env options of the registered task controller ``name`` was tuned in (its entry's
+    ``task``: :attr:`capsule_env.agents.search_space.SearchSpace.task`), on top of
+    :func:`tuning_env_kwargs`; ``{}`` when it was tuned in the env's defaults."""
+    entry = load_tuned(path).get("controllers", {}).get(name) or {}
+    if not entry.get("task"):
+        return {}
+    from capsule_env.tasks import task_named
+
+    return dict(task_named(entry["task"]).kwargs)

@@ -7,7 +7,8 @@
 The problem, per controller (its free gains: :mod:`capsule_env.agents.search_space`): minimise the mean
 ISO 2631-1 Wk-weighted RMS car-body acceleration over the training episodes in ``hils``
 (guideway bank ``guideway_seed=0``, episode seeds 0..9, 10 s each; the evaluation bank 2026
-is never used), subject to a stroke limit: ``max |stroke| <= 15 mm`` on every training episode
+is never used; a law made for a registered task, :attr:`SearchSpace.task`, runs in that
+task's env options on the same bank), subject to a stroke limit: ``max |stroke| <= 15 mm`` on every training episode
 (a quarter of the 60 mm bump stop) and no bump-stop hit.
 
 The search: a coarse grid over the whole (log) ranges (17 points for one gain, 9 x 9 for two,
@@ -39,6 +40,7 @@ from capsule_env import metrics
 from capsule_env._cli import ArgumentParser
 from capsule_env.evaluation import Rollout, run_episodes
 from capsule_env.safe_io import atomic_write_text, check_writable_file
+from capsule_env.tasks import task_named
 
 #: What the search records per vehicle.
 _RECORDED = ("car_body_acceleration_m_s2", "stroke_m")
@@ -85,10 +87,11 @@ class Record(NamedTuple):
         return self.max_stroke_m <= stroke_limit_m and not self.terminated
 
 
-def _training_rollout(ctrl: Any, settings: TuningSettings, seeds: Any) -> Rollout:
-    """``ctrl`` on the training bank, episode ``k`` seeded ``seeds[k]``."""
-    env_kwargs = {**ctrl.env_kwargs, "setting": settings.setting,
-                  "guideway_seed": settings.guideway_seed}  # fmt: skip
+def _training_rollout(ctrl: Any, settings: TuningSettings, seeds: Any, task: str = "") -> Rollout:
+    """``ctrl`` on the training bank, episode ``k`` seeded ``seeds[k]``; with ``task`` (a
+    registered id) in that task's env options (the controller's own on top)."""
+    env_kwargs = {**(task_named(task).kwargs if task else {}), **ctrl.env_kwargs,
+                  "setting": settings.setting, "guideway_seed": settings.guideway_seed}  # fmt: skip
     return run_episodes(ctrl, env_kwargs, episode_length_s=settings.episode_length_s,
                         seeds=seeds, recorded=_RECORDED)  # fmt: skip
 
@@ -104,7 +107,7 @@ def evaluate_gains(name: str, gains: dict[str, np.ndarray], settings: TuningSett
     for lo in range(0, n_cand, per_chunk):
         hi = min(n_cand, lo + per_chunk)
         ctrl = make_controller(name, **{g: np.repeat(v[lo:hi], n_ep) for g, v in gains.items()})
-        roll = _training_rollout(ctrl, settings, np.tile(seeds, hi - lo))
+        roll = _training_rollout(ctrl, settings, np.tile(seeds, hi - lo), SEARCH_SPACES[name].task)
         acc = roll.signals["car_body_acceleration_m_s2"]
         wk[lo:hi] = metrics.wk_weighted_rms(acc, roll.dt_s).reshape(-1, n_ep).mean(axis=1)
         peak = np.max(np.abs(roll.signals["stroke_m"]), axis=1)
@@ -124,7 +127,7 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
     candidate meets the stroke limit."""
     space = SEARCH_SPACES[name]
     t0 = time.perf_counter()
-    limit = settings.stroke_limit_m
+    limit = space.stroke_limit_m or settings.stroke_limit_m
     seen: dict[tuple[float, ...], Record] = {}
 
     def run(units: np.ndarray) -> None:
@@ -161,6 +164,10 @@ def tune(name: str, settings: TuningSettings, log: Any = None) -> dict[str, Any]
         "at_range_edge": [p.name for p, u in zip(space.params, units) if u in (0.0, 1.0)],
         "search_s": round(time.perf_counter() - t0, 1),
     }
+    if space.task:  # searched in a registered task's env options
+        entry["task"] = space.task
+    if space.stroke_limit_m:  # the task's own stroke limit
+        entry["stroke_limit_m"] = space.stroke_limit_m
     if log is not None:
         listed = ", ".join(f"{k} {v:.4g}" for k, v in gains.items())
         print(f"{name:<24} Wk {wk:.4f} m/s^2  max stroke {1e3 * stroke:5.2f} mm  "

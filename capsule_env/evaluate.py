@@ -41,7 +41,7 @@ from capsule_env._cli import ArgumentParser
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.base import OBSERVATION_GROUPS
 from capsule_env.agents.classical import PAPER_FIXED
-from capsule_env.agents.tuned import tuning_env_kwargs
+from capsule_env.agents.tuned import tuning_env_kwargs, tuning_task_kwargs
 from capsule_env.config import EnvConfig
 from capsule_env.eval_condition import (
     Condition,
@@ -342,8 +342,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             entry.update(describe(ctrl))
             entry.update(env_kwargs=env_kwargs, own_options_kept=kept)
             if entry["gains_tuned"]:
+                tuning = {**results["gains_tuned_env_kwargs"], **tuning_task_kwargs(name)}
                 entry["tuned_condition_differs"] = tuned_condition_changes(
-                    env_kwargs, ctrl.env_kwargs, results["gains_tuned_env_kwargs"]
+                    env_kwargs, ctrl.env_kwargs, tuning
                 )
             results["settings"][setting]["controllers"][name] = entry
             done += 1

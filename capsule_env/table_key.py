@@ -33,6 +33,8 @@ DESCRIPTIONS = {
     "sh-add-meas": "mixed Skyhook-ADD, two-state: Skyhook below a crossover frequency, ADD above",
     "lqr-clipped-biexp-meas": "clipped-optimal LQR on LVDT, gap sensor, velocity estimates, "
     "Bi-exp. inverse",
+    "lqr-sched-biexp-meas": "gain-scheduled clipped LQR: gains designed at the EDS levitation "
+    "of each speed, interpolated at the measured speed, Bi-exp. inverse",
     "preview-lq-biexp-meas": "LQ optimal preview: LQR with the guideway 1 s ahead, Bi-exp. inverse",
     "preview-lq-biexp": "LQ optimal preview: LQR with the guideway 1 s ahead, Bi-exp. inverse",
     "mpc-biexp-meas": "semi-active MPC: 50 ms plan inside the damper's band, on the LQR's "

@@ -114,6 +114,17 @@ def test_tuned_gains_are_kept_and_the_condition_change_is_stated(tmp_path, capsy
     assert "were tuned at setting='hils'" in note and "speed_kmh=400 (tuned: 810.0)" in note
 
 
+def test_a_law_tuned_on_a_task_is_compared_with_that_task(tmp_path):
+    """The scheduled LQR was searched in CapsuleTrip-v0's options (its gains-file entry's
+    ``task``): on that task its env is the one it was tuned in; the fixed LQR's is not."""
+    result, _ = run(tmp_path, "trip", "--task", "CapsuleTrip-v0", "--episode-length", "1",
+                    "--controllers", "lqr-sched-biexp-meas,lqr-clipped-biexp-meas")  # fmt: skip
+    rows = result["settings"]["hils"]["controllers"]
+    assert rows["lqr-sched-biexp-meas"]["gains_tuned"]
+    assert rows["lqr-sched-biexp-meas"]["tuned_condition_differs"] == {}
+    assert "spans" in rows["lqr-clipped-biexp-meas"]["tuned_condition_differs"]
+
+
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [

@@ -19,6 +19,7 @@ from capsule_env.agents.lqr import lqr_gain
 from capsule_env.agents.search_space import SEARCH_SPACES
 
 from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
+from capsule_env.envelope import TRIP_COLUMN_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 from capsule_env.vehicle import VehicleParams
 
@@ -34,6 +35,11 @@ def _meas(body_vel=0.0, body_acc=0.0, rel_vel=0.0, stroke=0.0, gap=0.0, bogie_ve
                             "bogie_velocity_estimate_m_s"), cols):  # fmt: skip
         obs[:, MEAS[name]] = value
     return obs
+
+
+def _trip_names(ctrl) -> tuple[str, ...]:
+    """The columns a trip adds after the set's own (a law that asks for a trip reads them)."""
+    return TRIP_COLUMN_NAMES if ctrl.env_kwargs.get("speed_profile") == "trip" else ()
 
 
 def test_mixed_skyhook_add_switches_as_savaresi_and_spelta():
@@ -97,6 +103,7 @@ def test_per_vehicle_gains_act_as_scalar_gains_vehicle_by_vehicle(name):
     gains = space.gains(units)
     ctrl = make_controller(name, **gains)
     d = len(MEASURED_NAMES) if ctrl.observation == "measured" else len(FULL_STATE_NAMES)
+    d += len(_trip_names(ctrl))  # the speed and the longitudinal acceleration on a trip
     d += ctrl.env_kwargs.get("preview_points", 0)  # the preview columns come last
     obs = rng.normal(0.0, 0.05, (n, d))
     batched = ctrl.predict(obs)[0][:, 0]
@@ -114,7 +121,8 @@ def test_measured_laws_read_only_measured_columns(name):
     assert ctrl.uses_unmeasured_signals is False
     points = ctrl.env_kwargs.get("preview_points", 0)
     assert ctrl.preview is (points > 0)  # the surveyed guideway ahead: measured, flagged apart
-    names = (*MEASURED_NAMES, *(f"preview_ahead_{k}" for k in range(1, points + 1)))
+    preview = (f"preview_ahead_{k}" for k in range(1, points + 1))
+    names = (*MEASURED_NAMES, *_trip_names(ctrl), *preview)
     assert set(ctrl.signals_read) <= set(names)
     assert all(k.endswith(("_a", "_s", "_n_s_m", "_rel", "_1_s4", "_1_kg2", "_n_m"))
                for k in ctrl.gains())  # fmt: skip

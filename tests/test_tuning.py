@@ -91,7 +91,9 @@ def test_shipped_defaults_are_the_tuned_gains_file():
             # are >= 1e-3 relative) and far above the solver's round-off.
             rel = 1e-9 if key.startswith("k_") else 1e-15
             assert gains[key] == pytest.approx(value, rel=rel), (name, key)
-        assert entry["training"]["max_stroke_m"] <= settings["stroke_limit_m"]
+        limit = entry.get("stroke_limit_m", settings["stroke_limit_m"])  # a task's own limit
+        assert limit == (SEARCH_SPACES[name].stroke_limit_m or settings["stroke_limit_m"])
+        assert entry["training"]["max_stroke_m"] <= limit
     # every feedback law is tuned, except the paper-reproduction rows, which say so
     for name, ctrl in classical_controllers().items():
         if ctrl.observation != "none":
