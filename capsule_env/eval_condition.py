@@ -218,9 +218,14 @@ def controller_env(
     kept = {
         key: {"controller": own[key], "condition": value}
         for key, value in condition_kwargs.items()
-        if key in own and own[key] != value
+        if key in own and _as_tuple(own[key]) != _as_tuple(value)
     }
     return {**condition_kwargs, **own, "setting": setting}, kept
+
+
+def _as_tuple(value: Any) -> Any:
+    """A list as a tuple (a policy's options read back from JSON have lists for tuples)."""
+    return tuple(value) if isinstance(value, list) else value
 
 
 def tuned_condition_changes(

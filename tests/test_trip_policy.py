@@ -43,7 +43,7 @@ PPO_TRIP = PRETRAINED_DIR / "ppo-trip.zip"
 # ----------------------------------------------------------------------------- train.py --task
 def test_train_task_reads_the_registered_options(tmp_path):
     plan = prepare(train.parse_args(["--task", TRIP, "--output-dir", str(tmp_path)]))
-    # the task's options over hyperparams/ppo.yml's (observation full_state, action_mode force)
+    # the task's options over hyperparams/ppo.yml's (the ride task's, action_mode force)
     assert plan.env_kwargs == {**TRIP_OPTIONS, "action_mode": "force"}
     assert plan.args.task == TRIP
     # --env over the task's
@@ -51,9 +51,9 @@ def test_train_task_reads_the_registered_options(tmp_path):
     plan = prepare(train.parse_args(argv))
     assert plan.env_kwargs["payload_range"] == (0.0, 0.1)
     assert plan.env_kwargs["levitation"] == "eds"
-    # without --task: the file's options, as before
+    # without --task: the file's options (the ride task's since issue 30), no envelope
     plan = prepare(train.parse_args(["--output-dir", str(tmp_path)]))
-    assert plan.env_kwargs["observation"] == "full_state" and "levitation" not in plan.env_kwargs
+    assert plan.env_kwargs["observation"] == "measured" and "levitation" not in plan.env_kwargs
 
 
 def test_train_bad_task_is_one_line(tmp_path, monkeypatch):
