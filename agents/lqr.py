@@ -80,7 +80,7 @@ def set_weights(
     (``[q_stroke, q_levitation, r_force]``). Raises ``ValueError`` for negative state weights
     or a force weight that is not positive."""
     law._set_gains(WEIGHT_UNITS, given, fallback)
-    weights = np.broadcast_arrays(law.q_stroke, law.q_levitation, law.r_force)
+    weights = list(np.broadcast_arrays(*(getattr(law, name) for name in WEIGHT_UNITS)))
     if np.any(weights[0] < 0) or np.any(weights[1] < 0) or np.any(weights[2] <= 0):
         raise ValueError("q_stroke and q_levitation must be >= 0 and r_force > 0")
     return weights
