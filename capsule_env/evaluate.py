@@ -54,7 +54,7 @@ from capsule_env.eval_condition import (
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
-from capsule_env.table_key import key_lines, on_off_note
+from capsule_env.table_key import column_footer, key_lines, on_off_note
 from capsule_env.tasks import TASKS
 from capsule_env.vehicle import natural_frequencies_hz
 
@@ -519,7 +519,8 @@ def format_tables(results: dict) -> str:
     }
     title, *key = key_lines(every, results.get("policies", {}), NAME_WIDTH)
     lines += ["", *_wrap(title, 100), *key, ""]
-    lines += _wrap(_footer("headroom" in [COLUMNS[k][0] for k in columns]), 100)
+    headroom = "headroom" in [COLUMNS[k][0] for k in columns]
+    lines += _wrap(column_footer(headroom, PAPER_FIXED), 100)
     return "\n".join(lines)
 
 
@@ -527,27 +528,6 @@ def _wrap(text: str, width: int, indent: str = "") -> list[str]:
     """``text`` in lines of at most ``width`` characters, broken at spaces only (names such
     as ``skyhook-biexp`` stay whole), continuation lines indented by ``indent``."""
     return textwrap.wrap(text, width, subsequent_indent=indent, break_on_hyphens=False)
-
-
-def _footer(headroom: bool) -> str:
-    """The columns' meanings below the tables (``headroom``'s only when it is printed)."""
-    text = (
-        "Columns: VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum "
-        "peak in the band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS "
-        "car-body acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
-        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio); Wz: Sperling ride index (RMS "
-        "form); N_v: EN 12299 mean comfort, vertical term 6 a_ZP95 (Wb). Gains: tuned on the "
-        "training guideway bank (agents/tuned_gains.json, python -m capsule_env.agents.tuning), "
-        "except " + ", ".join(PAPER_FIXED) + " (the paper's reconstructed c_max = 7e4 N s/m). "
-        "'+preview' groups read the surveyed guideway ahead (env option preview_points)."
-    )
-    if headroom:
-        text += (
-            " headroom: the share of the Wk gap passive -> oracle a controller closes (the "
-            "oracle: capsule_env.oracle, the applied current searched knowing the whole "
-            "guideway, no noise or delay)."
-        )
-    return text
 
 
 #: The Markdown tables' short group names (what the rows read).

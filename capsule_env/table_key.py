@@ -11,6 +11,8 @@ the figures of the run, and only when they show it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 #: What each built-in row is (``capsule_env.agents.classical_controllers()``, the oracle and the
 #: shipped policies), short enough for one line. Force laws request a force through the named
 #: inverse model (force mode); two-state laws switch the coil between 0 A and a tuned ``i_on``.
@@ -110,3 +112,25 @@ def on_off_note(controllers: dict[str, dict]) -> str | None:
         f"passive's {wk_passive:.4f} m/s^2): {figures} (VRE / Wk m/s^2); its switching injects "
         "high-frequency force, which the displacement peak does not see."
     )
+
+
+def column_footer(headroom: bool, fixed_gains: Sequence[str]) -> str:
+    """The columns' meanings below the tables (``headroom``'s only when it is printed;
+    ``fixed_gains``: the rows whose gains are the paper's, not tuned)."""
+    text = (
+        "Columns: VRE (%): (P_passive - P_control)/P_passive*100 at the displacement-spectrum "
+        "peak in the band (paper eq. 16); Wk / rms: ISO 2631-1 Wk-weighted and plain RMS "
+        "car-body acceleration (m/s^2); stroke: max |x| (mm); I: mean coil current (A); trk rel: "
+        "force-tracking error rms(F - F_d)/rms(F_d) (a ratio); Wz: Sperling ride index (RMS "
+        "form); N_v: EN 12299 mean comfort, vertical term 6 a_ZP95 (Wb). Gains: tuned on the "
+        "training guideway bank (agents/tuned_gains.json, python -m capsule_env.agents.tuning), "
+        "except " + ", ".join(fixed_gains) + " (the paper's reconstructed c_max = 7e4 N s/m). "
+        "'+preview' groups read the surveyed guideway ahead (env option preview_points)."
+    )
+    if headroom:
+        text += (
+            " headroom: the share of the Wk gap passive -> oracle a controller closes (the "
+            "oracle: capsule_env.oracle, the applied current searched knowing the whole "
+            "guideway, no noise or delay)."
+        )
+    return text
