@@ -43,6 +43,8 @@ __all__ = [
     "task_env_kwargs",
     "controller_env",
     "tuned_condition_changes",
+    "plant_physics",
+    "physics_changes",
     "format_options",
     "headline",
     "table_notes",
@@ -244,6 +246,73 @@ def tuned_condition_changes(
         for key, value in evaluated.items()
         if key not in EVALUATION_CHOSEN and tuned[key] != value
     }
+
+
+def plant_physics(env_kwargs: dict[str, Any], episode_length_s: float | None = None) -> str:
+    """What the plant of ``env_kwargs`` is and meets, resolved (defaults filled in, so that an
+    option given at its default value changes nothing): the speeds, the envelope (levitation,
+    trip, spans), the vehicle and its randomisation and payload, the guideway (its kind,
+    parameters, bank seed and size) and the bump stop. Not what a controller reads or how it
+    acts (observation, noise, delay, inverse model, force limit, control rate), nor the
+    damper, the controller's actuator (the passive row's ``damper="passive"``; in ``sim`` the
+    plant's damper is the inverse model's: compare ``EnvConfig.plant_damper_name`` where that
+    matters). A text to compare (``repr`` of the resolved values); ``ValueError`` or
+    ``TypeError`` for options the env refuses."""
+    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
+
+    kwargs = {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}
+    if episode_length_s is not None:
+        kwargs["episode_length_s"] = episode_length_s
+    c = EnvConfig.from_kwargs(**kwargs)
+    payload = None if c.payload_range is None else tuple(c.payload_range)
+    return repr((c.speed_range_mps, c.envelope, c.vehicle, c.vehicle_randomization, payload,
+                 c.guideway_spec, c.guideway_seed, c.guideway_bank_size,
+                 c.stroke_limit_m))  # fmt: skip
+
+
+def physics_changes(
+    base: dict[str, Any],
+    own: dict[str, Any],
+    episode_length_s: float | None = None,
+    base_label: str = "the condition",
+) -> list[str]:
+    """The options of ``own`` (a controller's :attr:`Controller.env_kwargs`) that change the
+    plant's physics (:func:`plant_physics`) when set over ``base`` (the condition's options,
+    a ``setting`` included; ``own``'s ``setting`` is not one: the evaluation sets it), each
+    as ``"KEY=value (<base_label>: its value there)"``, with ``"; refused there: ..."`` where
+    ``base`` does not accept it; ``[]`` when ``{**base, **own}`` has ``base``'s physics
+    (options that only say what a controller reads and how it acts never count). Options
+    that change it only together are named together."""
+    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
+
+    defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    defaults.update({f.name: f.default_factory() for f in dataclasses.fields(EnvConfig)
+                     if f.default_factory is not dataclasses.MISSING})  # fmt: skip
+    defaults["guideway_seed"] = EVALUATION_GUIDEWAY_SEED
+    own = {k: v for k, v in own.items() if k != "setting"}
+    reference = plant_physics(base, episode_length_s)
+
+    def describe(key: str, why: str = "") -> str:
+        there = base.get(key, defaults.get(key))
+        return f"{key}={own[key]!r} ({base_label}: {there!r}{why})"
+
+    changed = []
+    for key in own:
+        try:
+            differs = plant_physics({**base, key: own[key]}, episode_length_s) != reference
+        except (ValueError, TypeError) as exc:
+            changed.append(describe(key, f"; refused there: {exc}"))
+            continue
+        if differs:
+            changed.append(describe(key))
+    if not changed:
+        try:
+            together = plant_physics({**base, **own}, episode_length_s) != reference
+        except (ValueError, TypeError) as exc:
+            return [f"{format_options(own)} (refused by {base_label}: {exc})"]
+        if together:
+            changed = [describe(key) for key in own]
+    return changed
 
 
 # ----------------------------------------------------------------------------- the tables' notes

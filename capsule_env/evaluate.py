@@ -48,6 +48,7 @@ from capsule_env.eval_condition import (
     build_condition,
     controller_env,
     headline,
+    physics_changes,
     table_notes,
     tuned_condition_changes,
 )
@@ -365,7 +366,9 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
                ctrls: dict) -> None:  # fmt: skip
     """Add the clairvoyant bound's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
     on the same episodes) to a setting's results, and to every controller on the same plant
-    its share of the headroom, ``oracle_headroom_captured_rel = (Wk_passive - Wk) /
+    (the same physics: :func:`~capsule_env.eval_condition.physics_changes`, e.g. not a law
+    whose own options run it on trips where the oracle's episodes keep one speed) its share
+    of the headroom, ``oracle_headroom_captured_rel = (Wk_passive - Wk) /
     (Wk_passive - Wk_oracle)`` (0: passive, 1: the clairvoyant optimum). In ``sim`` the plant
     is the damper model a controller inverts: the oracle's is the Bi-exponential model, and
     controllers on another plant get no share (passive, the reference, has 0 by definition)."""
@@ -391,7 +394,9 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
         ctrl = ctrls.get(name)
         own = ctrl.env_kwargs if ctrl is not None else {}
         env, _ = controller_env(condition_kwargs, own, setting)
-        same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant
+        same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant and not (
+            physics_changes(oracle_kwargs, own, args.episode_length)
+        )
         if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
             m["oracle_headroom_captured_rel"] = (
                 (wk_passive - m["wk_rms_body_acc_m_s2"]) / headroom if headroom > 0 else None

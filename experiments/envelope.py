@@ -34,7 +34,6 @@ exit status 2.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -46,7 +45,7 @@ import numpy as np
 
 from capsule_env._cli import ArgumentParser, add_dataclass_options, dataclass_values
 from capsule_env.config import EnvConfig
-from capsule_env.eval_condition import controller_env, task_env_kwargs
+from capsule_env.eval_condition import controller_env, physics_changes, task_env_kwargs
 from capsule_env.evaluation import (
     EVALUATION_GUIDEWAY_SEED,
     check_episode_length,
@@ -214,27 +213,16 @@ def observation_mismatch(ctrl: Any, env_kwargs: dict[str, Any]) -> str | None:
             + (f" (the extra ones: {extra})" if extra else ""))  # fmt: skip
 
 
-#: The options that make an operating point: a controller whose own options set one of them
-#: otherwise (a law or policy made for the trip task) would run on other physics than the point's.
-ENVELOPE_OPTIONS = ("speed_kmh", "speed_profile", "trip_params", "levitation",
-                    "levitation_params", "spans", "span_params", "payload_range")  # fmt: skip
-
-
-def physics_mismatch(point_env: dict[str, Any], own: dict[str, Any]) -> str | None:
+def physics_mismatch(
+    point_env: dict[str, Any], own: dict[str, Any], episode_length_s: float | None = None
+) -> str | None:
     """Why a controller cannot run at a point: its own options (``own``) change the point's
-    operating condition (:data:`ENVELOPE_OPTIONS`, the point's value or else the env's
-    default), or None."""
-    defaults = dataclasses.asdict(EnvConfig())
-    changed = [
-        f"{key}={own[key]!r} (the point: {point_env.get(key, defaults[key])!r})"
-        for key in ENVELOPE_OPTIONS
-        if key in own and _as_tuple(own[key]) != _as_tuple(point_env.get(key, defaults[key]))
-    ]
+    operating condition, i.e. the plant's physics resolved with every default
+    (:func:`capsule_env.eval_condition.physics_changes`: speeds, envelope, vehicle, payload,
+    damper, guideway, bump stop; what it reads and how it acts are its own), or None."""
+    changed = physics_changes({**point_env, "setting": SETTING}, own, episode_length_s,
+                              "the point")  # fmt: skip
     return f"not run: its own options set {', '.join(changed)}" if changed else None
-
-
-def _as_tuple(value: Any) -> Any:
-    return tuple(value) if isinstance(value, list) else value
 
 
 def run_point(point: Point, ctrl: Any, seeds: list[int], episode_length_s: float) -> dict:
@@ -244,9 +232,8 @@ def run_point(point: Point, ctrl: Any, seeds: list[int], episode_length_s: float
     env, kept = controller_env(point.env_kwargs, ctrl.env_kwargs, SETTING)
     start = time.perf_counter()
     try:
-        reason = physics_mismatch(point.env_kwargs, ctrl.env_kwargs) or observation_mismatch(
-            ctrl, env
-        )
+        reason = physics_mismatch(point.env_kwargs, ctrl.env_kwargs, episode_length_s)
+        reason = reason or observation_mismatch(ctrl, env)
         if reason is not None:
             return {"skipped": reason, "env_kwargs": _jsonable(env)}
         roll = run_episodes(ctrl, env, seeds=seeds, episode_length_s=episode_length_s)

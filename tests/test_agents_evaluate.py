@@ -210,8 +210,8 @@ def test_evaluate_rejects_unknown_controller():
 def test_evaluate_oracle_row_and_headroom_shares(tmp_path, capsys):
     out = tmp_path / "r.json"
     argv = ["--setting", "hils", "--episodes", "2", "--episode-length", "1.0", "--controllers",
-            "passive,lqr-clipped-biexp-meas", "--no-shipped-policy", "--oracle", "--json",
-            str(out)]  # fmt: skip
+            "passive,lqr-clipped-biexp-meas,lqr-sched-biexp-meas", "--no-shipped-policy",
+            "--oracle", "--json", str(out)]  # fmt: skip
     assert evaluate.main(argv) == 0
     ctrls = json.loads(out.read_text())["settings"]["hils"]["controllers"]
     oracle, lqr = ctrls["oracle"], ctrls["lqr-clipped-biexp-meas"]
@@ -221,5 +221,10 @@ def test_evaluate_oracle_row_and_headroom_shares(tmp_path, capsys):
     assert ctrls["passive"]["oracle_headroom_captured_rel"] == 0.0
     assert oracle["oracle_headroom_captured_rel"] == 1.0
     assert 0.0 < lqr["oracle_headroom_captured_rel"] < 1.0
+    # the scheduled law's own options run it on trips with EDS levitation, other episodes
+    # than the oracle's at one speed: no share of a gap measured elsewhere (it had -105 %)
+    sched = ctrls["lqr-sched-biexp-meas"]
+    assert sched["env_kwargs"]["speed_profile"] == "trip"
+    assert "oracle_headroom_captured_rel" not in sched
     assert len(oracle["search"]["episodes_detail"]) == 2
     assert "[oracle: knows the whole guideway" in capsys.readouterr().out

@@ -177,6 +177,43 @@ def test_a_law_made_for_trips_runs_only_where_the_point_is_a_trip(envelope):
     assert envelope.physics_mismatch({}, {"observation": "sensors", "action_mode": "force"}) is None
 
 
+def test_every_option_of_the_plants_physics_is_a_mismatch_and_only_those(envelope):
+    """Not only the envelope's own options: a controller whose options set the speed range,
+    the vehicle, its randomisation or the guideway bank would run other episodes than the
+    point's (they were let through); an option at its default value, what a controller reads
+    or how it acts, and the passive row's damper are not refused."""
+    eds400 = _point(envelope, "speed/eds/400").env_kwargs
+    cases = {
+        "speed_range_kmh": ((700.0, 900.0), "None"),
+        "vehicle_params": ({"car_body_mass_kg": 8400.0}, "{}"),
+        "vehicle_randomization": (0.2, "0.0"),
+        "guideway_seed": (0, "2026"),  # the training bank, not the evaluation's
+        "guideway_params": ({"peak_m": None}, "{}"),
+        "stroke_limit_m": (0.01, "0.06"),
+    }
+    for key, (value, there) in cases.items():
+        assert envelope.physics_mismatch(eds400, {key: value}) == (
+            f"not run: its own options set {key}={value!r} (the point: {there})"
+        ), key
+    trip = _point(envelope, "trip").env_kwargs
+    assert envelope.physics_mismatch(trip, {"speed_range_kmh": (700.0, 900.0)}).startswith(
+        "not run: its own options set speed_range_kmh=(700.0, 900.0) (the point: None; "
+        "refused there: speed_range_kmh must be None"
+    )
+    assert "cruise_speed_kmh" in envelope.physics_mismatch(trip, {"trip_params": {
+        "cruise_speed_kmh": 900.0}})  # fmt: skip
+    not_physics = [
+        {"trip_params": {"cruise_speed_kmh": 1000.0}},  # the default, spelled out
+        {"speed_profile": "trip", "levitation": "eds", "payload_range": [-0.3, 0.4]},
+        {"observation": "measured", "preview_points": 32, "preview_horizon_s": 1.0,
+         "sensor_noise": 2.0, "control_delay_steps": 2, "control_rate_hz": 400.0,
+         "inverse_model": "csdc", "max_force_n": 5000.0, "setting": "sim"},
+        {"damper": "passive"},  # the passive row: the damper is its actuator
+    ]  # fmt: skip
+    for own in not_physics:
+        assert envelope.physics_mismatch(trip, own) is None, own
+
+
 def test_page_in_sync_with_the_json():
     page = (ROOT / "docs" / "envelope.md").read_text()
     data = json.loads((ROOT / "docs" / "figures" / "envelope.json").read_text())
