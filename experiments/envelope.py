@@ -95,7 +95,7 @@ class Args:
     policies: str = "ppo-measured,ppo-trip"
     """comma-separated shipped policies (capsule_env/pretrained; '' for none)"""
     oracle: str = "speed/eds/150,speed/eds/400,speed/eds/810,speed/eds/1200,trip"
-    """comma-separated point keys at which to search the clairvoyant bound (3-6 min each on a
+    """comma-separated point keys at which to search the clairvoyant bound (2-5 min each on a
     2-core machine; '' for none)"""
     episodes: int = 10
     """guideway seeds per point (>= 1)"""

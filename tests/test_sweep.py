@@ -325,6 +325,21 @@ def test_oracle_kind_runs_the_clairvoyant_bound(tmp_path):
     assert result["metrics"]["spread_over_starts_mean_m_s2"] >= 0.0
 
 
+@pytest.mark.parametrize("kind", ["oracle", "gains"])
+def test_a_trial_on_a_short_trip_is_checked_with_its_own_episode_length(kind):
+    # a trip of 4.7 s: lift-off 150 -> cruise 300 km/h at 20 m/s^2 (2.08 s), 0.5 s of cruise,
+    # braking at 20 m/s^2 (2.08 s); the check had built the env with the default 10 s episode
+    # and refused every trial on it
+    trip = {"cruise_speed_kmh": 300.0, "lift_off_speed_kmh": 150.0, "acceleration_m_s2": 20.0,
+            "braking_m_s2": 20.0, "cruise_duration_s": 0.5}  # fmt: skip
+    params = {"env.speed_profile": "trip", "env.trip_params": trip}
+    if kind == "gains":
+        params["controller"] = "skyhook-cont-biexp-meas"
+    KINDS[kind].check({**params, "episode_length_s": 2.0})
+    with pytest.raises(ValueError, match="at most the trip's duration 4.7 s .*got 6.0"):
+        KINDS[kind].check({**params, "episode_length_s": 6.0})
+
+
 # ----------------------------------------------------------------------------- Ray Tune
 @pytest.fixture(scope="module")
 def local_ray():

@@ -372,7 +372,8 @@ def check_gains(params: dict[str, Any]) -> None:
     ctrl = make_controller(name, **gains)
     _check_gains_env(name, ctrl.env_kwargs, env)
     config = _env_config({**ctrl.env_kwargs, "setting": settings["setting"],
-                          "guideway_seed": settings["guideway_seed"], **env})  # fmt: skip
+                          "guideway_seed": settings["guideway_seed"],
+                          "episode_length_s": settings["episode_length_s"], **env})  # fmt: skip
     check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
 
 
@@ -447,7 +448,8 @@ def check_oracle(params: dict[str, Any]) -> None:
     _number(settings["episode_seed"], "episode_seed", 0, integer=True)
     _number(settings["episode_length_s"], "episode_length_s")  # > 0: below
     _number(settings["max_iter"], "max_iter", 1, integer=True)
-    config = _env_config({"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env})
+    config = _env_config({"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env,
+                          "episode_length_s": settings["episode_length_s"]})  # fmt: skip
     check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
 
 
