@@ -200,7 +200,7 @@ def build_condition(
     where = "--env" if task is None else f"--task {task} / --env"
     for one in settings:
         try:
-            config = EnvConfig.from_kwargs(**env_kwargs, setting=one)
+            config = EnvConfig.from_kwargs(**env_kwargs, setting=one, episode_length_s=length)
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from None
         if "episode_length_s" in overrides:  # --episode-length: checked with the controllers

@@ -277,7 +277,7 @@ def check_controllers(
         for setting in settings:
             env, _ = controller_env(env_kwargs or {}, ctrl.env_kwargs, setting)
             try:
-                config = EnvConfig.from_kwargs(**env)
+                config = EnvConfig.from_kwargs(**env, episode_length_s=episode_length_s)
             except (ValueError, TypeError) as exc:
                 raise ValueError(f"{where}: bad env arguments {env}: {exc}") from None
             check_episode_length(episode_length_s, config.dt_s, "--episode-length")
@@ -346,8 +346,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             if entry["gains_tuned"]:
                 tuning = {**results["gains_tuned_env_kwargs"], **tuning_task_kwargs(name)}
                 entry["tuned_condition_differs"] = tuned_condition_changes(
-                    env_kwargs, ctrl.env_kwargs, tuning
-                )
+                    {**env_kwargs, "episode_length_s": args.episode_length}, ctrl.env_kwargs,
+                    tuning,
+                )  # fmt: skip
             results["settings"][setting]["controllers"][name] = entry
             done += 1
             _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
@@ -387,16 +388,16 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
     })  # fmt: skip
     controllers = block["controllers"]
     controllers["oracle"] = entry
-    plant = EnvConfig.from_kwargs(**oracle_kwargs).plant_damper_name
+    length = args.episode_length
+    plant = EnvConfig.from_kwargs(**oracle_kwargs, episode_length_s=length).plant_damper_name
     wk_passive = controllers["passive"]["wk_rms_body_acc_m_s2"]
     headroom = wk_passive - entry["wk_rms_body_acc_m_s2"]
     for name, m in controllers.items():
         ctrl = ctrls.get(name)
         own = ctrl.env_kwargs if ctrl is not None else {}
         env, _ = controller_env(condition_kwargs, own, setting)
-        same_plant = EnvConfig.from_kwargs(**env).plant_damper_name == plant and not (
-            physics_changes(oracle_kwargs, own, args.episode_length)
-        )
+        damper = EnvConfig.from_kwargs(**env, episode_length_s=length).plant_damper_name
+        same_plant = damper == plant and not physics_changes(oracle_kwargs, own, length)
         if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
             m["oracle_headroom_captured_rel"] = (
                 (wk_passive - m["wk_rms_body_acc_m_s2"]) / headroom if headroom > 0 else None

@@ -207,6 +207,29 @@ def test_evaluate_rejects_unknown_controller():
         evaluate.main(["--controllers", "nope", "--no-shipped-policy"])
 
 
+def test_evaluate_runs_a_trip_shorter_than_the_default_episode(tmp_path, capsys):
+    # a trip of 4.7 s (150 -> 300 km/h at 20 m/s^2, 0.5 s of cruise, braking at 20 m/s^2):
+    # the condition, the controllers, the tuned-gains note and the oracle's row had each
+    # built the env with the default 10 s episode and refused it (the last two with a
+    # traceback, after the runs)
+    out = tmp_path / "r.json"
+    trip = ('trip_params={"cruise_speed_kmh": 300, "lift_off_speed_kmh": 150, '
+            '"acceleration_m_s2": 20, "braking_m_s2": 20, "cruise_duration_s": 0.5}')  # fmt: skip
+    argv = ["--setting", "hils", "--env", "speed_profile=trip", "--env", trip, "--episodes", "1",
+            "--episode-length", "0.5", "--controllers", "passive,lqr-clipped-biexp-meas",
+            "--no-shipped-policy", "--oracle", "--json", str(out)]  # fmt: skip
+    assert evaluate.main(argv) == 0
+    ctrls = json.loads(out.read_text())["settings"]["hils"]["controllers"]
+    lqr = ctrls["lqr-clipped-biexp-meas"]
+    assert lqr["tuned_condition_differs"]["speed_profile"] == {"tuned": "constant",
+                                                               "evaluated": "trip"}  # fmt: skip
+    assert ctrls["oracle"]["wk_rms_body_acc_m_s2"] < ctrls["passive"]["wk_rms_body_acc_m_s2"]
+    with pytest.raises(SystemExit) as exc:
+        evaluate.main([*argv[:8], "--episode-length", "6", *argv[10:]])
+    assert exc.value.code != 0
+    assert "at most the trip's duration 4.7 s (trip_params), got 6.0" in capsys.readouterr().err
+
+
 def test_evaluate_oracle_row_and_headroom_shares(tmp_path, capsys):
     out = tmp_path / "r.json"
     argv = ["--setting", "hils", "--episodes", "2", "--episode-length", "1.0", "--controllers",
