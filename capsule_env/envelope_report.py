@@ -49,15 +49,20 @@ def _names(points: list[tuple[str, dict]]) -> list[str]:
 
 def _ran_anywhere(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
     """The controllers of ``points`` (:func:`_names`) with a result at one of them at least;
-    for each of the others one note, with the first point's reason (e.g. a law made for the
-    trip task at the constant-speed points)."""
+    for each of the others one note per reason, naming the points that gave it (e.g. a law
+    made for the trip task at the constant-speed points; the reason names each point's own
+    value, so points of a sweep have reasons of their own)."""
     names = _names(points)
     ran = [n for n in names if any(WK in p["controllers"].get(n, {}) for _, p in points)]
     for name in names:
-        skipped = [(k, p["controllers"][name]) for k, p in points if name in p["controllers"]]
-        if name not in ran and skipped:
-            keys = ", ".join(f"`{k}`" for k, _ in skipped)
-            notes.append(f"`{name}` at {keys}: {skipped[0][1].get('skipped', 'not run')}")
+        if name in ran:
+            continue
+        by_reason: dict[str, list[str]] = {}
+        for key, p in points:
+            if name in p["controllers"]:
+                reason = p["controllers"][name].get("skipped", "not run")
+                by_reason.setdefault(reason, []).append(f"`{key}`")
+        notes += [f"`{name}` at {', '.join(keys)}: {reason}" for reason, keys in by_reason.items()]
     return ran
 
 

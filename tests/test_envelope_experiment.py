@@ -165,6 +165,17 @@ def test_a_controller_that_never_ran_in_a_table_is_one_note_not_a_row():
     )
 
 
+def test_a_controller_that_never_ran_has_each_points_own_reason():
+    # the note had given every point the first point's reason (the page said "(the point:
+    # (-0.3, -0.3))" of the +40 % payload, and no spans mismatch at the simply supported one)
+    data = _hand_written()
+    data["points"]["payload/-0.30"]["controllers"]["trip"] = {"skipped": "not run: a (-0.3)"}
+    data["points"]["payload/+0.40"]["controllers"]["trip"] = {"skipped": "not run: a (0.4)"}
+    lines = envelope_report.tables(data).splitlines()
+    assert "- `trip` at `payload/-0.30`: not run: a (-0.3)" in lines
+    assert "- `trip` at `payload/+0.40`: not run: a (0.4)" in lines
+
+
 def test_a_law_made_for_trips_runs_only_where_the_point_is_a_trip(envelope):
     own = {"observation": "measured", "speed_profile": "trip", "levitation": "eds"}
     reason = envelope.physics_mismatch(_point(envelope, "speed/fixed/810").env_kwargs, own)
