@@ -60,8 +60,8 @@ def main(argv: list[str] | None = None) -> int:
         delay = EnvConfig.from_kwargs(**env).effective_control_delay_steps
         seeds = list(range(args.seed, args.seed + args.episodes))
         roll = run_episodes(ctrl, env, seeds=seeds, episode_length_s=args.duration)
-        result = clairvoyant_bound(
-            {"setting": args.setting}, seeds, args.duration,
+        result = clairvoyant_bound(  # the controller's episodes: its own options (e.g. a
+            env, seeds, args.duration,  # law for trips), what it reads changing nothing here
             starts=[*DEFAULT_STARTS, applied_currents(roll, delay)],
             max_iter=args.max_iter, restarts=args.restarts,
         )  # fmt: skip

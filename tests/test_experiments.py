@@ -34,6 +34,23 @@ def test_short_run_writes_both_and_the_oracle_is_lower(bound, tmp_path):
     assert data["ratio_of_means"] < 1.0
 
 
+def test_the_oracle_searches_the_controllers_own_episodes(bound, tmp_path):
+    # a law whose own options run it on trips (EDS levitation): the oracle searches the same
+    # episodes, so the controller's applied currents, one of its starts, replay to the
+    # controller's own Wk (the replay equals the env to 1e-12 m/s^2: tests/test_oracle.py);
+    # the oracle had searched constant-speed episodes, from the trip's currents
+    out = tmp_path / "bound.json"
+    argv = ["--controller", "lqr-sched-biexp-meas", "--episodes", "1", "--duration", "0.5",
+            "--max-iter", "2", "--restarts", "0", "--json", str(out)]  # fmt: skip
+    assert bound.main(argv) == 0
+    data = json.loads(out.read_text())
+    assert data["env_kwargs"]["speed_profile"] == "trip"
+    (row,) = data["episodes_detail"]
+    (wk_ctrl,) = data["wk_controller_m_s2"]
+    own_start = [v for name, v in row["start_wk_m_s2"].items() if name.startswith("given:")]
+    assert own_start == [pytest.approx(wk_ctrl, rel=1e-9)]
+
+
 def test_bad_controller_is_one_line(bound):
     with pytest.raises(SystemExit, match="unknown 'nope'"):
         bound.main(["--controller", "nope"])
