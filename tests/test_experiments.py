@@ -22,12 +22,17 @@ def bound():
     return module
 
 
-def test_short_run_writes_both_and_the_oracle_is_lower(bound, tmp_path):
+def _run(bound, tmp_path, controller: str, episodes: int, duration: float, max_iter: int):
+    """A run without restarts; its JSON."""
     out = tmp_path / "bound.json"
-    argv = ["--controller", "skyhook-cont-biexp", "--episodes", "2", "--duration", "0.6",
-            "--max-iter", "4", "--restarts", "0", "--json", str(out)]  # fmt: skip
+    argv = ["--controller", controller, "--episodes", str(episodes), "--duration",
+            str(duration), "--max-iter", str(max_iter), "--restarts", "0", "--json", str(out)]  # fmt: skip
     assert bound.main(argv) == 0
-    data = json.loads(out.read_text())
+    return json.loads(out.read_text())
+
+
+def test_short_run_writes_both_and_the_oracle_is_lower(bound, tmp_path):
+    data = _run(bound, tmp_path, "skyhook-cont-biexp", 2, 0.6, 4)
     assert len(data["episodes_detail"]) == 2 and data["controller"] == "skyhook-cont-biexp"
     for row, wk_ctrl in zip(data["episodes_detail"], data["wk_controller_m_s2"]):
         assert 0.0 < row["wk_oracle_m_s2"] < wk_ctrl
@@ -39,11 +44,7 @@ def test_the_oracle_searches_the_controllers_own_episodes(bound, tmp_path):
     # episodes, so the controller's applied currents, one of its starts, replay to the
     # controller's own Wk (the replay equals the env to 1e-12 m/s^2: tests/test_oracle.py);
     # the oracle had searched constant-speed episodes, from the trip's currents
-    out = tmp_path / "bound.json"
-    argv = ["--controller", "lqr-sched-biexp-meas", "--episodes", "1", "--duration", "0.5",
-            "--max-iter", "2", "--restarts", "0", "--json", str(out)]  # fmt: skip
-    assert bound.main(argv) == 0
-    data = json.loads(out.read_text())
+    data = _run(bound, tmp_path, "lqr-sched-biexp-meas", 1, 0.5, 2)
     assert data["env_kwargs"]["speed_profile"] == "trip"
     (row,) = data["episodes_detail"]
     (wk_ctrl,) = data["wk_controller_m_s2"]
