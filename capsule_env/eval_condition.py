@@ -39,7 +39,9 @@ from capsule_env.tasks import TASKS
 
 __all__ = [
     "Condition",
+    "EpisodeLengthError",
     "build_condition",
+    "config_at_length",
     "task_env_kwargs",
     "controller_env",
     "tuned_condition_changes",
@@ -198,16 +200,48 @@ def build_condition(
     merged = {**task_kwargs, **overrides}
     env_kwargs = {k: v for k, v in merged.items() if k not in ("setting", "episode_length_s")}
     where = "--env" if task is None else f"--task {task} / --env"
+    if "episode_length_s" in overrides:
+        label = "--env episode_length_s"
+    elif "episode_length_s" in task_kwargs and episode_length_s is None:
+        label = f"--task {task}'s episode_length_s"
+    else:
+        label = "--episode-length"
     for one in settings:
         try:
-            config = EnvConfig.from_kwargs(**env_kwargs, setting=one, episode_length_s=length)
+            config = config_at_length({**env_kwargs, "setting": one}, length, label)
+        except EpisodeLengthError:
+            raise
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from None
-        if "episode_length_s" in overrides:  # --episode-length: checked with the controllers
-            check_episode_length(length, config.dt_s, "--env episode_length_s")
-        elif "episode_length_s" in task_kwargs and episode_length_s is None:
-            check_episode_length(length, config.dt_s, f"--task {task}'s episode_length_s")
+        if label != "--episode-length":  # --episode-length: checked with the controllers
+            check_episode_length(length, config.dt_s, label)
     return Condition(task, task_kwargs, overrides, settings, float(length), env_kwargs)
+
+
+class EpisodeLengthError(ValueError):
+    """An episode length the metrics or the env refuse (its message names where it came
+    from)."""
+
+
+def config_at_length(env_kwargs: dict[str, Any], length_s: float, label: str) -> EnvConfig:
+    """The :class:`EnvConfig` of ``env_kwargs`` with episodes of ``length_s`` seconds (what
+    the run builds: a trip shorter than the default episode is valid at its own length).
+    Where that is refused and the options alone are valid, the length's own check
+    (:func:`~capsule_env.evaluation.check_episode_length`, naming ``label``) speaks first:
+    :class:`EpisodeLengthError`; otherwise the env's error."""
+    try:
+        return EnvConfig.from_kwargs(**env_kwargs, episode_length_s=length_s)
+    except (ValueError, TypeError) as exc:
+        error = exc
+    try:
+        alone = EnvConfig.from_kwargs(**env_kwargs)
+    except (ValueError, TypeError):
+        raise error from None
+    try:
+        check_episode_length(length_s, alone.dt_s, label)
+    except ValueError as exc:
+        raise EpisodeLengthError(str(exc)) from None
+    raise error
 
 
 def controller_env(

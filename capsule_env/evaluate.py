@@ -45,7 +45,9 @@ from capsule_env.agents.tuned import tuning_env_kwargs, tuning_task_kwargs
 from capsule_env.config import EnvConfig
 from capsule_env.eval_condition import (
     Condition,
+    EpisodeLengthError,
     build_condition,
+    config_at_length,
     controller_env,
     headline,
     physics_changes,
@@ -277,7 +279,9 @@ def check_controllers(
         for setting in settings:
             env, _ = controller_env(env_kwargs or {}, ctrl.env_kwargs, setting)
             try:
-                config = EnvConfig.from_kwargs(**env, episode_length_s=episode_length_s)
+                config = config_at_length(env, episode_length_s, "--episode-length")
+            except EpisodeLengthError:
+                raise
             except (ValueError, TypeError) as exc:
                 raise ValueError(f"{where}: bad env arguments {env}: {exc}") from None
             check_episode_length(episode_length_s, config.dt_s, "--episode-length")
