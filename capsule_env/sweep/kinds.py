@@ -159,6 +159,15 @@ def _env_config(env_kwargs: dict[str, Any]) -> Any:
     return EnvConfig.from_kwargs(**env_kwargs)
 
 
+def _env_config_at(env_kwargs: dict[str, Any], episode_length_s: float) -> Any:
+    """The env's configuration of ``env_kwargs`` with the trial's episodes (a trip shorter
+    than the env's default episode is valid at its own length); a refused length is the
+    length's own error (:func:`capsule_env.eval_condition.config_at_length`)."""
+    from capsule_env.eval_condition import config_at_length
+
+    return config_at_length(env_kwargs, episode_length_s, "episode_length_s")
+
+
 # ----------------------------------------------------------------------------- train
 #: train.Args fields a study does not set: the sweep chooses them per trial.
 _TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env_kwargs",
@@ -371,9 +380,9 @@ def check_gains(params: dict[str, Any]) -> None:
     _number(settings["episode_length_s"], "episode_length_s")  # > 0: below
     ctrl = make_controller(name, **gains)
     _check_gains_env(name, ctrl.env_kwargs, env)
-    config = _env_config({**ctrl.env_kwargs, "setting": settings["setting"],
-                          "guideway_seed": settings["guideway_seed"],
-                          "episode_length_s": settings["episode_length_s"], **env})  # fmt: skip
+    config = _env_config_at({**ctrl.env_kwargs, "setting": settings["setting"],
+                             "guideway_seed": settings["guideway_seed"], **env},
+                            settings["episode_length_s"])  # fmt: skip
     check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
 
 
@@ -448,8 +457,9 @@ def check_oracle(params: dict[str, Any]) -> None:
     _number(settings["episode_seed"], "episode_seed", 0, integer=True)
     _number(settings["episode_length_s"], "episode_length_s")  # > 0: below
     _number(settings["max_iter"], "max_iter", 1, integer=True)
-    config = _env_config({"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env,
-                          "episode_length_s": settings["episode_length_s"]})  # fmt: skip
+    config = _env_config_at(
+        {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env}, settings["episode_length_s"]
+    )
     check_episode_length(settings["episode_length_s"], config.dt_s, "episode_length_s")
 
 
