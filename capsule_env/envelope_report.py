@@ -47,6 +47,20 @@ def _names(points: list[tuple[str, dict]]) -> list[str]:
     return [n for n in names if n != "oracle"] + (["oracle"] if "oracle" in names else [])
 
 
+def _ran_anywhere(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
+    """The controllers of ``points`` (:func:`_names`) with a result at one of them at least;
+    for each of the others one note, with the first point's reason (e.g. a law made for the
+    trip task at the constant-speed points)."""
+    names = _names(points)
+    ran = [n for n in names if any(WK in p["controllers"].get(n, {}) for _, p in points)]
+    for name in names:
+        skipped = [(k, p["controllers"][name]) for k, p in points if name in p["controllers"]]
+        if name not in ran and skipped:
+            keys = ", ".join(f"`{k}`" for k, _ in skipped)
+            notes.append(f"`{name}` at {keys}: {skipped[0][1].get('skipped', 'not run')}")
+    return ran
+
+
 def _best(p: dict) -> str | None:
     """The controller (not the oracle) of the lowest Wk at a point."""
     run = {n: e[WK] for n, e in p["controllers"].items() if WK in e and n != "oracle"}
@@ -75,7 +89,7 @@ def _table(points: list[tuple[str, dict]], notes: list[str]) -> list[str]:
     cells a dash with their reason in ``notes``; then the best law's ratio to passive, its
     share of the oracle's headroom (where the oracle ran) and the mean over the episodes of
     the env's guideway scale (where the JSON has it)."""
-    names, best = _names(points), [_best(p) for _, p in points]
+    names, best = _ran_anywhere(points, notes), [_best(p) for _, p in points]
     lines = ["| controller | " + " | ".join(_column_title(p) for _, p in points) + " |",
              "| --- |" + " ---: |" * len(points)]  # fmt: skip
     for name in names:
@@ -164,7 +178,7 @@ def figures(data: dict, folder: Path) -> list[Path]:
 
 def _speed_figure(plt: Any, data: dict, path: Path) -> Path:
     fig, (ax, rel) = plt.subplots(1, 2, figsize=(12, 4.8))
-    names = _names(_points(data, "speed"))
+    names = _ran_anywhere(_points(data, "speed"), [])
     colours = plt.get_cmap("tab10")
     for k, name in enumerate(names):
         for lev, style in (("eds", "-"), ("fixed", "--")):

@@ -53,6 +53,7 @@ from capsule_env.eval_condition import (
 )
 from capsule_env.evaluation import check_episode_length, episode_metrics, run_episodes
 from capsule_env.metrics import DEFAULT_BANDS_HZ
+from capsule_env.policy_files import shown_path
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.table_key import column_footer, key_lines, on_off_note
 from capsule_env.tasks import TASKS
@@ -323,7 +324,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
         "bands_hz": {k: list(v) for k, v in DEFAULT_BANDS_HZ.items()},
         "episodes": args.episodes,
         "seeds": [args.seed, args.seed + args.episodes - 1],
-        "policies": {n: str(c.path) for n, c in ctrls.items() if getattr(c, "path", None)},
+        "policies": {n: shown_path(c.path) for n, c in ctrls.items() if getattr(c, "path", None)},
         "settings": {},
     }
     rollouts: dict = {}

@@ -115,6 +115,25 @@ def build_parser() -> argparse.ArgumentParser:
             "size. Columns, units and the velocity filter: docs/howto-identify.md."
         ),
     )
+    _add_source_and_output_options(parser)
+    _add_file_options(parser.add_argument_group("measured CSV and NumPy files (with --data)"))
+    parser.add_argument(
+        "--frequency-hz",
+        type=float,
+        default=1.0,
+        help="reference loops: stroke frequency in Hz (default 1.0)",
+    )
+    parser.add_argument(
+        "--amplitude-m",
+        type=float,
+        default=0.025,
+        help="reference loops: stroke amplitude in m (default 0.025)",
+    )
+    return parser
+
+
+def _add_source_and_output_options(parser: argparse.ArgumentParser) -> None:
+    """Where the loops come from, what is written and the Bi-exponential's ``d`` rule."""
     source = parser.add_mutually_exclusive_group()
     source.add_argument(
         "--reference",
@@ -150,7 +169,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="Bi-exponential d per branch: 'mean' over the per-current fits (the paper's "
         "procedure, default) or 'joint' (d and the linear laws fitted to all currents at once)",
     )
-    files = parser.add_argument_group("measured CSV and NumPy files (with --data)")
+
+
+def _add_file_options(files: argparse._ArgumentGroup) -> None:
+    """How measured CSV and NumPy files are read (columns, current, velocity, offset)."""
     files.add_argument(
         "--columns",
         metavar="NAMES",
@@ -197,19 +219,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="fit the loops of all the files at once (one file per current: current laws "
         "across files) instead of each file on its own",
     )
-    parser.add_argument(
-        "--frequency-hz",
-        type=float,
-        default=1.0,
-        help="reference loops: stroke frequency in Hz (default 1.0)",
-    )
-    parser.add_argument(
-        "--amplitude-m",
-        type=float,
-        default=0.025,
-        help="reference loops: stroke amplitude in m (default 0.025)",
-    )
-    return parser
 
 
 def _fmt(value: float, width: int = 11) -> str:

@@ -41,6 +41,7 @@ from pathlib import Path
 from capsule_env.safe_io import digest_mismatch
 
 __all__ = [
+    "shown_path",
     "SET_SUFFIXES",
     "sibling",
     "commit_dir",
@@ -56,6 +57,16 @@ SET_SUFFIXES = (".zip", ".vecnormalize.pkl", ".replay_buffer.pkl", ".json")
 #: A temporary file or folder of :mod:`capsule_env.safe_io` or of :func:`save_file_set`.
 _TEMP = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp$")
 _COMMIT = ".commit"
+
+
+def shown_path(path: str | Path) -> str:
+    """``path`` as results files record it: a file of the installed package (a shipped
+    policy) as ``capsule_env/...``, the same on every machine; any other path as given."""
+    package = Path(__file__).resolve().parent
+    try:
+        return str(Path(package.name) / Path(path).resolve().relative_to(package))
+    except ValueError:
+        return str(path)
 
 
 def sibling(path: str | Path, suffix: str) -> Path:

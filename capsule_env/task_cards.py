@@ -35,8 +35,8 @@ def _card(task: Task, results: dict) -> list[str]:
              f"{results['seeds'][0]}..{results['seeds'][1]} (`docs/figures/{task.results}`).",
              ""]  # fmt: skip
     if not has_oracle:
-        lines += ["No normalised score: the clairvoyant oracle does not follow trips "
-                  "(docs/model.md, section 13), so the scale has no upper end.", ""]  # fmt: skip
+        lines += ["No normalised score: the results file has no oracle row (`evaluate.py "
+                  "--oracle`), so the scale has no upper end.", ""]  # fmt: skip
     lines += ["| controller | what it is | reads | Wk (m/s²) | normalised score |",
               "|---|---|---|---|---|"]  # fmt: skip
     for name, what in rows:

@@ -34,6 +34,7 @@ exit status 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -92,11 +93,11 @@ class Args:
     """comma-separated sweeps to run: speed, payload, spans, trip"""
     controllers: str = field(default_factory=_default_controllers)
     """comma-separated classical controllers (names of capsule_env.agents)"""
-    policies: str = "ppo-measured"
+    policies: str = "ppo-measured,ppo-trip"
     """comma-separated shipped policies (capsule_env/pretrained; '' for none)"""
-    oracle: str = "speed/eds/1200"
-    """comma-separated point keys at which to search the clairvoyant bound (about 5.5 min each
-    on a loaded 2-core machine; '' for none; not on a trip)"""
+    oracle: str = "speed/eds/150,speed/eds/400,speed/eds/810,speed/eds/1200,trip"
+    """comma-separated point keys at which to search the clairvoyant bound (3-6 min each on a
+    2-core machine; '' for none)"""
     episodes: int = 10
     """guideway seeds per point (>= 1)"""
     seed: int = 1000
@@ -213,18 +214,43 @@ def observation_mismatch(ctrl: Any, env_kwargs: dict[str, Any]) -> str | None:
             + (f" (the extra ones: {extra})" if extra else ""))  # fmt: skip
 
 
+#: The options that make an operating point: a controller whose own options set one of them
+#: otherwise (a law or policy made for the trip task) would run on other physics than the point's.
+ENVELOPE_OPTIONS = ("speed_kmh", "speed_profile", "trip_params", "levitation",
+                    "levitation_params", "spans", "span_params", "payload_range")  # fmt: skip
+
+
+def physics_mismatch(point_env: dict[str, Any], own: dict[str, Any]) -> str | None:
+    """Why a controller cannot run at a point: its own options (``own``) change the point's
+    operating condition (:data:`ENVELOPE_OPTIONS`, the point's value or else the env's
+    default), or None."""
+    defaults = dataclasses.asdict(EnvConfig())
+    changed = [
+        f"{key}={own[key]!r} (the point: {point_env.get(key, defaults[key])!r})"
+        for key in ENVELOPE_OPTIONS
+        if key in own and _as_tuple(own[key]) != _as_tuple(point_env.get(key, defaults[key]))
+    ]
+    return f"not run: its own options set {', '.join(changed)}" if changed else None
+
+
+def _as_tuple(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value
+
+
 def run_point(point: Point, ctrl: Any, seeds: list[int], episode_length_s: float) -> dict:
     """Run the controller ``ctrl`` on ``point`` (its own env options over the point's) for the
     episodes ``seeds``: Wk (mean, spread, per episode), RMS, largest stroke, terminations,
     the env options run and, at a ``psd`` point, the car-body acceleration's PSD."""
     env, kept = controller_env(point.env_kwargs, ctrl.env_kwargs, SETTING)
-    reason = observation_mismatch(ctrl, env)
-    if reason is not None:
-        return {"skipped": reason, "env_kwargs": _jsonable(env)}
     start = time.perf_counter()
     try:
+        reason = physics_mismatch(point.env_kwargs, ctrl.env_kwargs) or observation_mismatch(
+            ctrl, env
+        )
+        if reason is not None:
+            return {"skipped": reason, "env_kwargs": _jsonable(env)}
         roll = run_episodes(ctrl, env, seeds=seeds, episode_length_s=episode_length_s)
-    except ValueError as exc:  # a law that refuses the point (e.g. one that needs a trip)
+    except ValueError as exc:  # a controller that refuses the point (e.g. one that needs a trip)
         return {"skipped": f"not run: {exc}", "env_kwargs": _jsonable(env)}
     return _entry(roll, point.psd, env, kept, time.perf_counter() - start)
 
@@ -254,13 +280,10 @@ def _entry(roll: Any, psd: bool, env: dict, kept: dict, runtime_s: float) -> dic
 
 def run_oracle(point: Point, seeds: list[int], episode_length_s: float) -> dict:
     """The clairvoyant bound at ``point`` (:func:`capsule_env.oracle.clairvoyant_bound`,
-    default search, as ``evaluate.py --oracle``), or why not (a trip)."""
+    default search, as ``evaluate.py --oracle``; on a trip it follows the trip)."""
     from capsule_env.oracle import clairvoyant_bound
 
     env = {**point.env_kwargs, "setting": SETTING}
-    if env.get("speed_profile", "constant") != "constant":
-        return {"skipped": "not run: the clairvoyant oracle does not follow a trip",
-                "env_kwargs": _jsonable(env)}  # fmt: skip
     start = time.perf_counter()
     result = clairvoyant_bound(env, seeds, episode_length_s)
     return _entry(result.rollout, point.psd, env, {}, time.perf_counter() - start)

@@ -154,6 +154,29 @@ def test_tables_from_a_hand_written_json():
     assert "| headroom closed | 0.50 | – |" in lines  # (0.2 - 0.15) / (0.2 - 0.1)
 
 
+def test_a_controller_that_never_ran_in_a_table_is_one_note_not_a_row():
+    data = _hand_written()
+    for p in data["points"].values():
+        p["controllers"]["sched"] = {"skipped": "not run: its own options set trip"}
+    lines = envelope_report.tables(data).splitlines()
+    assert not any(line.startswith("| `sched`") for line in lines)
+    assert (
+        "- `sched` at `payload/-0.30`, `payload/+0.40`: not run: its own options set trip" in lines
+    )
+
+
+def test_a_law_made_for_trips_runs_only_where_the_point_is_a_trip(envelope):
+    own = {"observation": "measured", "speed_profile": "trip", "levitation": "eds"}
+    reason = envelope.physics_mismatch(_point(envelope, "speed/fixed/810").env_kwargs, own)
+    assert reason == ("not run: its own options set speed_profile='trip' (the point: "
+                      "'constant'), levitation='eds' (the point: 'fixed')")  # fmt: skip
+    assert "levitation" not in envelope.physics_mismatch(
+        _point(envelope, "speed/eds/810").env_kwargs, own)  # fmt: skip
+    assert envelope.physics_mismatch(_point(envelope, "trip").env_kwargs, own) is None
+    # reading and acting options are the controller's own, never a mismatch
+    assert envelope.physics_mismatch({}, {"observation": "sensors", "action_mode": "force"}) is None
+
+
 def test_page_in_sync_with_the_json():
     page = (ROOT / "docs" / "envelope.md").read_text()
     data = json.loads((ROOT / "docs" / "figures" / "envelope.json").read_text())

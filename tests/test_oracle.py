@@ -9,7 +9,7 @@ import pytest
 
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, episode_metrics, run_episodes
-from capsule_env.layout import OUT_BODY_ACC
+from capsule_env.layout import OUT_BODY_ACC, OUT_GUIDEWAY
 from capsule_env.oracle import (
     OracleEpisodes,
     RideObjective,
@@ -19,6 +19,9 @@ from capsule_env.oracle import (
 )
 
 HILS = {"setting": "hils", "guideway_seed": EVALUATION_GUIDEWAY_SEED}
+#: The trip task's physics (CapsuleTrip-v0): the route and the EDS levitation change every step.
+TRIP = {**HILS, "levitation": "eds", "speed_profile": "trip", "spans": "continuous",
+        "payload_range": (-0.3, 0.4)}  # fmt: skip
 
 
 def _objective_and_gradient(episodes, u, objective):
@@ -31,10 +34,11 @@ def _objective_and_gradient(episodes, u, objective):
 
 @pytest.mark.parametrize(
     ("setting", "max_stroke_m"),
-    [("hils", np.inf), ("hils", 0.002), ("sim", np.inf)],  # 2 mm: the stroke penalty acts
-)
+    [("hils", np.inf), ("hils", 0.002), ("sim", np.inf), ("trip", np.inf)],  # 2 mm: the
+)  # stroke penalty acts; trip: the trip task's hils plant, its route and k_p(t) per step
 def test_adjoint_gradient_matches_central_differences_of_the_simulation(setting, max_stroke_m):
-    episodes = OracleEpisodes({**HILS, "setting": setting}, [1000], 0.5)
+    kwargs = TRIP if setting == "trip" else {**HILS, "setting": setting}
+    episodes = OracleEpisodes(kwargs, [1000], 0.5)
     objective = RideObjective(episodes.n_steps, episodes.dt_s, max_stroke_m, 1000.0)
     u = np.random.default_rng(0).uniform(0.2, 1.3, episodes.n_steps)
     value, wk, grad = _objective_and_gradient(episodes, u, objective)
@@ -54,21 +58,56 @@ def test_adjoint_gradient_matches_central_differences_of_the_simulation(setting,
         assert grad[j] == pytest.approx(central, rel=0.02, abs=1e-7)
 
 
-def test_open_loop_replay_of_a_controllers_currents_is_the_env():
+@pytest.mark.parametrize("kwargs", [HILS, TRIP], ids=["hils", "trip"])
+def test_open_loop_replay_of_a_controllers_currents_is_the_env(kwargs):
     # Skyhook's commands, delayed by the env's control delay, replayed open loop with the
-    # env's substeps: the env's recorded body acceleration, to rounding.
+    # env's substeps: the env's recorded body acceleration and guideway, to rounding. On a
+    # trip the replay meets the route and the levitation of every step as the env did.
     from capsule_env.agents.classical import classical_controllers
 
     ctrl = classical_controllers()["skyhook-cont-biexp"]
-    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **HILS}, seeds=[1000, 1001],
-                        episode_length_s=0.5)  # fmt: skip
-    delay = EnvConfig.from_kwargs(**HILS).effective_control_delay_steps
+    seeds, length_s = [1000, 1001], 0.5 if kwargs is HILS else 2.0
+    roll = run_episodes(ctrl, {**ctrl.env_kwargs, **kwargs}, seeds=seeds,
+                        episode_length_s=length_s)  # fmt: skip
+    delay = EnvConfig.from_kwargs(**kwargs).effective_control_delay_steps
     assert delay == 1
     u = applied_currents(roll, delay)
-    episodes = OracleEpisodes(HILS, [1000, 1001], 0.5)
+    episodes = OracleEpisodes(kwargs, seeds, length_s)
     _, outputs = episodes.run(np.arange(2), u, substeps="env")
     env_acc = roll.signals["car_body_acceleration_m_s2"]
     np.testing.assert_allclose(outputs[:, :, OUT_BODY_ACC], env_acc, rtol=0, atol=1e-12)
+    env_guideway = roll.signals["guideway_elevation_m"]
+    np.testing.assert_allclose(outputs[:, :, OUT_GUIDEWAY], env_guideway, rtol=0, atol=1e-15)
+
+
+def test_a_trips_schedule_is_its_speed_and_levitation_at_every_step():
+    # independent of the kernels: the route's speed over each interval is the trip's mean
+    # speed there (the chord), and k_p the coil model's at the interval's mid-time speed
+    import dataclasses
+
+    from capsule_env.batch import CapsuleBatch
+    from capsule_env.envelope_kernel import ENV_LIMIT, ENV_T0
+    from capsule_env.layout import STIFF_LEVITATION
+    from capsule_env.levitation import levitation_stiffness_n_per_m
+    from capsule_env.trips import trip_position_m, trip_speed_m_s
+
+    seeds = [1000, 1001, 1002, 1003]
+    episodes = OracleEpisodes(TRIP, seeds, 1.0)
+    sched, dt, n_steps = episodes.schedule, episodes.dt_s, episodes.n_steps
+    assert sched is not None and sched.speed_mps.shape == (n_steps, len(seeds))
+    batch = CapsuleBatch(episodes.config, len(seeds))  # the same draws: each window's start
+    batch.seed(seeds)
+    batch.reset()
+    trip, coil = batch.envelope.trip, batch.envelope.coil
+    t_lo = batch.env_state.envelope[ENV_T0][None, :] + dt * np.arange(n_steps)[:, None]
+    chord = (trip_position_m(t_lo + dt, trip) - trip_position_m(t_lo, trip)) / dt
+    # the positions are up to ~1e6 m: their rounding (1e-10 m) over dt bounds the tolerance
+    np.testing.assert_allclose(sched.speed_mps, chord, rtol=0, atol=1e-6)
+    assert np.ptp(chord, axis=0).max() > 0.5  # some window accelerates or brakes
+    for k, limit in enumerate(batch.env_state.envelope[ENV_LIMIT]):
+        own = dataclasses.replace(coil, stiffness_limit_n_per_m=float(limit))
+        k_p = levitation_stiffness_n_per_m(trip_speed_m_s(t_lo[:, k] + 0.5 * dt, trip), own)
+        np.testing.assert_allclose(sched.vehicle[:, k, STIFF_LEVITATION], k_p, rtol=1e-12)
 
 
 def test_search_improves_on_every_start_and_on_skyhook():

@@ -54,8 +54,10 @@ __all__ = [
     "Linearisation",
     "OracleEpisodes",
     "RideObjective",
+    "TripSchedule",
     "active_state_columns",
     "adjoint_gradient",
+    "trip_schedule",
 ]
 
 #: Forward-difference step of each state column, relative to that column's RMS deviation over
@@ -188,6 +190,37 @@ class RideObjective:
         return value, wk, d_acc, d_state
 
 
+class TripSchedule(NamedTuple):
+    """What a trip changes at every control step ``t`` of each episode ``k``, as the env
+    kernel's ``envelope_interval`` sets it before the plant's step: the route over the
+    interval (``start_m[t, k] + speed_mps[t, k] time``, the chord of the trip) and the
+    vehicle's packed parameters (the EDS levitation's ``k_p`` and ``c_p`` at the interval's
+    mid-time speed; unchanged rows without ``levitation="eds"``).
+
+    start_m, speed_mps : (T, E); vehicle : (T, E, N_VEHICLE_PARAMS).
+    """
+
+    start_m: np.ndarray
+    speed_mps: np.ndarray
+    vehicle: np.ndarray
+
+
+def trip_schedule(batch: CapsuleBatch, n_steps: int) -> TripSchedule:
+    """Record a trip's :class:`TripSchedule` by stepping ``batch`` (just reset) ``n_steps``
+    times: what the envelope sets depends on the time alone, never on the actions or the
+    motion, so these are the values every run of the same episodes meets (the batch is left
+    at the episodes' end)."""
+    n = batch.num_envs
+    start, speed = np.empty((n_steps, n)), np.empty((n_steps, n))
+    vehicle = np.empty((n_steps, *batch.vehicle_params.shape))
+    zeros = np.zeros(n)
+    for t in range(n_steps):
+        batch.step(zeros)
+        route = batch.env_state.route
+        start[t], speed[t], vehicle[t] = route.start_m, route.speed_mps, batch.vehicle_params
+    return TripSchedule(start, speed, vehicle)
+
+
 def _tile(rows: np.ndarray, lanes: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(rows[lanes])
 
@@ -212,13 +245,6 @@ class OracleEpisodes:
     ) -> None:
         kwargs = {"episode_length_s": episode_length_s, **env_kwargs}
         self.config = EnvConfig.from_kwargs(**kwargs)
-        if self.config.speed_profile != "constant":
-            # its open-loop runs step the plant alone, on the route of the reset: a trip's
-            # route and levitation change every step (the env kernel's envelope_interval)
-            raise ValueError(
-                "speed_profile must be 'constant' for the clairvoyant oracle (it does not "
-                f"follow a trip), got {self.config.speed_profile!r}"
-            )
         self.seeds = tuple(int(s) for s in seeds)
         batch = CapsuleBatch(self.config, len(self.seeds))
         batch.seed(list(self.seeds))
@@ -240,9 +266,19 @@ class OracleEpisodes:
         )
         self.mode = batch.kernel_mode
         self.columns = active_state_columns(self.code, self.damper_params[0])
+        self.schedule = (
+            trip_schedule(batch, self.n_steps) if self.config.speed_profile != "constant" else None
+        )
         self._fd_cache: dict[int, tuple[PlantParams, Route, BatchedKernel]] = {}
 
     # ------------------------------------------------------------------ open-loop runs
+    def _follow_trip(self, t: int, lanes: np.ndarray, plant: PlantParams, route: Route) -> None:
+        """On a trip, set the route and the vehicles of ``lanes`` to step ``t``'s."""
+        if self.schedule is not None:
+            route.start_m[:] = self.schedule.start_m[t, lanes]
+            route.speed_mps[:] = self.schedule.speed_mps[t, lanes]
+            plant.vehicle[:] = self.schedule.vehicle[t, lanes]
+
     def _plant(self, lanes: np.ndarray, substeps: str, repeat: int = 1) -> PlantParams:
         tables = self.env_tables if substeps == "env" else self.search_tables
         rows = np.repeat(lanes, repeat)
@@ -280,6 +316,7 @@ class OracleEpisodes:
             states[lo:hi, 0] = x
             for t in range(self.n_steps):
                 cmd[:] = u[lo:hi, t]
+                self._follow_trip(t, lanes, plant, route)
                 kernel(plant, x, cmd, route, self.dt_s, out)
                 states[lo:hi, t + 1] = x
                 outputs[lo:hi, t] = out
@@ -298,6 +335,7 @@ class OracleEpisodes:
         for t in range(self.n_steps):
             on = x[:, BODY_VEL] * (x[:, BODY_VEL] - x[:, BOGIE_VEL]) > 0.0
             u[:, t] = np.where(on, self.i_max, 0.0)
+            self._follow_trip(t, lanes, plant, route)
             kernel(plant, x, np.ascontiguousarray(u[:, t]), route, self.dt_s, out)
         return u
 
@@ -310,7 +348,13 @@ class OracleEpisodes:
             lane = np.array([k])
             plant = self._plant(lane, "search", copies)
             kernel = BatchedKernel(PLANT, self.code, self.mode, copies)
-            self._fd_cache[k] = (plant, self._route(lane, copies), kernel)
+            route = self._route(lane, copies)
+            if self.schedule is not None:  # copy t * (n + 1) + j: step t's route and vehicle
+                per_step = copies // self.n_steps
+                route.start_m[:] = np.repeat(self.schedule.start_m[:, k], per_step)
+                route.speed_mps[:] = np.repeat(self.schedule.speed_mps[:, k], per_step)
+                plant.vehicle[:] = np.repeat(self.schedule.vehicle[:, k], per_step, axis=0)
+            self._fd_cache[k] = (plant, route, kernel)
         return self._fd_cache[k]
 
     def linearise(
