@@ -69,12 +69,14 @@ def _check_scale(scale: float) -> float:
 
 def check_law_fits(law: Controller, config: Any) -> None:
     """Raise ``ValueError`` naming the option when the law cannot act on the env: it needs an
-    observation set, a preview or an action mode other than the env's (``config`` is the env's
-    :class:`~capsule_env.config.EnvConfig`)."""
+    observation set, a preview (points, and the horizon they span) or an action mode other than
+    the env's (``config`` is the env's :class:`~capsule_env.config.EnvConfig`)."""
     if not isinstance(law, Controller) or not law.feedback:
         raise ValueError(f"law must be a feedback Controller, got {law!r}")
     needs = {"observation": law.observation, "action_mode": law.env_kwargs.get("action_mode",
              "force"), "preview_points": int(law.env_kwargs.get("preview_points", 0) or 0)}  # fmt: skip
+    if needs["preview_points"]:  # the law reads the points as spread over its own horizon
+        needs["preview_horizon_s"] = float(law.env_kwargs["preview_horizon_s"])
     for key, value in needs.items():
         if getattr(config, key) != value:
             raise ValueError(

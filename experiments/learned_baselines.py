@@ -1,23 +1,33 @@
-"""The learned baselines on the ride task with rliable statistics (docs/learned-baselines.md).
+"""The learned baselines of a task with rliable statistics (docs/learned-baselines.md).
 
     python experiments/learned_baselines.py \
         --group residual-ppo='runs/suite/rppo-seed*' --group ppo='runs/suite/ppo-seed*' \
         --json docs/figures/learned_baselines.json --plot docs/figures/learned_baselines.png
+    python experiments/learned_baselines.py --task CapsuleTrip-v0 \
+        --group ppo='runs/tasks30/trip-ppo-seed*' --json trip.json
+
+``--task ID`` (default ``CapsuleRide-v0``) names the registered task the runs were trained on:
+its env options are the evaluation's (a run's own training options over them, as evaluate.py
+runs a policy), and its references come from that task's evaluation file
+(:attr:`capsule_env.tasks.Task.results`, the ``hils`` block; :data:`TASK_LAWS` lists the
+classical laws read for each task and the files they are in).
 
 Per training run (a ``train.py`` output folder): its ``best_model`` (chosen during training on
 the VALIDATION bank, guideway seed 7, episodes 5000..5009) evaluated once on the EVALUATION
 bank (guideway seed 2026, episodes 1000..1009, 10 s, ``hils``), the Wk-weighted RMS car-body
-acceleration normalised between the passive damper (0) and the oracle (1) of that bank
-(``docs/figures/evaluation.json``'s ``hils`` block). Per group (an algorithm): the IQM of the
-runs' scores with a 95 % stratified-bootstrap interval, the probability of improvement over the
-clipped LQR and over the semi-active MPC (each a deterministic law: its one score entered as
-two identical runs, so ``P`` is the share of runs above it, ties one half, with the bootstrap
-over the learned runs), the IQM's Wk and its ratio to each law, the env steps and wall-clock
-seconds of the runs. The clipped LQR is re-evaluated here on the same episodes as a check of
-the pipeline (it must reproduce the file's figure).
+acceleration normalised between the passive damper (0) and the oracle (1) of that bank. A task
+whose file has no oracle (the trip task until one is added) has no normalised score: its
+statistics are computed on ``Wk_passive - Wk`` (m/s^2; the IQM and its interval are the same
+runs' as for any affine score) and reported as Wk. Per group (an algorithm): the IQM of the
+runs' scores with a 95 % stratified-bootstrap interval, the probability of improvement over
+each of the task's classical laws (each a deterministic law: its one score entered as two
+identical runs, so ``P`` is the share of runs above it, ties one half, with the bootstrap over
+the learned runs), the IQM's Wk and its ratio to each law, the env steps and wall-clock
+seconds of the runs. The task's check law (the first of :data:`TASK_LAWS`) is re-evaluated
+here on the same episodes as a check of the pipeline (it must reproduce the file's figure).
 
 Curves: the runs' training-time evaluations (``evaluations.jsonl``, validation bank) as the
-score ``Wk(clipped LQR) / Wk`` (1: the LQR's level on the validation bank, higher is better),
+score ``Wk(check law) / Wk`` (1: the law's level on the validation bank, higher is better),
 IQM and interval per evaluation step, against env steps and the runs' mean wall-clock seconds.
 """
 
@@ -37,24 +47,41 @@ LAW = "lqr-clipped-biexp-meas"
 MPC = "mpc-biexp-meas"
 EPISODES, FIRST_SEED, LENGTH_S = 10, 1000, 10.0
 VAL_EPISODES, VAL_FIRST_SEED = 10, 5000
+TRIP_FILE = "evaluation-CapsuleTrip-v0.json"
+# Per task, the classical laws whose evaluation-bank Wk is read (name: file under docs/figures,
+# its hils block); the first is the check law re-evaluated here and the curves' reference.
+TASK_LAWS: dict[str, dict[str, str]] = {
+    "CapsuleRide-v0": {LAW: "evaluation.json", MPC: "mpc_evaluation.json"},
+    "CapsuleRidePreview-v0": {"preview-lq-biexp-meas": "evaluation.json",
+                              "preview-mpc-biexp-meas": "mpc_evaluation.json"},
+    "CapsuleTrip-v0": {"lqr-sched-biexp-meas": TRIP_FILE, MPC: TRIP_FILE, LAW: TRIP_FILE},
+}  # fmt: skip
 
 
-def _references() -> dict[str, float]:
-    """Evaluation-bank Wk (m/s^2) of passive, oracle, clipped LQR (evaluation.json, hils) and
-    the semi-active MPC on measured signals (mpc_evaluation.json, hils)."""
+def _references(task_id: str = "CapsuleRide-v0") -> dict[str, float]:
+    """Evaluation-bank Wk (m/s^2) of the passive damper, the oracle (absent when the task's file
+    has none) and the task's laws (:data:`TASK_LAWS`), from the ``hils`` blocks."""
+    from capsule_env.tasks import task_named
+
     figures = ROOT / "docs" / "figures"
-    hils = json.loads((figures / "evaluation.json").read_text())["settings"]["hils"]
-    mpc = json.loads((figures / "mpc_evaluation.json").read_text())["settings"]["hils"]
     wk = "wk_rms_body_acc_m_s2"
-    return {"passive": hils["controllers"]["passive"][wk],
-            "oracle": hils["controllers"]["oracle"][wk],
-            LAW: hils["controllers"][LAW][wk], MPC: mpc["controllers"][MPC][wk]}  # fmt: skip
+
+    def block(name: str) -> dict:
+        return json.loads((figures / name).read_text())["settings"]["hils"]["controllers"]
+
+    own = block(task_named(task_id).results)
+    refs = {"passive": own["passive"][wk]}
+    if "oracle" in own:
+        refs["oracle"] = own["oracle"][wk]
+    refs.update({law: block(name)[law][wk] for law, name in TASK_LAWS[task_id].items()})
+    return refs
 
 
-def _wk(policy, guideway_seed: int, episodes: int, first_seed: int) -> float:
+def _wk(policy, guideway_seed: int, episodes: int, first_seed: int, task: dict) -> float:
+    """Mean Wk of ``policy`` on the task's options ``task``, its own over them."""
     from capsule_env.evaluation import episode_metrics, run_episodes
 
-    kwargs = {**policy.env_kwargs, "setting": "hils", "guideway_seed": guideway_seed}
+    kwargs = {**task, **policy.env_kwargs, "setting": "hils", "guideway_seed": guideway_seed}
     rollout = run_episodes(policy, kwargs, episodes, first_seed, LENGTH_S)
     return float(episode_metrics(rollout, None)["wk_rms_body_acc_m_s2"])
 
@@ -70,7 +97,7 @@ def _machine() -> str:
     return f"{names[0] if names else platform.machine()}, {os.cpu_count()} cores"
 
 
-def _run_record(folder: Path) -> dict:
+def _run_record(folder: Path, task: dict) -> dict:
     """One training run: evaluation-bank Wk of its best model, validation Wk, steps, wall."""
     from capsule_env.agents.sb3_policy import load_policy
 
@@ -86,7 +113,8 @@ def _run_record(folder: Path) -> dict:
         "folder": str(folder),
         "seed": best.get("seed"),
         "residual": best.get("residual"),
-        "eval_wk_m_s2": _wk(policy, EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED),
+        "env_kwargs": best.get("env_kwargs"),
+        "eval_wk_m_s2": _wk(policy, EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task),
         "validation_wk_m_s2": best["best"]["wk_rms_body_acc_m_s2"],
         "best_at_timesteps": best["best"]["num_timesteps"],
         "num_timesteps": final["num_timesteps"],
@@ -96,38 +124,44 @@ def _run_record(folder: Path) -> dict:
     }
 
 
-def _law_wk(guideway_seed: int, episodes: int, first_seed: int) -> float:
+def _law_wk(law: str, guideway_seed: int, episodes: int, first_seed: int, task: dict) -> float:
     from capsule_env.agents.classical import make_controller
 
-    return _wk(make_controller(LAW), guideway_seed, episodes, first_seed)
+    return _wk(make_controller(law), guideway_seed, episodes, first_seed, task)
 
 
-def _statistics(records: dict[str, list[dict]], refs: dict[str, float]) -> dict:
-    from capsule_env.rl_statistics import iqm, normalised_scores, probability_of_improvement
+def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: list[str]) -> dict:
+    """Per group: IQM score and Wk with 95 % intervals, ratio to and P(improvement) over each
+    of ``laws``; the normalised score when ``refs`` has an oracle, else ``Wk_passive - Wk``
+    (m/s^2) underneath and ``iqm_score`` None."""
+    from capsule_env.rl_statistics import iqm, probability_of_improvement
 
-    passive, oracle = np.array([refs["passive"]]), np.array([refs["oracle"]])
+    passive, oracle = refs["passive"], refs.get("oracle")
+    span = passive - oracle if oracle is not None else 1.0
+    if not span > 0.0:
+        raise ValueError(f"the passive Wk ({passive}) must exceed the oracle's ({oracle})")
 
-    def score(wk: float) -> float:
-        return float(normalised_scores(np.array([[wk]]), passive, oracle)[0, 0])
+    def score(wk) -> np.ndarray:
+        return (passive - np.asarray(wk, dtype=float)) / span
 
-    scores = {g: normalised_scores(np.array([[r["eval_wk_m_s2"]] for r in rs]), passive, oracle)
-              for g, rs in records.items()}  # fmt: skip
-    estimates = iqm(scores)
+    def to_wk(s: float) -> float:
+        return passive - s * span
+
+    scores = {g: score([[r["eval_wk_m_s2"]] for r in rs]) for g, rs in records.items()}
     out = {}
-    for group, est in estimates.items():
-        to_wk = lambda s: refs["passive"] - s * (refs["passive"] - refs["oracle"])  # noqa: E731
-        row = {"runs": len(records[group]), "iqm_score": est.value,
-               "iqm_ci95": [est.low, est.high], "iqm_wk_m_s2": to_wk(est.value),
-               "iqm_wk_ci95_m_s2": [to_wk(est.high), to_wk(est.low)],
-               "scores": scores[group][:, 0].tolist()}  # fmt: skip
-        for law in (LAW, MPC):
-            law_scores = np.full((2, 1), score(refs[law]))
-            poi = probability_of_improvement(scores[group], law_scores)
+    for group, est in iqm(scores).items():
+        normalised = oracle is not None
+        row = {"runs": len(records[group]), "iqm_score": est.value if normalised else None,
+               "iqm_ci95": [est.low, est.high] if normalised else None,
+               "iqm_wk_m_s2": to_wk(est.value), "iqm_wk_ci95_m_s2": [to_wk(est.high),
+               to_wk(est.low)], "scores": scores[group][:, 0].tolist() if normalised else None,
+               "eval_wk_m_s2": [r["eval_wk_m_s2"] for r in records[group]]}  # fmt: skip
+        for law in laws:
+            poi = probability_of_improvement(scores[group], np.full((2, 1), score(refs[law])))
             row[f"p_improvement_over_{law}"] = [poi.value, poi.low, poi.high]
             row[f"ratio_to_{law}"] = to_wk(est.value) / refs[law]
-        rs = records[group]
-        row["env_steps"] = [r["num_timesteps"] for r in rs]
-        row["wall_time_s"] = [r["wall_time_s"] for r in rs]
+        row["env_steps"] = [r["num_timesteps"] for r in records[group]]
+        row["wall_time_s"] = [r["wall_time_s"] for r in records[group]]
         out[group] = row
     return out
 
@@ -149,7 +183,7 @@ def _curves(records: dict[str, list[dict]], law_val_wk: float) -> dict:
     return out
 
 
-def _plot(curves: dict, path: Path) -> None:
+def _plot(curves: dict, path: Path, law: str = LAW) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
@@ -162,10 +196,43 @@ def _plot(curves: dict, path: Path) -> None:
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("Wk(clipped LQR) / Wk, validation bank")
+    axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank")
     axes[0].legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def _summary(result: dict, laws: list[str]) -> list[str]:
+    """One line per group (score when normalised, Wk, ratio to and P over the best law)."""
+    refs = result["references_eval_wk_m_s2"]
+    best = min(laws, key=lambda law: refs[law])
+    lines = []
+    for group, row in result["statistics"].items():
+        score = ("" if row["iqm_score"] is None else f"IQM score {row['iqm_score']:.3f} "
+                 f"[{row['iqm_ci95'][0]:.3f}, {row['iqm_ci95'][1]:.3f}], ")  # fmt: skip
+        lo, hi = row["iqm_wk_ci95_m_s2"]
+        lines.append(f"{group}: {score}IQM Wk {row['iqm_wk_m_s2']:.4f} [{lo:.4f}, {hi:.4f}] = "
+                     f"{row[f'ratio_to_{best}']:.3f} x {best}, P(> {best}) "
+                     f"{row[f'p_improvement_over_{best}'][0]:.2f}")  # fmt: skip
+    check = laws[0]
+    lines.append(f"{check} re-evaluated {result['law_check_eval_wk_m_s2']:.4f} (file "
+                 f"{refs[check]:.4f}); validation {result['law_validation_wk_m_s2']:.4f}")  # fmt: skip
+    return lines
+
+
+def _groups(items: list[str]) -> dict[str, list[Path]] | None:
+    groups = {}
+    for item in items:
+        name, sep, pattern = item.partition("=")
+        folders = sorted(
+            Path(f) for f in glob.glob(pattern) if (Path(f) / "best_model.zip").is_file()
+        )
+        if not sep or len(folders) < 2:
+            print(f"learned_baselines.py: error: --group {item!r} must be NAME=GLOB matching >= 2 "
+                  "run folders with a best_model.zip", file=sys.stderr)  # fmt: skip
+            return None
+        groups[name] = folders
+    return groups
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -177,43 +244,38 @@ def main(argv: list[str] | None = None) -> int:
         metavar="NAME=GLOB",
         help="an algorithm's run folders (repeatable)",
     )
+    p.add_argument("--task", default="CapsuleRide-v0", metavar="ID",
+                   help=f"the runs' task, one of {', '.join(TASK_LAWS)} (default CapsuleRide-v0)")  # fmt: skip
     p.add_argument("--json", type=Path, required=True)
     p.add_argument("--plot", type=Path)
     args = p.parse_args(argv)
-    groups = {}
-    for item in args.group:
-        name, sep, pattern = item.partition("=")
-        folders = sorted(
-            Path(f) for f in glob.glob(pattern) if (Path(f) / "best_model.zip").is_file()
-        )
-        if not sep or len(folders) < 2:
-            print(f"learned_baselines.py: error: --group {item!r} must be NAME=GLOB matching >= 2 "
-                  "run folders with a best_model.zip", file=sys.stderr)  # fmt: skip
-            return 2
-        groups[name] = folders
+    if args.task not in TASK_LAWS:
+        print(f"learned_baselines.py: error: --task must be one of {', '.join(TASK_LAWS)}, got "
+              f"{args.task!r}", file=sys.stderr)  # fmt: skip
+        return 2
+    groups = _groups(args.group)
+    if groups is None:
+        return 2
     from capsule_env.agents.sb3_policy import use_one_torch_thread
 
     from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, VALIDATION_GUIDEWAY_SEED
+    from capsule_env.safe_io import atomic_write_text
+    from capsule_env.tasks import task_named
 
     use_one_torch_thread()
-    refs = _references()
-    law_eval = _law_wk(EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED)
-    law_val = _law_wk(VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED)
-    records = {g: [_run_record(f) for f in fs] for g, fs in groups.items()}
-    result = {"references_eval_wk_m_s2": refs, "law_check_eval_wk_m_s2": law_eval,
-              "law_validation_wk_m_s2": law_val, "machine": _machine(),
-              "statistics": _statistics(records, refs), "curves": _curves(records, law_val),
-              "runs": records}  # fmt: skip
-    args.json.write_text(json.dumps(result, indent=1) + "\n")
+    task, laws = dict(task_named(args.task).kwargs), list(TASK_LAWS[args.task])
+    refs = _references(args.task)
+    law_eval = _law_wk(laws[0], EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
+    law_val = _law_wk(laws[0], VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED, task)
+    records = {g: [_run_record(f, task) for f in fs] for g, fs in groups.items()}
+    result = {"task": args.task, "laws": laws, "references_eval_wk_m_s2": refs,
+              "law_check_eval_wk_m_s2": law_eval, "law_validation_wk_m_s2": law_val,
+              "machine": _machine(), "statistics": _statistics(records, refs, laws),
+              "curves": _curves(records, law_val), "runs": records}  # fmt: skip
+    atomic_write_text(args.json, json.dumps(result, indent=1) + "\n")
     if args.plot:
-        _plot(result["curves"], args.plot)
-    for group, row in result["statistics"].items():
-        print(
-            f"{group}: IQM score {row['iqm_score']:.3f} [{row['iqm_ci95'][0]:.3f}, "
-            f"{row['iqm_ci95'][1]:.3f}], Wk {row['iqm_wk_m_s2']:.4f} = "
-            f"{row[f'ratio_to_{LAW}']:.3f} x LQR, P(> LQR) {row[f'p_improvement_over_{LAW}'][0]:.2f}"
-        )
-    print(f"LQR re-evaluated {law_eval:.4f} (file {refs[LAW]:.4f}); validation {law_val:.4f}")
+        _plot(result["curves"], args.plot, laws[0])
+    print("\n".join(_summary(result, laws)))
     return 0
 
 

@@ -1,6 +1,7 @@
 """experiments/learned_baselines.py: its statistics against figures computed by hand (IQM of 5
 runs = mean of the middle 3; probability of improvement over a deterministic law = the share of
-runs above it; curves' ratio), and its bad input."""
+runs above it; curves' ratio), a task without an oracle, each task's references read from its
+own evaluation file, and its bad input."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ pytest.importorskip("rliable")
 
 ROOT = Path(__file__).resolve().parents[1]
 REFS = {"passive": 0.26, "oracle": 0.21, "lqr-clipped-biexp-meas": 0.24, "mpc-biexp-meas": 0.235}
+LAWS = ["lqr-clipped-biexp-meas", "mpc-biexp-meas"]
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +34,7 @@ def _record(wk: float, curve: list) -> dict:
 
 def test_statistics_match_hand_computed_figures(lb):
     wks = [0.230, 0.235, 0.238, 0.242, 0.250]  # scores 0.6, 0.5, 0.44, 0.36, 0.2
-    row = lb._statistics({"a": [_record(w, []) for w in wks]}, REFS)["a"]
+    row = lb._statistics({"a": [_record(w, []) for w in wks]}, REFS, LAWS)["a"]
     assert row["scores"] == pytest.approx([0.6, 0.5, 0.44, 0.36, 0.2])
     assert row["iqm_score"] == pytest.approx((0.5 + 0.44 + 0.36) / 3)
     assert row["iqm_wk_m_s2"] == pytest.approx((0.235 + 0.238 + 0.242) / 3)
@@ -56,3 +58,53 @@ def test_curves_are_the_law_over_the_runs_wk(lb):
 def test_a_group_without_two_runs_is_one_line(lb, tmp_path, capsys):
     assert lb.main(["--group", f"a={tmp_path}/none*", "--json", str(tmp_path / "x.json")]) == 2
     assert "--group" in capsys.readouterr().err
+
+
+def test_without_an_oracle_the_statistics_are_in_wk(lb):
+    # the trip task's file has no oracle yet: no normalised score, the same IQM in Wk
+    refs = {k: v for k, v in REFS.items() if k != "oracle"}
+    wks = [0.250, 0.230, 0.242, 0.238, 0.235]  # sorted: 0.230 | 0.235 0.238 0.242 | 0.250
+    row = lb._statistics({"a": [_record(w, []) for w in wks]}, refs, LAWS)["a"]
+    assert row["iqm_score"] is None and row["iqm_ci95"] is None and row["scores"] is None
+    assert row["iqm_wk_m_s2"] == pytest.approx((0.235 + 0.238 + 0.242) / 3)
+    low, high = row["iqm_wk_ci95_m_s2"]
+    assert 0.230 <= low < row["iqm_wk_m_s2"] < high <= 0.250
+    assert row["ratio_to_mpc-biexp-meas"] == pytest.approx(0.715 / 3 / 0.235)
+    # runs below (better than) the LQR's 0.24: 0.230, 0.238, 0.235 -> 3 of 5
+    assert row["p_improvement_over_lqr-clipped-biexp-meas"][0] == pytest.approx(0.6)
+    # the MPC's 0.235: 0.230 better, 0.235 a tie (one half) -> 1.5 of 5
+    assert row["p_improvement_over_mpc-biexp-meas"][0] == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize("task, file, laws", [
+    ("CapsuleRide-v0", "evaluation.json", ["lqr-clipped-biexp-meas", "mpc-biexp-meas"]),
+    ("CapsuleRidePreview-v0", "evaluation.json",
+     ["preview-lq-biexp-meas", "preview-mpc-biexp-meas"]),
+    ("CapsuleTrip-v0", "evaluation-CapsuleTrip-v0.json",
+     ["lqr-sched-biexp-meas", "mpc-biexp-meas", "lqr-clipped-biexp-meas"]),
+])  # fmt: skip
+def test_each_task_reads_its_own_references(lb, task, file, laws):
+    import json
+
+    refs = lb._references(task)
+    figures = ROOT / "docs" / "figures"
+    own = json.loads((figures / file).read_text())["settings"]["hils"]["controllers"]
+    assert refs["passive"] == own["passive"]["wk_rms_body_acc_m_s2"]
+    assert ("oracle" in refs) == ("oracle" in own)
+    assert list(lb.TASK_LAWS[task]) == laws
+    for law in laws:  # every law's figure is one of the project's evaluation files
+        found = [
+            json.loads(f.read_text())["settings"]
+            .get("hils", {})
+            .get("controllers", {})
+            .get(law, {})
+            .get("wk_rms_body_acc_m_s2")
+            for f in figures.glob("*evaluation*.json")
+        ]
+        assert refs[law] in found, law
+
+
+def test_an_unknown_task_is_one_line(lb, tmp_path, capsys):
+    argv = ["--task", "CapsuleNone-v0", "--group", "a=x*", "--json", str(tmp_path / "x.json")]
+    assert lb.main(argv) == 2
+    assert "--task must be one of" in capsys.readouterr().err

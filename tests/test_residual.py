@@ -28,7 +28,7 @@ RIDE = {
     "episode_length_s": 0.5,
     "guideway_seed": EVALUATION_GUIDEWAY_SEED,
 }
-PREVIEW = {**RIDE, "preview_points": 32, "preview_horizon_s": 0.5}
+PREVIEW = {**RIDE, "preview_points": 32, "preview_horizon_s": 1.0}  # the preview LQ law's
 
 
 class Zero:
@@ -147,6 +147,10 @@ def test_bad_input_is_named():
         ResidualEnv(env, make_controller("lqr-clipped-biexp-meas"))
     with pytest.raises(ValueError, match="needs the env option preview_points=32"):
         ResidualEnv(gym.make("CapsuleSuspension-v0", **RIDE),
+                    make_controller("preview-lq-biexp-meas"))  # fmt: skip
+    # the same 32 points over another horizon: the law would read them at the wrong distances
+    with pytest.raises(ValueError, match="needs the env option preview_horizon_s=1.0"):
+        ResidualEnv(gym.make("CapsuleSuspension-v0", **{**PREVIEW, "preview_horizon_s": 0.5}),
                     make_controller("preview-lq-biexp-meas"))  # fmt: skip
     with pytest.raises(ValueError, match="scale must be a number in"):
         ResidualEnv(gym.make("CapsuleSuspension-v0", **RIDE),
