@@ -204,7 +204,9 @@ def main(argv: list[str] | None = None) -> int:
               "law_validation_wk_m_s2": law_val, "machine": _machine(),
               "statistics": _statistics(records, refs), "curves": _curves(records, law_val),
               "runs": records}  # fmt: skip
-    args.json.write_text(json.dumps(result, indent=1) + "\n")
+    from capsule_env.safe_io import atomic_write_text
+
+    atomic_write_text(args.json, json.dumps(result, indent=1) + "\n")
     if args.plot:
         _plot(result["curves"], args.plot)
     for group, row in result["statistics"].items():
