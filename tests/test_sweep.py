@@ -220,6 +220,23 @@ def test_train_parameters_are_checked(tmp_path, capsys):
     assert main([str(study), "--check", "--out", str(tmp_path / "out")]) == 0
 
 
+@pytest.mark.parametrize("algo", ["sac", "td3", "tqc", "crossq", "recurrentppo"])
+def test_train_parameters_of_every_algorithm_are_checked(algo, tmp_path, capsys):
+    # the hp values are checked against the algorithm's own constructor: sb3-contrib's TQC,
+    # CrossQ and RecurrentPPO included (they once failed with an AttributeError)
+    pytest.importorskip("sb3_contrib", reason=NO_RL)
+    pytest.importorskip("yaml", reason=NO_RL)
+    good = {"algo": algo, "hp.learning_rate": 3e-4, "hp.batch_size": 128}
+    study = write_study(tmp_path, {"trials": [{"kind": "train", "params": good}]})
+    assert main([str(study), "--check", "--out", str(tmp_path / "out")]) == 0
+    capsys.readouterr()
+    bad = {**good, "hp.batch_size": 64.0}
+    study = write_study(tmp_path, {"trials": [{"kind": "train", "params": bad}]})
+    assert main([str(study), "--check", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "hp.batch_size: expected an integer >= 1, got 64.0" in err, err
+
+
 # ----------------------------------------------------------------------------- seeds
 def test_replicates_get_distinct_independent_seeds(tmp_path):
     pytest.importorskip("stable_baselines3", reason=NO_RL)

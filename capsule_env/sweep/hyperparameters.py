@@ -102,11 +102,11 @@ def check_hp_values(algo: str, base: dict[str, Any], given: dict[str, Any]) -> N
     """The study's ``hp.<key>`` values (``given``) for ``algo`` over the hyperparameter file's
     entry ``base``: each value checked (:func:`check_hp_value`), then the merged entry parsed
     as train.py parses it (schedules, ``policy_kwargs``, ``normalize``)."""
-    import stable_baselines3 as sb3
-
+    from capsule_env.agents.algorithms import algorithm_class
     from capsule_env.agents.hyperparams import algo_kwargs_from, normalize_kwargs_from
 
-    signature = inspect.signature(getattr(sb3, algo.upper()).__init__)
+    # the class by name (sb3-contrib's TQC, CrossQ, RecurrentPPO are not in stable_baselines3)
+    signature = inspect.signature(algorithm_class(algo).__init__)
     defaults = {name: p.default for name, p in signature.parameters.items()}
     for key, value in given.items():
         check_hp_value(key, value, defaults)
