@@ -249,13 +249,28 @@ def controller_env(
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """A controller's env options in ``setting``: the condition's (``condition_kwargs``) with
     the controller's own (``own``, :attr:`Controller.env_kwargs`) over them, and the options
-    where the controller's own value replaced another of the condition's,
-    ``{KEY: {"controller": own value, "condition": condition's value}}``."""
+    where the controller's own value replaced another of the condition's, or one the condition
+    left at the env's default that changes the plant's physics (:func:`plant_physics`; e.g. a
+    law made for trips run on a constant-speed task), ``{KEY: {"controller": own value,
+    "condition": the condition's value, or the env's default}}``."""
     kept = {
         key: {"controller": own[key], "condition": value}
         for key, value in condition_kwargs.items()
         if key in own and _as_tuple(own[key]) != _as_tuple(value)
     }
+    base = {**condition_kwargs, "setting": setting}
+    added = [key for key in own if key not in base]
+    if added:
+        defaults = {f.name: f.default if f.default_factory is dataclasses.MISSING
+                    else f.default_factory() for f in dataclasses.fields(EnvConfig)}  # fmt: skip
+        reference = plant_physics(base)
+        for key in added:
+            try:
+                changes = plant_physics({**base, key: own[key]}) != reference
+            except (ValueError, TypeError):  # refused alone: only with others of its own
+                changes = True
+            if changes:
+                kept[key] = {"controller": own[key], "condition": defaults.get(key)}
     return {**condition_kwargs, **own, "setting": setting}, kept
 
 

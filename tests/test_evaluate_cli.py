@@ -226,3 +226,22 @@ def test_a_task_registered_later_needs_no_edit(monkeypatch):
         del registry[task.env_id]
     assert got.env_kwargs == {"speed_kmh": 600.0, "reward_stroke_weight": 0.2}
     assert got.settings == ("sim",)
+
+
+def test_a_controllers_own_physics_is_stated_where_the_condition_left_the_default():
+    # a law made for trips (its own options: a trip, EDS levitation) on the paper's task runs
+    # its own physics: the results say so, naming the env's defaults it replaced; what a law
+    # reads and how it acts (observation, inverse model, force limit) is never such a change
+    from capsule_env.eval_condition import controller_env
+
+    own = {"observation": "measured", "inverse_model": "bi_exponential", "max_force_n": 8000.0,
+           "speed_profile": "trip", "levitation": "eds"}  # fmt: skip
+    env, kept = controller_env({}, own, "hils")
+    assert env["speed_profile"] == "trip" and env["setting"] == "hils"
+    assert kept == {"speed_profile": {"controller": "trip", "condition": "constant"},
+                    "levitation": {"controller": "eds", "condition": "fixed"}}  # fmt: skip
+    # on the trip task the same options are the condition's: nothing kept
+    task = {"levitation": "eds", "speed_profile": "trip", "spans": "continuous"}
+    assert controller_env(task, own, "hils")[1] == {}
+    # an option given at the env's default changes nothing
+    assert controller_env({}, {"speed_kmh": 810.0, "levitation": "fixed"}, "hils")[1] == {}
