@@ -245,14 +245,18 @@ def config_at_length(env_kwargs: dict[str, Any], length_s: float, label: str) ->
 
 
 def controller_env(
-    condition_kwargs: dict[str, Any], own: dict[str, Any], setting: str
+    condition_kwargs: dict[str, Any],
+    own: dict[str, Any],
+    setting: str,
+    episode_length_s: float | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """A controller's env options in ``setting``: the condition's (``condition_kwargs``) with
     the controller's own (``own``, :attr:`Controller.env_kwargs`) over them, and the options
     where the controller's own value replaced another of the condition's, or one the condition
     left at the env's default that changes the plant's physics (:func:`plant_physics`; e.g. a
     law made for trips run on a constant-speed task), ``{KEY: {"controller": own value,
-    "condition": the condition's value, or the env's default}}``."""
+    "condition": the condition's value, or the env's default}}``; ``episode_length_s``: the
+    run's episode length (default the condition's or the env's)."""
     kept = {
         key: {"controller": own[key], "condition": value}
         for key, value in condition_kwargs.items()
@@ -260,13 +264,16 @@ def controller_env(
     }
     base = {**condition_kwargs, "setting": setting}
     added = [key for key in own if key not in base]
+    try:  # a condition the env refuses is refused where it is built, with its own message
+        reference = plant_physics(base, episode_length_s) if added else ""
+    except (ValueError, TypeError):
+        added = []
     if added:
         defaults = {f.name: f.default if f.default_factory is dataclasses.MISSING
                     else f.default_factory() for f in dataclasses.fields(EnvConfig)}  # fmt: skip
-        reference = plant_physics(base)
         for key in added:
             try:
-                changes = plant_physics({**base, key: own[key]}) != reference
+                changes = plant_physics({**base, key: own[key]}, episode_length_s) != reference
             except (ValueError, TypeError):  # refused alone: only with others of its own
                 changes = True
             if changes:

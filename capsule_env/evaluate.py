@@ -277,7 +277,7 @@ def check_controllers(
     for name, ctrl in ctrls.items():
         where = f"{name} ({ctrl.path})" if getattr(ctrl, "path", None) else name
         for setting in settings:
-            env, _ = controller_env(env_kwargs or {}, ctrl.env_kwargs, setting)
+            env, _ = controller_env(env_kwargs or {}, ctrl.env_kwargs, setting, episode_length_s)
             try:
                 config = config_at_length(env, episode_length_s, "--episode-length")
             except EpisodeLengthError:
@@ -339,7 +339,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
         results["settings"][setting] = {"controllers": {}}
         passive = None
         for name, ctrl in ctrls.items():
-            env_kwargs, kept = controller_env(condition.env_kwargs, ctrl.env_kwargs, setting)
+            env_kwargs, kept = controller_env(
+                condition.env_kwargs, ctrl.env_kwargs, setting, args.episode_length
+            )
             roll = run_episodes(ctrl, env_kwargs, args.episodes, args.seed, args.episode_length)
             if name == "passive":
                 passive = roll
