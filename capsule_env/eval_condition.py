@@ -263,21 +263,13 @@ def controller_env(
         if key in own and _as_tuple(own[key]) != _as_tuple(value)
     }
     base = {**condition_kwargs, "setting": setting}
-    added = [key for key in own if key not in base]
+    added = {key: value for key, value in own.items() if key not in base}
     try:  # a condition the env refuses is refused where it is built, with its own message
-        reference = plant_physics(base, episode_length_s) if added else ""
+        changing = _physics_keys(base, added, episode_length_s) if added else {}
     except (ValueError, TypeError):
-        added = []
-    if added:
-        defaults = {f.name: f.default if f.default_factory is dataclasses.MISSING
-                    else f.default_factory() for f in dataclasses.fields(EnvConfig)}  # fmt: skip
-        for key in added:
-            try:
-                changes = plant_physics({**base, key: own[key]}, episode_length_s) != reference
-            except (ValueError, TypeError):  # refused alone: only with others of its own
-                changes = True
-            if changes:
-                kept[key] = {"controller": own[key], "condition": defaults.get(key)}
+        changing = {}
+    defaults = _env_defaults()
+    kept.update({key: {"controller": own[key], "condition": defaults.get(key)} for key in changing})
     return {**condition_kwargs, **own, "setting": setting}, kept
 
 
@@ -326,6 +318,33 @@ def plant_physics(env_kwargs: dict[str, Any], episode_length_s: float | None = N
                  c.stroke_limit_m))  # fmt: skip
 
 
+def _env_defaults() -> dict[str, Any]:
+    """Every env option's default value (the guideway bank: the evaluation bank)."""
+    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
+
+    defaults = {f.name: f.default if f.default_factory is dataclasses.MISSING
+                else f.default_factory() for f in dataclasses.fields(EnvConfig)}  # fmt: skip
+    defaults["guideway_seed"] = EVALUATION_GUIDEWAY_SEED
+    return defaults
+
+
+def _physics_keys(
+    base: dict[str, Any], own: dict[str, Any], episode_length_s: float | None
+) -> dict[str, str]:
+    """The keys of ``own`` that, each set alone over ``base``, change its
+    :func:`plant_physics`, with ``""`` or the refusal's message where ``base`` does not accept
+    it (``base`` itself must be accepted)."""
+    reference = plant_physics(base, episode_length_s)
+    keys = {}
+    for key in own:
+        try:
+            if plant_physics({**base, key: own[key]}, episode_length_s) != reference:
+                keys[key] = ""
+        except (ValueError, TypeError) as exc:
+            keys[key] = str(exc)
+    return keys
+
+
 def physics_changes(
     base: dict[str, Any],
     own: dict[str, Any],
@@ -339,12 +358,7 @@ def physics_changes(
     ``base`` does not accept it; ``[]`` when ``{**base, **own}`` has ``base``'s physics
     (options that only say what a controller reads and how it acts never count). Options
     that change it only together are named together."""
-    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
-
-    defaults = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
-    defaults.update({f.name: f.default_factory() for f in dataclasses.fields(EnvConfig)
-                     if f.default_factory is not dataclasses.MISSING})  # fmt: skip
-    defaults["guideway_seed"] = EVALUATION_GUIDEWAY_SEED
+    defaults = _env_defaults()
     own = {k: v for k, v in own.items() if k != "setting"}
     reference = plant_physics(base, episode_length_s)
 
@@ -352,15 +366,8 @@ def physics_changes(
         there = base.get(key, defaults.get(key))
         return f"{key}={own[key]!r} ({base_label}: {there!r}{why})"
 
-    changed = []
-    for key in own:
-        try:
-            differs = plant_physics({**base, key: own[key]}, episode_length_s) != reference
-        except (ValueError, TypeError) as exc:
-            changed.append(describe(key, f"; refused there: {exc}"))
-            continue
-        if differs:
-            changed.append(describe(key))
+    changed = [describe(key, f"; refused there: {refusal}" if refusal else "")
+               for key, refusal in _physics_keys(base, own, episode_length_s).items()]  # fmt: skip
     if not changed:
         try:
             together = plant_physics({**base, **own}, episode_length_s) != reference
