@@ -23,6 +23,10 @@ EVALUATION_GUIDEWAY_SEED = 2026
 #: configurations): held out from training and from the evaluation bank, so that the figures
 #: reported on :data:`EVALUATION_GUIDEWAY_SEED` are not selected on.
 VALIDATION_GUIDEWAY_SEED = 7
+#: Guideway bank for choosing which finished run to ship (experiments/select_policy.py): held
+#: out from training, from the validation bank that chose each run's checkpoint (its windows
+#: would favour the runs whose checkpoints were chosen on them) and from the evaluation bank.
+SELECTION_GUIDEWAY_SEED = 11
 #: The unit of each metric of :func:`episode_metrics` (also the suffix of its key).
 METRIC_UNITS = {
     "vre_pct": "%",

@@ -27,13 +27,15 @@ seconds of the runs. The task's check law (the first of :data:`TASK_LAWS`) is re
 here on the same episodes as a check of the pipeline (it must reproduce the file's figure).
 
 Curves: the runs' training-time evaluations (``evaluations.jsonl``, validation bank) as the
-score ``Wk(check law) / Wk`` (1: the law's level on the validation bank, higher is better),
-IQM and interval per evaluation step, against env steps and the runs' mean wall-clock seconds.
+normalised score on that bank, ``(passive - Wk) / (passive - oracle)`` with the passive damper
+and the oracle of the same 10 validation episodes (:data:`VALIDATION_FILES`, ``evaluate.py
+--env guideway_seed=7 --seed 5000 --oracle``; the check law's level drawn as a dashed line), or,
+for a task without that file, as ``Wk(check law) / Wk`` (1: the law's level); IQM and interval
+per evaluation step, against env steps and the runs' mean wall-clock seconds.
 """
 
 from __future__ import annotations
 
-import argparse
 import glob
 import json
 import platform
@@ -48,6 +50,12 @@ MPC = "mpc-biexp-meas"
 EPISODES, FIRST_SEED, LENGTH_S = 10, 1000, 10.0
 VAL_EPISODES, VAL_FIRST_SEED = 10, 5000
 TRIP_FILE = "evaluation-CapsuleTrip-v0.json"
+# Per task, the file (docs/figures) with the passive damper and the oracle on the VALIDATION
+# bank (guideway seed 7, episodes 5000..5009, 10 s): the curves' normalised score. The preview
+# task's plant and guideway are the ride task's (the preview is an observation only).
+VALIDATION_FILES = {"CapsuleRide-v0": "validation-CapsuleRide-v0.json",
+                    "CapsuleRidePreview-v0": "validation-CapsuleRide-v0.json",
+                    "CapsuleTrip-v0": "validation-CapsuleTrip-v0.json"}  # fmt: skip
 # Per task, the classical laws whose evaluation-bank Wk is read (name: file under docs/figures,
 # its hils block); the first is the check law re-evaluated here and the curves' reference.
 TASK_LAWS: dict[str, dict[str, str]] = {
@@ -84,6 +92,35 @@ def _wk(policy, guideway_seed: int, episodes: int, first_seed: int, task: dict) 
     kwargs = {**task, **policy.env_kwargs, "setting": "hils", "guideway_seed": guideway_seed}
     rollout = run_episodes(policy, kwargs, episodes, first_seed, LENGTH_S)
     return float(episode_metrics(rollout, None)["wk_rms_body_acc_m_s2"])
+
+
+def _validation_references(task_id: str) -> tuple[float, float] | None:
+    """(passive, oracle) Wk on the validation bank from :data:`VALIDATION_FILES`, or None
+    where the file is absent or has no oracle; ``ValueError`` if the file was made on other
+    episodes than train.py's evaluations (guideway seed 7, seeds 5000..5009, 10 s)."""
+    name = VALIDATION_FILES.get(task_id, "")
+    path = ROOT / "docs" / "figures" / name
+    if not name or not path.is_file():
+        return None
+    data = json.loads(path.read_text())
+    condition = data["condition"]
+    made_on = (condition["env_kwargs"].get("guideway_seed"), data["seeds"], data["episodes"],
+               condition["episode_length_s"])  # fmt: skip
+    wanted = (7, [VAL_FIRST_SEED, VAL_FIRST_SEED + VAL_EPISODES - 1], VAL_EPISODES, LENGTH_S)
+    if made_on != wanted:
+        raise ValueError(f"{name}: made on (guideway seed, seeds, episodes, length) {made_on}, "
+                         f"not the validation bank's {wanted}")  # fmt: skip
+    block = data["settings"]["hils"]["controllers"]
+    if "oracle" not in block:
+        return None
+    wk = "wk_rms_body_acc_m_s2"
+    return block["passive"][wk], block["oracle"][wk]
+
+
+def normalised(wk, refs: tuple[float, float]):
+    """``(passive - wk) / (passive - oracle)`` with ``refs = (passive, oracle)``."""
+    passive, oracle = refs
+    return (passive - np.asarray(wk, dtype=float)) / (passive - oracle)
 
 
 def _machine() -> str:
@@ -166,7 +203,11 @@ def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: li
     return out
 
 
-def _curves(records: dict[str, list[dict]], law_val_wk: float) -> dict:
+def _curves(records: dict[str, list[dict]], law_val_wk: float,
+            val_refs: tuple[float, float] | None = None) -> dict:  # fmt: skip
+    """Per group, the IQM and interval of the runs' training-time evaluations (validation
+    bank) at the steps every run evaluated: the normalised score ``(passive - Wk) / (passive -
+    oracle)`` with the validation bank's ``val_refs``, else ``Wk(law) / Wk``."""
     from capsule_env.rl_statistics import iqm_curves
 
     out = {}
@@ -177,13 +218,16 @@ def _curves(records: dict[str, list[dict]], law_val_wk: float) -> dict:
         table = [{c[0]: c for c in r["curve"]} for r in rs]
         wk = np.array([[run[s][2] for s in steps] for run in table])
         wall = np.array([[run[s][1] for s in steps] for run in table])
-        est = iqm_curves({group: (law_val_wk / wk)[:, None, :]})[group]
+        score = law_val_wk / wk if val_refs is None else normalised(wk, val_refs)
+        est = iqm_curves({group: score[:, None, :]})[group]
         out[group] = {"env_steps": steps, "mean_wall_s": wall.mean(axis=0).tolist(),
                       "iqm": est[0].tolist(), "low": est[1].tolist(), "high": est[2].tolist()}  # fmt: skip
     return out
 
 
-def _plot(curves: dict, path: Path, law: str = LAW) -> None:
+def _plot(curves: dict, path: Path, law: str = LAW, law_level: float | None = None) -> None:
+    """The curves against env steps and wall-clock seconds; ``law_level``: the law's
+    normalised score on the validation bank (normalised curves), None for ``Wk(law)/Wk``."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
@@ -193,10 +237,17 @@ def _plot(curves: dict, path: Path, law: str = LAW) -> None:
             ax.fill_between(x, c["low"], c["high"], alpha=0.25)
     for ax, label in zip(axes, ("env steps (millions)", "wall-clock s (mean of the runs)"),
                          strict=True):  # fmt: skip
-        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.axhline(
+            1.0 if law_level is None else law_level,
+            color="k",
+            lw=0.8,
+            ls="--",
+            label=law if ax is axes[0] else None,
+        )
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank")
+    axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank" if law_level is None
+                       else "normalised score, validation bank")  # fmt: skip
     axes[0].legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -236,7 +287,9 @@ def _groups(items: list[str]) -> dict[str, list[Path]] | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    from capsule_env._cli import ArgumentParser  # usage errors in one line
+
+    p = ArgumentParser(prog="learned_baselines.py", description=__doc__.split("\n\n")[0])
     p.add_argument(
         "--group",
         action="append",
@@ -268,13 +321,17 @@ def main(argv: list[str] | None = None) -> int:
     law_eval = _law_wk(laws[0], EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
     law_val = _law_wk(laws[0], VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED, task)
     records = {g: [_run_record(f, task) for f in fs] for g, fs in groups.items()}
+    val_refs = _validation_references(args.task)
+    law_level = None if val_refs is None else float(normalised(law_val, val_refs))
     result = {"task": args.task, "laws": laws, "references_eval_wk_m_s2": refs,
               "law_check_eval_wk_m_s2": law_eval, "law_validation_wk_m_s2": law_val,
               "machine": _machine(), "statistics": _statistics(records, refs, laws),
-              "curves": _curves(records, law_val), "runs": records}  # fmt: skip
+              "validation_passive_oracle_wk_m_s2": val_refs,
+              "curves_score": "wk_law_over_wk" if val_refs is None else "normalised",
+              "curves": _curves(records, law_val, val_refs), "runs": records}  # fmt: skip
     atomic_write_text(args.json, json.dumps(result, indent=1) + "\n")
     if args.plot:
-        _plot(result["curves"], args.plot, laws[0])
+        _plot(result["curves"], args.plot, laws[0], law_level)
     print("\n".join(_summary(result, laws)))
     return 0
 

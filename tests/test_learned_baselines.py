@@ -108,3 +108,45 @@ def test_an_unknown_task_is_one_line(lb, tmp_path, capsys):
     argv = ["--task", "CapsuleNone-v0", "--group", "a=x*", "--json", str(tmp_path / "x.json")]
     assert lb.main(argv) == 2
     assert "--task must be one of" in capsys.readouterr().err
+
+
+def test_curves_in_normalised_score_with_the_validation_oracle(lb):
+    runs = [_record(0.24, [(10, 1.0, 0.25), (20, 2.0, 0.22)]),
+            _record(0.24, [(10, 3.0, 0.25), (20, 4.0, 0.22)])]  # fmt: skip
+    # passive 0.26, oracle 0.21 on the validation bank: 0.25 -> 0.2, 0.22 -> 0.8
+    curve = lb._curves({"a": runs}, 0.2, (0.26, 0.21))["a"]
+    assert curve["iqm"] == pytest.approx([0.2, 0.8])
+
+
+def test_validation_references_are_the_validation_banks(lb):
+    """The ride and preview tasks read one file (same plant and guideway); its passive is the
+    validation bank's (0.2501 m/s^2 in train.py's evaluations), not the evaluation bank's."""
+    import json
+
+    ride = lb._validation_references("CapsuleRide-v0")
+    assert ride == lb._validation_references("CapsuleRidePreview-v0")
+    path = ROOT / "docs" / "figures" / lb.VALIDATION_FILES["CapsuleRide-v0"]
+    meta = json.loads(path.read_text())
+    assert meta["settings"]["hils"]["controllers"]["passive"]["wk_rms_body_acc_m_s2"] == ride[0]
+    assert ride[0] == pytest.approx(0.2501, abs=5e-5) and ride[1] < ride[0]
+    trip = lb._validation_references("CapsuleTrip-v0")  # its own file: the trip's physics
+    assert trip is not None and trip[1] < trip[0] and trip[0] > ride[0]
+
+
+def test_the_law_level_line_is_its_normalised_score(lb):
+    # the ride task's validation bank: passive 0.2501, oracle 0.2051, clipped LQR 0.2319
+    assert float(lb.normalised(0.2319, (0.2501, 0.2051))) == pytest.approx(0.0182 / 0.045)
+
+
+def test_a_validation_file_made_on_other_episodes_is_refused(lb, tmp_path, monkeypatch):
+    import json
+
+    source = ROOT / "docs" / "figures" / lb.VALIDATION_FILES["CapsuleRide-v0"]
+    data = json.loads(source.read_text())
+    data["seeds"] = [5000, 5019]
+    data["episodes"] = 20
+    (tmp_path / "docs" / "figures").mkdir(parents=True)
+    (tmp_path / "docs" / "figures" / source.name).write_text(json.dumps(data))
+    monkeypatch.setattr(lb, "ROOT", tmp_path)
+    with pytest.raises(ValueError, match="not the validation bank's"):
+        lb._validation_references("CapsuleRide-v0")

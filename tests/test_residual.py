@@ -128,17 +128,27 @@ def test_sum_is_scaled_and_clipped():
                                   np.array([1.0, -1.0, 0.1], dtype=np.float32))  # fmt: skip
 
 
-def test_zero_initialised_ppo_starts_from_the_law():
-    from stable_baselines3 import PPO, TD3
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3", "tqc", "crossq", "recurrentppo"])
+def test_zero_initialised_model_starts_from_the_law(algo):
+    """Every algorithm of train.py --algo: after zero_last_layer its deterministic correction
+    is exactly 0, so the residual policy starts as the law."""
+    import torch
+    from capsule_env.agents.algorithms import algorithm_class
 
+    if algo in ("tqc", "crossq", "recurrentppo"):
+        pytest.importorskip("sb3_contrib")
     env = ResidualEnv(gym.make("CapsuleSuspension-v0", **RIDE),
                       make_controller("lqr-clipped-biexp-meas"))  # fmt: skip
-    for algo in (PPO, TD3):
-        model = algo("MlpPolicy", env, seed=0, device="cpu")
-        zero_last_layer(model)
-        obs = np.random.default_rng(0).normal(size=(16, *env.observation_space.shape))
-        action, _ = model.predict(obs.astype(np.float32), deterministic=True)
-        assert np.all(action == 0.0)
+    policy = "MlpLstmPolicy" if algo == "recurrentppo" else "MlpPolicy"
+    model = algorithm_class(algo)(policy, env, seed=0, device="cpu")
+    zero_last_layer(model)
+    obs = np.random.default_rng(0).normal(size=(16, *env.observation_space.shape))
+    action, _ = model.predict(obs.astype(np.float32), deterministic=True)
+    assert np.all(action == 0.0)
+    target = getattr(model.policy, "actor_target", None)
+    if target is not None:  # TD3: the target actor starts as the zeroed actor
+        target_action = target(torch.as_tensor(obs, dtype=torch.float32)).detach().numpy()
+        assert np.all(target_action == 0.0)
 
 
 def test_bad_input_is_named():
