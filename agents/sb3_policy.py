@@ -74,9 +74,10 @@ def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
 
 def shipped_policies() -> dict[str, Controller]:
     """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
-    ``ppo-measured``, ``ppo-preview``, ``ppo-trip``). Each carries the env arguments it was trained with
-    (:attr:`SB3Policy.env_kwargs`: pass them to ``gymnasium.make``) and acts through
-    :meth:`SB3Policy.predict`. Needs the ``rl`` extra."""
+    ``ppo-measured``, ``ppo-preview``, ``ppo-trip``, and ``residual-ppo-mpc``: a
+    :class:`~capsule_env.agents.residual.ResidualPolicy`, the MPC plus its learned correction).
+    Each carries the env arguments it was trained with (``env_kwargs``: pass them to
+    ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra."""
     use_one_torch_thread()
     policies = [load_policy(path) for path in shipped_policy_paths()]
     return {str(policy.name): policy for policy in policies}

@@ -226,11 +226,14 @@ def _curves(records: dict[str, list[dict]], law_val_wk: float,
 
 
 def _plot(curves: dict, path: Path, law: str = LAW, law_level: float | None = None) -> None:
-    """The curves against env steps and wall-clock seconds; ``law_level``: the law's
-    normalised score on the validation bank (normalised curves), None for ``Wk(law)/Wk``."""
+    """The curves against env steps and wall-clock seconds (log axes: the groups' budgets span
+    200k to 4M steps); ``law_level``: the law's normalised score on the validation bank
+    (normalised curves), None for ``Wk(law)/Wk``. The y axis spans the IQMs (intervals below
+    them are cut at 0.1 under the lowest IQM: early evaluations of some runs are far below)."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
     for group, c in curves.items():
         for ax, x in zip(axes, (np.array(c["env_steps"]) / 1e6, c["mean_wall_s"]), strict=True):
             ax.plot(x, c["iqm"], label=group)
@@ -245,10 +248,17 @@ def _plot(curves: dict, path: Path, law: str = LAW, law_level: float | None = No
             label=law if ax is axes[0] else None,
         )
         ax.set_xlabel(label)
-        ax.grid(alpha=0.3)
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # decades labelled, not every minor tick
+        ax.grid(alpha=0.3, which="both")
+    values = [v for c in curves.values() for v in c["iqm"]]
+    if values:
+        reference = 1.0 if law_level is None else law_level
+        top = max([reference, *(v for c in curves.values() for v in c["high"])])
+        axes[0].set_ylim(min([reference, *values]) - 0.1, top + 0.05)
     axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank" if law_level is None
                        else "normalised score, validation bank")  # fmt: skip
-    axes[0].legend()
+    axes[0].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -15,7 +15,8 @@ policies on the **selection bank**: guideway seed 11
 evaluation bank) with a bank of ``--profiles`` (128) guideway profiles, so that the episodes'
 windows rarely share a profile; episodes ``--first-seed`` (0) .. + ``--episodes`` (60), 10 s,
 the task's setting and options with each policy's own reading options over them (what
-evaluate.py runs). A run or shipped policy trained on another task is refused.
+evaluate.py runs). A run, shipped policy or law made for another task (other physics, other
+signals, another preview horizon) is refused.
 
 The rule: the episodes are split by their profile (even profile index: the *choice* half, odd:
 the *comparison* half, no profile in both). The run with the lowest mean Wk-weighted body
@@ -204,8 +205,8 @@ def _folders(patterns: list[str]) -> list[Path]:
 
 def _reads_the_task(own: dict, task: dict, setting: str, trained: bool) -> bool:
     """Whether a controller with the env options ``own`` belongs to the task: it reads the
-    task's kind of signals and preview (``observation``, ``preview_points``; the env's defaults
-    where neither names one) and runs in the task's physics: for a trained policy
+    task's kind of signals and preview (``observation``, ``preview_points``,
+    ``preview_horizon_s``; the env's defaults where none is named) and runs in the task's physics: for a trained policy
     :func:`fits_condition` (its training options), for a law its options other than
     :data:`READING_OPTIONS` leave the task's env as it is."""
     from capsule_env.agents.sb3_policy import READING_OPTIONS, fits_condition
@@ -221,7 +222,7 @@ def _reads_the_task(own: dict, task: dict, setting: str, trained: bool) -> bool:
         )
     except (ValueError, TypeError):
         return False
-    reads = ("observation", "preview_points")
+    reads = ("observation", "preview_points", "preview_horizon_s")
     same = all(getattr(asked, k) == getattr(runs_in, k) for k in reads)
     if trained:
         return same and fits_condition(own, condition)
@@ -288,7 +289,10 @@ def load_inputs(args) -> dict:
             if not _reads_the_task(controller.env_kwargs, dict(task.kwargs), task.setting, trained):
                 raise ValueError(f"{name} ({part}) was not made for {args.task}: its options "
                                  f"{controller.env_kwargs} change the task's physics or signals")  # fmt: skip
-    digests = {str(p): file_digest(p) for p in [*zips.values(), *shipped_zips.values()]}
+    digests = {str(p): file_digest(p) for p in zips.values()}
+    digests.update(
+        {f"capsule_env/pretrained/{n}.zip": file_digest(p) for n, p in shipped_zips.items()}
+    )
     seeds = list(range(args.first_seed, args.first_seed + args.episodes))
     return {**loaded, "digests": digests, "seeds": seeds,
             "bank_kwargs": bank_kwargs(dict(task.kwargs), task.setting, args.profiles)}  # fmt: skip

@@ -153,3 +153,26 @@ def test_a_corrupt_policy_or_a_bad_json_path_is_one_line(sp, tmp_path, capsys):
     assert "does not load" in err and err.count("\n") == 1
     assert sp.main(["--runs", str(tmp_path / "none*"), "--json", str(tmp_path / "x.json")]) == 2
     assert "matches no train.py output folder" in capsys.readouterr().err
+
+
+def test_a_run_reading_another_preview_horizon_is_refused(sp, tmp_path, capsys):
+    """A policy for the preview task must read its 0.5 s preview (ppo-preview does); the
+    same 32 points over another horizon are other signals."""
+    import argparse
+
+    from capsule_env.tasks import task_named
+
+    task = dict(task_named("CapsuleRidePreview-v0").kwargs)
+    own = {"observation": "measured", "preview_points": 32}
+    assert sp._reads_the_task({**own, "preview_horizon_s": 0.5}, task, "hils", trained=True)
+    assert not sp._reads_the_task({**own, "preview_horizon_s": 1.0}, task, "hils", trained=True)
+    assert not sp._reads_the_task({"observation": "measured"}, task, "hils", trained=True)
+    _run_folder(tmp_path, "run-a", "ppo-preview")
+    args = argparse.Namespace(task="CapsuleRidePreview-v0", episodes=10, profiles=128,
+                              first_seed=0, json=tmp_path / "x.json", shipped=[],
+                              law=["preview-lq-biexp-meas"], runs=[str(tmp_path / "run-a")])  # fmt: skip
+    with pytest.raises(ValueError, match="preview-lq-biexp-meas .laws. was not made for"):
+        sp.load_inputs(args)  # the law reads 1.0 s
+    args.law = []
+    inputs = sp.load_inputs(args)
+    assert list(inputs["shipped"]) == ["ppo-preview"] and len(inputs["runs"]) == 1
