@@ -325,13 +325,17 @@ def main(argv: list[str] | None = None) -> int:
     from capsule_env.safe_io import atomic_write_text
     from capsule_env.tasks import task_named
 
+    try:  # before any evaluation: a validation file made on other episodes
+        val_refs = _validation_references(args.task)
+    except ValueError as error:
+        print(f"learned_baselines.py: error: {error}", file=sys.stderr)
+        return 2
     use_one_torch_thread()
     task, laws = dict(task_named(args.task).kwargs), list(TASK_LAWS[args.task])
     refs = _references(args.task)
     law_eval = _law_wk(laws[0], EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
     law_val = _law_wk(laws[0], VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED, task)
     records = {g: [_run_record(f, task) for f in fs] for g, fs in groups.items()}
-    val_refs = _validation_references(args.task)
     law_level = None if val_refs is None else float(normalised(law_val, val_refs))
     result = {"task": args.task, "laws": laws, "references_eval_wk_m_s2": refs,
               "law_check_eval_wk_m_s2": law_eval, "law_validation_wk_m_s2": law_val,

@@ -29,6 +29,7 @@ script prints the ``agents.ship`` command and does not ship: that is a deliberat
 
 from __future__ import annotations
 
+import json
 import shlex
 import subprocess
 import sys
@@ -191,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
                                       for part, d in scored.items()},
               "files": inputs["digests"], "git_commit": _git_commit(),
               "command": shlex.join(["python", "experiments/select_policy.py", *argv])}  # fmt: skip
-    atomic_write_text(args.json, __import__("json").dumps(result, indent=1) + "\n")
+    atomic_write_text(args.json, json.dumps(result, indent=1) + "\n")
     print("\n".join(_report(result)))
     return 0
 
