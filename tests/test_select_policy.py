@@ -6,26 +6,20 @@ line, exit 2)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-pytest.importorskip("stable_baselines3")
+from conftest import load_script
 
-ROOT = Path(__file__).resolve().parents[1]
+pytest.importorskip("stable_baselines3")
 
 
 @pytest.fixture(scope="module")
 def sp():
-    spec = importlib.util.spec_from_file_location(
-        "select_policy", ROOT / "experiments" / "select_policy.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("experiments/select_policy.py")
 
 
 PROFILES = np.array([0, 1, 2, 3, 4, 5, 6, 7])  # even: choice half, odd: comparison half
