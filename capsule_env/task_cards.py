@@ -25,7 +25,7 @@ def _card(task: Task, results: dict) -> list[str]:
     rows = [("passive", "passive damper")]
     rows += [(task.best_classical, "best tuned classical law")]
     if task.shipped_policy:
-        rows += [(task.shipped_policy, "shipped PPO policy")]
+        rows += [(task.shipped_policy, "shipped learned policy")]
     if has_oracle:
         rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
     lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",

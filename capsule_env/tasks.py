@@ -65,13 +65,13 @@ TASKS: tuple[Task, ...] = (
          "the measured signals: accelerations, stroke, gap, their on-board velocity estimates "
          "and the applied current (observation='measured')",
          {"setting": "hils", "observation": "measured"}, "hils",
-         "lqr-clipped-biexp-meas", "ppo-measured"),
+         "mpc-biexp-meas", "residual-ppo-mpc"),
     Task("CapsuleRidePreview-v0",
          "The ride task with the surveyed guideway ahead (32 points over 0.5 s, survey offset "
          "and noise as the env's defaults).",
          "the measured signals and the preview of the surveyed guideway",
          {"setting": "hils", "observation": "measured", "preview_points": 32,
-          "preview_horizon_s": 0.5}, "hils", "preview-lq-biexp-meas", "ppo-preview"),
+          "preview_horizon_s": 0.5}, "hils", "preview-mpc-biexp-meas", "ppo-preview"),
     Task("CapsuleTrip-v0",
          "The ride task across the operating envelope: EDS levitation whose stiffness and "
          "damping follow the speed, each episode a 10 s window of a trip (lift-off at 150 "

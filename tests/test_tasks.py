@@ -62,6 +62,22 @@ def test_reference_laws_read_only_what_the_task_measures():
         assert entry["preview"] is (task.kwargs.get("preview_points", 0) > 0)
 
 
+def test_best_classical_is_the_lowest_wk_of_the_laws_reading_the_same_signals():
+    # "best tuned classical law" on a card: no other classical row of the task's results file
+    # with the same signals (measured, preview or not) has a lower Wk; policies and the oracle
+    # are not classical laws.
+    results = load_results(ROOT / "docs" / "figures")
+    for task in TASKS:
+        block = results[task.results]
+        rows = block["settings"][task.setting]["controllers"]
+        learned = set(block.get("policies", {})) | {"oracle", "passive"}
+        best = rows[task.best_classical]
+        rivals = {name: m["wk_rms_body_acc_m_s2"] for name, m in rows.items()
+                  if name not in learned and m["uses_unmeasured_signals"] is False
+                  and m["preview"] is best["preview"]}  # fmt: skip
+        assert min(rivals, key=rivals.__getitem__) == task.best_classical, (task.env_id, rivals)
+
+
 def test_cards_in_sync_and_scores_are_the_evaluations():
     page = (ROOT / "docs" / "tasks.md").read_text()
     assert task_cards(load_results(ROOT / "docs" / "figures")) in page
