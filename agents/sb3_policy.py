@@ -62,6 +62,20 @@ def _training_options(zip_path: Path) -> dict[str, Any]:
     return dict(json.loads(meta_path.read_text()).get("env_kwargs", {}))
 
 
+def missing_solver(zip_path: str | Path) -> str:
+    """The residual law a saved policy needs whose QP solver (DAQP, the ``mpc`` extra) is not
+    installed (``""`` when it needs none or the solver is there): read from its ``.json``'s
+    ``residual`` block, without loading the model."""
+    meta_path = Path(sibling(Path(zip_path), ".json"))
+    block = json.loads(meta_path.read_text()).get("residual") if meta_path.is_file() else None
+    law = str(block.get("law", "")) if isinstance(block, dict) else ""
+    if "mpc" not in law.split("-"):
+        return ""
+    from capsule_env.agents.mpc_solver import solver_available
+
+    return "" if solver_available() else law
+
+
 def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
     """The pretrained policies shipped with the package (may be empty); with ``env_kwargs``
     (an evaluated env's options, ``{}`` for the paper's env), only those that belong in its
@@ -77,9 +91,11 @@ def shipped_policies() -> dict[str, Controller]:
     ``ppo-measured``, ``ppo-preview``, ``ppo-trip``, and ``residual-ppo-mpc``: a
     :class:`~capsule_env.agents.residual.ResidualPolicy`, the MPC plus its learned correction).
     Each carries the env arguments it was trained with (``env_kwargs``: pass them to
-    ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra."""
+    ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra; a residual on
+    the MPC is left out without the ``mpc`` extra (its QP solver)."""
     use_one_torch_thread()
-    policies = [load_policy(path) for path in shipped_policy_paths()]
+    paths = [path for path in shipped_policy_paths() if not missing_solver(path)]
+    policies = [load_policy(path) for path in paths]
     return {str(policy.name): policy for policy in policies}
 
 
@@ -88,7 +104,8 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
     :class:`~capsule_env.agents.residual.ResidualPolicy` of its law when its metadata has a
     ``residual`` block (``{"law": NAME, "scale": S}``, written by ``train.py --residual``): the
     saved network is the correction added to the law's request, so it only acts right with it.
-    ``ValueError`` for an unknown law or a bad scale in the metadata."""
+    ``ValueError`` for an unknown law or a bad scale in the metadata, or a law whose QP solver
+    (the ``mpc`` extra) is not installed."""
     policy = SB3Policy.load(path, require_normalization=require_normalization)
     block = policy.meta.get("residual")
     if block is None:
@@ -100,6 +117,9 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
     if law_name not in FACTORIES:
         raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller; "
                          f"accepted: {', '.join(sorted(FACTORIES))}")  # fmt: skip
+    if missing_solver(path):
+        raise ValueError(f"{path}: its residual law {law_name} needs a QP solver: "
+                         "pip install 'capsule-env[mpc]'")  # fmt: skip
     residual = ResidualPolicy(make_controller(law_name), policy, block.get("scale", 0.5),
                               name=str(policy.name))  # fmt: skip
     residual.env_kwargs = dict(policy.env_kwargs)

@@ -94,7 +94,8 @@ HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
 #: Env arguments chosen by the evaluation, not by the policy (kept out of the saved metadata
 #: that ``evaluate.py`` merges into its env; ``episode_length_s`` is its ``--episode-length``).
 EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
-#: Printed beside the evaluations: the best classical controller in ``hils``.
+#: Printed beside the evaluations: a classical reference in ``hils`` (continuous Skyhook, the
+#: paper's law family; not the best law: see docs/fair-comparison.md).
 REFERENCE_CONTROLLER = "skyhook-cont-biexp"
 #: The metric ``best_model`` is chosen by (lower is better), after the bump-stop hits.
 BEST_METRIC = "wk_rms_body_acc_m_s2"

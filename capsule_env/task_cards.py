@@ -18,8 +18,22 @@ from capsule_env.tasks import TASKS, Task, normalised_score
 __all__ = ["task_cards", "load_results", "sync_page"]
 
 
+def _reads(row: dict) -> str:
+    """What a results row reads: its observation, and its preview's horizon when it has one
+    (a preview law reads its own, which may be longer than the task's)."""
+    if not row["preview"]:
+        return str(row["observation"])
+    horizon_s = row.get("env_kwargs", {}).get("preview_horizon_s")
+    return row["observation"] + (f" + preview ({horizon_s:g} s)" if horizon_s else " + preview")
+
+
 def _card(task: Task, results: dict) -> list[str]:
     controllers = results["settings"][task.setting]["controllers"]
+    needed = [task.best_classical, task.shipped_policy, "passive"]
+    missing = [name for name in needed if name and name not in controllers]
+    if missing:
+        raise ValueError(f"{task.results} has no row {', '.join(missing)} for {task.env_id} "
+                         "(an MPC row needs pip install 'capsule-env[mpc]' when it is made)")  # fmt: skip
     wk = {name: controllers[name]["wk_rms_body_acc_m_s2"] for name in controllers}
     has_oracle = "oracle" in wk
     rows = [("passive", "passive damper")]
@@ -45,9 +59,8 @@ def _card(task: Task, results: dict) -> list[str]:
             if has_oracle
             else "n/a"
         )
-        reads = controllers[name]["observation"] + (" + preview" if
-                                                    controllers[name]["preview"] else "")  # fmt: skip
-        lines.append(f"| `{name}` | {what} | {reads} | {wk[name]:.4f} | {score} |")
+        lines.append(f"| `{name}` | {what} | {_reads(controllers[name])} | {wk[name]:.4f} | "
+                     f"{score} |")  # fmt: skip
     return lines + [""]
 
 

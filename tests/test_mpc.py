@@ -216,6 +216,26 @@ def test_evaluate_without_the_solver_drops_or_refuses_the_mpc_rows(monkeypatch, 
         build_controllers(["passive", "mpc-biexp-meas"], [], shipped=False)
 
 
+def test_without_the_solver_the_shipped_residual_on_the_mpc_is_left_out_or_refused(
+    monkeypatch, capsys
+) -> None:
+    pytest.importorskip("stable_baselines3")  # the rl extra (the dev extra installs it)
+    import capsule_env.agents.mpc_solver as mpc_solver
+    from capsule_env.agents.sb3_policy import PRETRAINED_DIR, load_policy, shipped_policies
+
+    from capsule_env.evaluate import build_controllers
+
+    monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
+    ctrls = build_controllers(["passive"], [], shipped=True)
+    assert "residual-ppo-mpc" not in ctrls and "ppo-measured" in ctrls
+    assert "residual-ppo-mpc left out" in capsys.readouterr().err
+    assert "residual-ppo-mpc" not in shipped_policies() and "ppo-preview" in shipped_policies()
+    with pytest.raises(ValueError, match="mpc-biexp-meas needs a QP solver"):
+        load_policy(PRETRAINED_DIR / "residual-ppo-mpc.zip")
+    monkeypatch.undo()  # with the solver: the residual is a row again
+    assert "residual-ppo-mpc" in build_controllers(["passive"], [], shipped=True)
+
+
 @pytest.mark.slow
 def test_bench_mpc_quick_reports_consistent_figures(tmp_path) -> None:
     """The benchmark's arithmetic (no speed is asserted: the machine decides it)."""

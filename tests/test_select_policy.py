@@ -77,15 +77,23 @@ def _run_folder(tmp_path: Path, name: str, shipped: str) -> Path:
     return run
 
 
+def test_the_default_shipped_policy_is_the_tasks(sp, tmp_path):
+    _run_folder(tmp_path, "run-a", "ppo-measured")
+    args = sp._parser().parse_args(["--runs", str(tmp_path / "run-*"), "--json",
+                                    str(tmp_path / "s.json")])  # fmt: skip
+    # CapsuleRide-v0's card names residual-ppo-mpc since 2026-11-26 (not ppo-measured)
+    assert list(sp.load_inputs(args)["shipped"]) == ["residual-ppo-mpc"]
+
+
 def test_a_shipped_policy_against_itself_is_kept(sp, tmp_path, capsys):
     run = _run_folder(tmp_path, "run-a", "ppo-measured")
     out = tmp_path / "sel.json"
     argv = ["--runs", str(tmp_path / "run-*"), "--episodes", "10", "--json", str(out),
-            "--law", "passive"]  # fmt: skip
+            "--law", "passive", "--shipped", "ppo-measured"]  # fmt: skip
     assert sp.main(argv) == 0
     result = json.loads(out.read_text())
     d = result["decision"]
-    assert d["best_shipped"][0] == "ppo-measured"  # the ride task's shipped policy by default
+    assert d["best_shipped"][0] == "ppo-measured"  # the one named, not the task's default
     assert d["difference_m_s2"] == [0.0, 0.0, 0.0] and not d["ship"]
     assert "keep ppo-measured" in capsys.readouterr().out
     assert result["seeds"] == list(range(10)) and result["guideway_seed"] == 11

@@ -76,6 +76,24 @@ def test_best_classical_is_the_lowest_wk_of_the_laws_reading_the_same_signals():
                   if name not in learned and m["uses_unmeasured_signals"] is False
                   and m["preview"] is best["preview"]}  # fmt: skip
         assert min(rivals, key=rivals.__getitem__) == task.best_classical, (task.env_id, rivals)
+        assert best["preview"] is (task.kwargs.get("preview_points", 0) > 0)
+
+
+def test_cards_show_the_preview_horizon_each_row_reads():
+    # the preview laws read their own 1.0 s (agents/tuned_gains.json), the task gives 0.5 s
+    page = (ROOT / "docs" / "tasks.md").read_text()
+    assert (
+        "| `preview-mpc-biexp-meas` | best tuned classical law | measured + preview (1 s) |" in page
+    )
+    assert "| `ppo-preview` | shipped learned policy | measured + preview (0.5 s) |" in page
+
+
+def test_a_card_without_its_rows_is_named():
+    results = load_results(ROOT / "docs" / "figures")
+    del results["evaluation.json"]["settings"]["hils"]["controllers"]["mpc-biexp-meas"]
+    with pytest.raises(ValueError, match="evaluation.json has no row mpc-biexp-meas for "
+                                         "CapsuleRide-v0"):  # fmt: skip
+        task_cards(results)
 
 
 def test_cards_in_sync_and_scores_are_the_evaluations():
