@@ -76,6 +76,13 @@ def missing_solver(zip_path: str | Path) -> str:
     return "" if solver_available() else law
 
 
+def runnable(paths: list[str]) -> tuple[list[str], dict[str, str]]:
+    """``paths`` split into those that can run here and, by file stem, the residual law of each
+    one left out because its QP solver is missing (:func:`missing_solver`)."""
+    laws = {path: missing_solver(path) for path in paths}
+    return [p for p in paths if not laws[p]], {Path(p).stem: law for p, law in laws.items() if law}
+
+
 def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
     """The pretrained policies shipped with the package (may be empty); with ``env_kwargs``
     (an evaluated env's options, ``{}`` for the paper's env), only those that belong in its
@@ -94,8 +101,7 @@ def shipped_policies() -> dict[str, Controller]:
     ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra; a residual on
     the MPC is left out without the ``mpc`` extra (its QP solver)."""
     use_one_torch_thread()
-    paths = [path for path in shipped_policy_paths() if not missing_solver(path)]
-    policies = [load_policy(path) for path in paths]
+    policies = [load_policy(path) for path in runnable(shipped_policy_paths())[0]]
     return {str(policy.name): policy for policy in policies}
 
 

@@ -231,9 +231,13 @@ def build_controllers(
         ctrls = {"passive": available["passive"], **ctrls}  # VRE needs the passive run
     paths = list(policies)
     if shipped:
-        from capsule_env.agents.sb3_policy import shipped_policy_paths
+        from capsule_env.agents.sb3_policy import runnable, shipped_policy_paths
 
-        paths = _without_missing_solver_policies(shipped_policy_paths(env_kwargs or {})) + paths
+        kept, left_out = runnable(shipped_policy_paths(env_kwargs or {}))
+        for name, law in left_out.items():  # as the MPC rows: the default run goes on
+            print(f"evaluate.py: warning: {name} left out: its law {law} needs DAQP "
+                  "(pip install 'capsule-env[mpc]')", file=sys.stderr)  # fmt: skip
+        paths = kept + paths
     if paths:
         from capsule_env.agents.sb3_policy import use_one_torch_thread
 
@@ -264,20 +268,6 @@ def _without_missing_solver(names: list[str], implicit: bool) -> list[str]:
     print(f"evaluate.py: warning: {', '.join(mpc)} left out: DAQP is not installed "
           "(pip install 'capsule-env[mpc]')", file=sys.stderr)  # fmt: skip
     return [n for n in names if n not in mpc]
-
-
-def _without_missing_solver_policies(paths: list[str]) -> list[str]:
-    """The shipped policies ``paths`` without those whose residual law needs the missing QP
-    solver (``residual-ppo-mpc`` without the ``mpc`` extra), with a warning: the default run
-    goes on without them, as without the MPC rows."""
-    from capsule_env.agents.sb3_policy import missing_solver
-
-    left_out = [p for p in paths if missing_solver(p)]
-    for path in left_out:
-        print(f"evaluate.py: warning: {Path(path).stem} left out: its law "
-              f"{missing_solver(path)} needs DAQP (pip install 'capsule-env[mpc]')",
-              file=sys.stderr)  # fmt: skip
-    return [p for p in paths if p not in left_out]
 
 
 def check_controllers(
