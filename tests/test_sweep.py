@@ -257,8 +257,20 @@ def test_replicates_get_distinct_independent_seeds(tmp_path):
     assert [t.seed for t in listed.trials] == [0, 1]
     shared = write_study(tmp_path, {"trials": [{"kind": "train", "seeds": [0, 1],
                                                 "params": TINY_PPO, "grid": block["grid"]}]})  # fmt: skip
-    with pytest.raises(ValueError, match="would share seed 0"):
+    with pytest.raises(ValueError, match=r"trials\[0\]: trials .* would share seed 0"):
         load_study(shared, tmp_path)
+    # two blocks (two rows of a results table) may list the same seeds, as train.py --seed S
+    # does for every algorithm; a block's own list may not repeat one
+    rows = {"trials": [{**listed_block, "name": "a"}, {**listed_block, "name": "b"}]}
+    assert [t.seed for t in load_study(write_study(tmp_path, rows), tmp_path).trials] == [
+        0,
+        1,
+        0,
+        1,
+    ]
+    repeated = {"trials": [{"kind": "train", "seeds": [3, 3], "params": TINY_PPO}]}
+    with pytest.raises(ValueError, match="would share seed 3"):
+        load_study(write_study(tmp_path, repeated), tmp_path)
 
 
 # ----------------------------------------------------------------------------- serial runs
@@ -297,6 +309,14 @@ def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
         "gain.c_sky": [1000.0]}}]})  # fmt: skip
     assert main([str(changed), "--out", str(out), "--no-ray"]) == 2
     assert "holds the results of another study" in capsys.readouterr().err
+    # a study that only grows (a block appended) continues in the same folder
+    grown = write_study(tmp_path, {"name": "gains", "trials": [GAINS, {**GAINS, "grid": {
+        "gain.c_sky": [1000.0]}}]}, name="grown.json")  # fmt: skip
+    assert main([str(grown), "--out", str(out), "--no-ray"]) == 0
+    assert [r["trial"] for r in rows(out)] == ["gains0-000", "gains0-001", "gains1-000"]
+    assert attempts(out, "gains0-000") == attempts(out, "gains1-000") == 1
+    first = write_study(tmp_path, {"name": "gains", "trials": [GAINS]}, name="first.json")
+    assert main([str(first), "--out", str(out), "--no-ray"]) == 2  # shrinking it: refused
 
 
 def _flaky(trial: Trial) -> dict[str, float]:
@@ -549,3 +569,41 @@ def test_command_line_errors(tmp_path, capsys, monkeypatch):
     assert main([str(study), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "Ray is not installed (pip install 'capsule-env[scale]'); --no-ray runs" in err
+
+
+# ----------------------------------------------------------------------------- --block
+def _two_blocks(tmp_path: Path) -> Path:
+    one = {**GAINS, "grid": {"gain.c_sky": [3000.0]}}
+    return write_study(tmp_path, {"name": "rows", "trials": [{**one, "name": "a"},
+                                                             {**one, "name": "b"}]})  # fmt: skip
+
+
+def _block_runs(tmp_path: Path, capsys, mode: list[str]) -> None:
+    study, out = _two_blocks(tmp_path), tmp_path / "out"
+    assert main([str(study), "--out", str(out), "--block", "zz", *mode]) == 2
+    assert "--block: no block 'zz' in study.json; its blocks: a, b" in capsys.readouterr().err
+    assert main([str(study), "--out", str(out), "--block", "b", *mode]) == 0
+    assert [(r["trial"], r["status"]) for r in rows(out)] == [("a-000", "not run"),
+                                                              ("b-000", "finished")]  # fmt: skip
+    assert not (out / "trials" / "a-000" / "result.json").exists()
+    assert main([str(study), "--out", str(out), "--block", "a", *mode]) == 0
+    table = rows(out)
+    assert [r["status"] for r in table] == ["finished", "finished"]
+    # the two blocks are the same law and gain on the same episodes: the same figure
+    assert table[0]["wk_rms_body_acc_m_s2"] == table[1]["wk_rms_body_acc_m_s2"]
+    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
+    assert main([str(study), "--out", str(out), *mode]) == 0  # the whole study: nothing to run
+    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
+
+
+def test_block_runs_one_row_of_a_study_without_ray(tmp_path, capsys):
+    """--block runs that block's trials only, records the others as not run (or as they
+    were), and a later --block or whole run in the same folder leaves finished ones alone."""
+    _block_runs(tmp_path, capsys, ["--no-ray"])
+
+
+@pytest.mark.scale
+def test_block_runs_one_row_of_a_study_on_ray(local_ray, tmp_path, capsys):
+    """The same on Ray: each set of blocks has its own Tune experiment, so a second block in
+    the same folder is not mistaken for the first one's finished experiment."""
+    _block_runs(tmp_path, capsys, ["--quiet"])

@@ -5,6 +5,7 @@ episodes) as Ray Tune trials, or one after another without Ray.
     python -m capsule_env.sweep study.yml --address auto  # the Ray cluster this node is in
     python -m capsule_env.sweep study.yml --no-ray        # no Ray: same trials, same table
     python -m capsule_env.sweep study.yml --check         # check the file, list the trials
+    python -m capsule_env.sweep study.yml --block sac     # only the block named sac
 
 The study file (YAML or JSON; :mod:`capsule_env.sweep.study`)::
 
@@ -24,7 +25,8 @@ parameters, metrics, attempts, error), ``summary.png``, ``trials/<trial>/`` (eac
 files and ``output.log``), ``tune/`` (the Ray Tune experiment) and ``study.json``. Running the
 same command again continues the study: finished trials are never run again (a trial's
 ``result.json`` is the source of truth, with Ray too, whatever Tune's ``Tuner.restore``
-restores), failed ones are run again unless ``--no-retry-failed``. The whole study file is
+restores), failed ones are run again unless ``--no-retry-failed``; a study file that only
+gained blocks or grid points continues in the same folder. The whole study file is
 checked before any trial starts (``--check`` runs only that). Exit status 0 when every trial
 finished, 1 when some did not (each failed trial is listed with its error), 2 for a bad
 study file (one line naming the key and what it accepts).

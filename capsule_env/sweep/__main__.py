@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import sys
 import time
@@ -10,8 +11,17 @@ from pathlib import Path
 
 from capsule_env._cli import ArgumentParser
 from capsule_env.sweep import __doc__ as DOC
-from capsule_env.sweep.runner import check_same_study, run_ray, run_serial, write_results
-from capsule_env.sweep.study import StudyError, load_study, read_study_file
+from capsule_env.sweep.runner import (
+    EXPERIMENT,
+    Outcome,
+    check_same_study,
+    failed_on_disk,
+    finished_on_disk,
+    run_ray,
+    run_serial,
+    write_results,
+)
+from capsule_env.sweep.study import Study, StudyError, load_study, read_study_file
 
 PROG = "python -m capsule_env.sweep"
 
@@ -39,6 +49,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "e.g. the checkout")  # fmt: skip
     p.add_argument("--no-retry-failed", dest="retry_failed", action="store_false",
                    help="on a restart, keep failed trials failed instead of running them again")  # fmt: skip
+    p.add_argument("--block", action="append", default=None, metavar="NAME",
+                   help="run only this block of the study (one row of a rows study; "
+                   "repeatable); the other blocks' trials are left as they are")  # fmt: skip
     p.add_argument("--check", action="store_true",
                    help="check the study file and list its trials; run nothing")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no Tune progress tables")
@@ -50,6 +63,26 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def only_blocks(study: Study, names: list[str] | None) -> Study:
+    """The study with the trials of the blocks ``names`` only (all for None); StudyError
+    naming an unknown block and the study's blocks."""
+    if not names:
+        return study
+    for name in names:
+        if name not in study.blocks():
+            raise StudyError(f"--block: no block {name!r} in {Path(study.path).name}; its "
+                             f"blocks: {', '.join(study.blocks())}")  # fmt: skip
+    return dataclasses.replace(study, trials=[t for t in study.trials if t.block in names])
+
+
+def all_outcomes(study: Study, ran: list[Outcome]) -> list[Outcome]:
+    """One outcome per trial of the whole study: those that ran, else what the trial's folder
+    holds (finished or failed before), else not run."""
+    by_name = {o.trial.name: o for o in ran}
+    return [by_name.get(t.name) or finished_on_disk(t) or failed_on_disk(t)
+            or Outcome(t, "not run") for t in study.trials]  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status: 0 when every trial finished, 1 when some failed
     (or did not run), 2 for a bad study file or command line."""
@@ -59,11 +92,12 @@ def main(argv: list[str] | None = None) -> int:
         name = data.get("name", args.study.stem) if isinstance(data, dict) else args.study.stem
         out = args.out or Path("runs") / "sweep" / str(name)
         study = load_study(args.study, out)
+        chosen = only_blocks(study, args.block)
         if args.check:
-            for t in study.trials:
+            for t in chosen.trials:
                 seed = "" if t.seed is None else f" seed {t.seed}"
                 print(f"{t.name}: {t.kind}{seed} {t.params}")
-            print(f"{len(study.trials)} trials; output {out}")
+            print(f"{len(chosen.trials)} trials; output {out}")
             return 0
         if not args.no_ray and importlib.util.find_spec("ray") is None:
             raise StudyError("Ray is not installed (pip install 'capsule-env[scale]'); --no-ray "
@@ -74,18 +108,21 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     t0 = time.perf_counter()
     mode = "serial" if args.no_ray else ("ray " + (args.address or "local"))
-    print(f"study {study.name}: {len(study.trials)} trials ({mode}); output {out}", flush=True)
+    print(f"study {study.name}: {len(chosen.trials)} trials ({mode}); output {out}", flush=True)
     try:
         if args.no_ray:
-            outcomes = run_serial(study, args.retry_failed)
+            ran = run_serial(chosen, args.retry_failed)
         else:
-            outcomes = run_ray(study, out, args.address, args.num_cpus, args.storage,
-                               args.working_dir, args.retry_failed,
-                               verbose=0 if args.quiet else 1)  # fmt: skip
+            blocks = "+".join(sorted(set(args.block or [])))
+            experiment = f"{EXPERIMENT}-{blocks}" if blocks else EXPERIMENT  # its own Tune state
+            ran = run_ray(chosen, out, args.address, args.num_cpus, args.storage,
+                          args.working_dir, args.retry_failed,
+                          verbose=0 if args.quiet else 1, experiment=experiment)  # fmt: skip
     except KeyboardInterrupt:
         print(f"\ninterrupted: run the same command again to continue ({out})", file=sys.stderr)
         return 130
-    paths = write_results(study, outcomes, out, mode.split()[0])
+    paths = write_results(study, all_outcomes(study, ran), out, mode.split()[0])
+    outcomes = ran
     elapsed = time.perf_counter() - t0
     counts = {s: sum(o.status == s for o in outcomes) for s in ("finished", "failed", "not run")}
     print(f"{counts['finished']} finished, {counts['failed']} failed, {counts['not run']} not "

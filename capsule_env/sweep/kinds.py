@@ -257,27 +257,34 @@ def resolve_train(params: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def run_train(trial: Trial) -> dict[str, Any]:
-    """Train with ``train.py``'s ``train(Args)`` in the trial's folder (see the module
-    docstring); returns the best evaluation, the timesteps and the output folder."""
+def train_args(trial: Trial, folder: str | Path) -> Any:
+    """``train.Args`` of a train trial run in ``folder``: the base hyperparameter file with the
+    trial's ``hp.`` values written to ``folder/hyperparams.yml``, the run in ``folder/run``
+    (resumed from its newest checkpoint when it has one)."""
     import yaml
 
     from capsule_env.agents.hyperparams import ENV_ID
     from capsule_env.safe_io import atomic_write_text
 
-    train = train_module()
     plain, groups = split_params(trial.params)
     _, hp = _hyperparams(plain)
     hp.update(groups.get("hp", {}))
-    folder = Path(trial.dir)
+    folder = Path(folder)
     yml = folder / "hyperparams.yml"
     atomic_write_text(yml, yaml.safe_dump({ENV_ID: hp}, sort_keys=False))
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
     plain["hyperparams"] = str(yml)
-    args = train.Args(**plain, seed=int(trial.seed or 0), env_kwargs=groups.get("env", {}),
-                      output_dir=str(out), name=trial.name, resume=resume,
-                      progress=False)  # fmt: skip
+    return train_module().Args(**plain, seed=int(trial.seed or 0),
+                               env_kwargs=groups.get("env", {}), output_dir=str(out),
+                               name=trial.name, resume=resume, progress=False)  # fmt: skip
+
+
+def run_train(trial: Trial) -> dict[str, Any]:
+    """Train with ``train.py``'s ``train(Args)`` in the trial's folder (see the module
+    docstring); returns the best evaluation, the timesteps and the output folder."""
+    train = train_module()
+    args = train_args(trial, trial.dir)
     try:
         summary = train.train(args)
     except SystemExit as exc:  # train's one-line errors

@@ -119,8 +119,10 @@ def failed_on_disk(trial: Trial) -> Outcome | None:
 
 
 def check_same_study(study: Study, out_dir: Path) -> None:
-    """Record the study's trials in ``<out_dir>/study.json``; :class:`StudyError` when the
-    folder holds another study (a restart must run the same trials)."""
+    """Record the study's trials in ``<out_dir>/study.json``. The folder may hold an earlier
+    version of the study that the new one extends (blocks or grid points appended: every
+    trial recorded there is in the new study unchanged); anything else is a
+    :class:`StudyError` (a restart must not mix the results of other trials)."""
     path = out_dir / "study.json"
     record = {"name": study.name, "file": study.path, "trials": study.fingerprint()}
     if path.is_file():
@@ -128,12 +130,17 @@ def check_same_study(study: Study, out_dir: Path) -> None:
             old = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError):
             old = None
-        if not isinstance(old, dict) or old.get("trials") != record["trials"]:
+        new = {json.dumps(t, sort_keys=True) for t in record["trials"]}
+        if not isinstance(old, dict) or not isinstance(old.get("trials"), list) or any(
+            json.dumps(t, sort_keys=True) not in new for t in old["trials"]
+        ):  # fmt: skip
             raise StudyError(
                 f"{out_dir} holds the results of another study (or of another version of "
-                f"{Path(study.path).name}): give another --out, or remove {out_dir}"
+                f"{Path(study.path).name} that changes or removes a trial): give another "
+                f"--out, or remove {out_dir}"
             )
-        return
+        if old["trials"] == record["trials"]:
+            return
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, json.dumps(record, indent=1) + "\n")
 
@@ -204,10 +211,12 @@ def run_ray(
     working_dir: str | None = None,
     retry_failed: bool = True,
     verbose: int = 1,
+    experiment: str = EXPERIMENT,
 ) -> list[Outcome]:
     """The trials as Ray Tune trials: locally (``ray.init`` with ``num_cpus``, default the
     machine's cores) or on the cluster at ``address``; the experiment lives in
-    ``<storage or out_dir>/tune`` and is continued when it exists."""
+    ``<storage or out_dir>/<experiment>`` (default ``tune``; one per set of blocks run alone)
+    and is continued when it exists."""
     import ray
 
     started = False
@@ -223,19 +232,24 @@ def run_ray(
         ray.init(**kwargs)
         started = True
     try:
-        return _tune(study, out_dir, storage, retry_failed, verbose)
+        return _tune(study, out_dir, storage, retry_failed, verbose, experiment)
     finally:
         if started:
             ray.shutdown()
 
 
 def _tune(
-    study: Study, out_dir: Path, storage: str | None, retry_failed: bool, verbose: int
+    study: Study,
+    out_dir: Path,
+    storage: str | None,
+    retry_failed: bool,
+    verbose: int,
+    experiment: str = EXPERIMENT,
 ) -> list[Outcome]:
     from ray import tune
 
     storage_path = storage or str(out_dir.resolve())
-    path = f"{storage_path.rstrip('/')}/{EXPERIMENT}"
+    path = f"{storage_path.rstrip('/')}/{experiment}"
     cpus = study.cpus_per_trial
     trainable = tune.with_resources(tune_trainable, {"cpu": cpus})
     todo = [t for t in study.trials if finished_on_disk(t) is None]
@@ -254,7 +268,7 @@ def _tune(
                 trial_name_creator=_trial_name, trial_dirname_creator=_trial_name
             ),
             run_config=tune.RunConfig(
-                name=EXPERIMENT,
+                name=experiment,
                 storage_path=storage_path,
                 verbose=verbose,
                 failure_config=tune.FailureConfig(max_failures=0),

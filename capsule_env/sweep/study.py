@@ -17,10 +17,12 @@ A study file (YAML ``.yml``/``.yaml`` or JSON ``.json``) holds a mapping::
 
 Each block expands to ``grid points x replicates`` trials (``seeds: [..]`` instead of
 ``replicates`` gives the seeds themselves). Trials of a seeded kind get a ``seed`` each, and
-no two trials of a study share one: a derived seed is the first word of
+no two trials of a block share one: a derived seed is the first word of
 ``numpy.random.SeedSequence([study seed, block, grid point, replicate])``, so the trials'
 random streams are independent (train.py derives every vehicle's stream from its seed with
-``SeedSequence`` too); listed seeds must be distinct over the whole study.
+``SeedSequence`` too); listed seeds must be distinct within their block. Two blocks may list
+the same seeds: a study that reproduces a results table has one block per row, each with the
+seeds its runs used (``train.py --seed S``, S = 0..4 for every algorithm).
 
 Every error is a :class:`StudyError`: one line naming the file, the key and what is accepted.
 """
@@ -343,8 +345,9 @@ def build_study(data: Any, path: str | Path, out_dir: str | Path) -> Study:
     trials: list[Trial] = []
     labels: set[str] = set()
     for b, block in enumerate(blocks):
-        trials += _block_trials(block, b, root, labels, trials_dir, str(path))
-    _check_duplicate_seeds(trials, str(path))
+        block_trials = _block_trials(block, b, root, labels, trials_dir, str(path))
+        _check_duplicate_seeds(block_trials, f"{path}: trials[{b}]")
+        trials += block_trials
     return Study(name, str(path.resolve()), cpus, trials)
 
 
