@@ -75,8 +75,8 @@ def test_a_study_trial_is_the_train_py_run_and_the_checker_says_so(tmp_path):
     # a study that would train something else, or another seed, is named
     other_lr = study({**TINY, **TINY_HP, "hp.learning_rate": 0.0001}, [3], "lr")
     assert check.check(other_lr, table) == 1
-    other_seed = study({**TINY, **TINY_HP}, [4], "seed")
-    assert check.check(other_seed, table) == 1
+    other_seed = study({**TINY, **TINY_HP}, [4], "seed")  # no run of seed 4, run 3 not a trial
+    assert check.check(other_seed, table) == 2
     longer = study({**TINY, **TINY_HP, "total_timesteps": 2048}, [3], "longer")
     assert check.check(longer, table) == 1
 
@@ -95,14 +95,47 @@ def test_the_checker_names_the_differing_key(tmp_path, capsys):
     assert "study: no file" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name", ["rows-CapsuleRide-v0", "rows-CapsuleRidePreview-v0",
-                                  "rows-CapsuleTrip-v0"])  # fmt: skip
-def test_the_rows_studies_are_valid_studies(tmp_path, name):
+ROWS = {"rows-CapsuleRide-v0": "learned_baselines.json",
+        "rows-CapsuleRidePreview-v0": "learned_baselines-CapsuleRidePreview-v0.json",
+        "rows-CapsuleTrip-v0": "learned_baselines-CapsuleTrip-v0.json"}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(ROWS))
+def test_each_rows_study_has_its_tables_rows_and_seeds(tmp_path, name):
+    """Every group of the table's JSON (what experiments/learned_baselines.py recorded of the
+    runs it evaluated) is a block of the rows study with the same seeds, and nothing else."""
     from capsule_env.sweep.study import load_study
 
     study = load_study(REPO / "experiments" / "studies" / f"{name}.yml", tmp_path)
-    blocks = study.blocks()
-    assert len(blocks) >= 9
-    for block in blocks:
-        seeds = [t.seed for t in study.trials if t.block == block]
-        assert len(seeds) >= 5 and len(set(seeds)) == len(seeds)
+    table = json.loads((REPO / "docs" / "figures" / ROWS[name]).read_text())["runs"]
+    assert set(study.blocks()) == set(table)
+    for block, runs in table.items():
+        seeds = sorted(t.seed for t in study.trials if t.block == block)
+        assert seeds == sorted(r["seed"] for r in runs), block
+
+
+def test_the_checker_reports_what_it_cannot_match(tmp_path, capsys):
+    """A table run without a record, a group without a block and a seed the block lacks are
+    each a problem line; a table of the wrong shape is one error line (exit 2)."""
+    check = load_script("experiments/check_row_studies.py")
+    study = tmp_path / "s.json"
+    block = {"kind": "train", "name": "g", "seeds": [0], "params": TINY}
+    study.write_text(json.dumps({"trials": [block]}))
+    (tmp_path / "empty").mkdir()
+    table = tmp_path / "t.json"
+    table.write_text(json.dumps({"runs": {"g": [{"seed": 0, "folder": "empty"},
+                                                {"seed": 5, "folder": "empty"}],
+                                          "h": [{"seed": 0, "folder": "empty"}]}}))  # fmt: skip
+    assert check.main([str(study), str(table), "--runs-root", str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert f"g-000: run {tmp_path / 'empty'} has no readable final_model.json" in out
+    assert "group 'h': no block of that name in the study" in out
+    assert "group 'g': its run of seed 5 is not a trial of the block" in out
+    assert "3 problem(s)" in out
+    for bad in ([1, 2], {"runs": []}, {"runs": {"g": ["r"]}}, {"x": 1}):
+        table.write_text(json.dumps(bad))
+        with pytest.raises(SystemExit) as exc:
+            check.main([str(study), str(table)])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "expected 'runs' mapping each group" in err[0]

@@ -268,6 +268,12 @@ def test_replicates_get_distinct_independent_seeds(tmp_path):
         0,
         1,
     ]
+    # a derived seed is no other trial's, even one listed in another block
+    taken = {"trials": [{"kind": "train", "replicates": 1, "params": TINY_PPO},
+                        {"kind": "train", "seeds": [derived_seed(0, 0, 0, 0)],
+                         "params": TINY_PPO}]}  # fmt: skip
+    with pytest.raises(ValueError, match=f"would share seed {derived_seed(0, 0, 0, 0)}"):
+        load_study(write_study(tmp_path, taken), tmp_path)
     repeated = {"trials": [{"kind": "train", "seeds": [3, 3], "params": TINY_PPO}]}
     with pytest.raises(ValueError, match="would share seed 3"):
         load_study(write_study(tmp_path, repeated), tmp_path)
@@ -308,7 +314,7 @@ def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
     changed = write_study(tmp_path, {"name": "gains", "trials": [{**GAINS, "grid": {
         "gain.c_sky": [1000.0]}}]})  # fmt: skip
     assert main([str(changed), "--out", str(out), "--no-ray"]) == 2
-    assert "holds the results of another study" in capsys.readouterr().err
+    assert "whose trial 'gains0-000' is changed or gone in study.json" in capsys.readouterr().err
     # a study that only grows (a block appended) continues in the same folder
     grown = write_study(tmp_path, {"name": "gains", "trials": [GAINS, {**GAINS, "grid": {
         "gain.c_sky": [1000.0]}}]}, name="grown.json")  # fmt: skip
@@ -607,3 +613,20 @@ def test_block_runs_one_row_of_a_study_on_ray(local_ray, tmp_path, capsys):
     """The same on Ray: each set of blocks has its own Tune experiment, so a second block in
     the same folder is not mistaken for the first one's finished experiment."""
     _block_runs(tmp_path, capsys, ["--quiet"])
+
+
+@pytest.mark.scale
+def test_a_grown_study_runs_its_new_trials_on_ray(local_ray, tmp_path):
+    """A study run whole on Ray, then grown by a block: Tune's experiment of the first run
+    does not hold the new trial, so restoring it would not run it; the new trial runs (in a
+    second experiment) and the finished ones are not run again."""
+    one = {**GAINS, "grid": {"gain.c_sky": [3000.0]}}
+    out = tmp_path / "out"
+    first = write_study(tmp_path, {"name": "g", "trials": [{**one, "name": "a"}]}, "1.json")
+    assert main([str(first), "--out", str(out), "--quiet"]) == 0
+    grown = write_study(tmp_path, {"name": "g", "trials": [{**one, "name": "a"},
+                                                           {**one, "name": "b"}]}, "2.json")  # fmt: skip
+    assert main([str(grown), "--out", str(out), "--quiet"]) == 0
+    assert [r["status"] for r in rows(out)] == ["finished", "finished"]
+    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
+    assert (out / "tune").is_dir() and (out / "tune-2").is_dir()

@@ -84,8 +84,9 @@ def all_outcomes(study: Study, ran: list[Outcome]) -> list[Outcome]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status: 0 when every trial finished, 1 when some failed
-    (or did not run), 2 for a bad study file or command line."""
+    """Entry point; returns the exit status: 0 when every trial finished (with ``--block``:
+    every trial of those blocks), 1 when some failed (or did not run), 2 for a bad study file
+    or command line."""
     args = parse_args(argv)
     try:
         data = read_study_file(args.study)
@@ -125,8 +126,10 @@ def main(argv: list[str] | None = None) -> int:
     outcomes = ran
     elapsed = time.perf_counter() - t0
     counts = {s: sum(o.status == s for o in outcomes) for s in ("finished", "failed", "not run")}
+    of = f" of block(s) {', '.join(dict.fromkeys(args.block))}" if args.block else ""
     print(f"{counts['finished']} finished, {counts['failed']} failed, {counts['not run']} not "
-          f"run in {elapsed:.1f} s; {paths['csv']}, {paths['json']}, {paths['figure']}")  # fmt: skip
+          f"run{of} in {elapsed:.1f} s; {paths['csv']}, {paths['json']} (every block), "
+          f"{paths['figure']}")  # fmt: skip
     for o in outcomes:
         if o.status != "finished":
             print(f"{o.status}: {o.trial.name}: {o.error or 'did not run'} "

@@ -120,9 +120,10 @@ def failed_on_disk(trial: Trial) -> Outcome | None:
 
 def check_same_study(study: Study, out_dir: Path) -> None:
     """Record the study's trials in ``<out_dir>/study.json``. The folder may hold an earlier
-    version of the study that the new one extends (blocks or grid points appended: every
-    trial recorded there is in the new study unchanged); anything else is a
-    :class:`StudyError` (a restart must not mix the results of other trials)."""
+    version of the study: every trial recorded there must still be in the study, unchanged
+    (same name, kind, parameters and seed); new trials may be added (blocks or grid points).
+    Anything else is a :class:`StudyError` naming the first trial changed or gone (a restart
+    must not mix the results of other trials)."""
     path = out_dir / "study.json"
     record = {"name": study.name, "file": study.path, "trials": study.fingerprint()}
     if path.is_file():
@@ -130,14 +131,17 @@ def check_same_study(study: Study, out_dir: Path) -> None:
             old = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError):
             old = None
+        if not isinstance(old, dict) or not isinstance(old.get("trials"), list):
+            raise StudyError(f"{path}: not a study record; give another --out, or remove "
+                             f"{out_dir}")  # fmt: skip
         new = {json.dumps(t, sort_keys=True) for t in record["trials"]}
-        if not isinstance(old, dict) or not isinstance(old.get("trials"), list) or any(
-            json.dumps(t, sort_keys=True) not in new for t in old["trials"]
-        ):  # fmt: skip
+        gone = [t for t in old["trials"] if json.dumps(t, sort_keys=True) not in new]
+        if gone:
+            name = gone[0].get("name") if isinstance(gone[0], dict) else gone[0]
             raise StudyError(
-                f"{out_dir} holds the results of another study (or of another version of "
-                f"{Path(study.path).name} that changes or removes a trial): give another "
-                f"--out, or remove {out_dir}"
+                f"{out_dir} holds the results of study {old.get('name')!r} ({old.get('file')}) "
+                f"whose trial {name!r} is changed or gone in {Path(study.path).name} (a study "
+                "may only gain trials): give another --out, or remove the folder"
             )
         if old["trials"] == record["trials"]:
             return
@@ -238,6 +242,29 @@ def run_ray(
             ray.shutdown()
 
 
+def _experiment_path(storage_path: str, experiment: str, todo: list[Trial]) -> tuple[str, str]:
+    """The Tune experiment to continue or start for the trials ``todo``: ``experiment`` if it
+    does not exist yet or holds every one of them, else the first of ``experiment-2``,
+    ``experiment-3``, ... that does (a study that grew, or a block that gained a grid point,
+    has trials its earlier experiment never had: restoring it would not run them)."""
+    from ray import tune
+    from ray.tune import ExperimentAnalysis
+
+    wanted = {t.name for t in todo}
+    for k in range(1, 1000):
+        name = experiment if k == 1 else f"{experiment}-{k}"
+        path = f"{storage_path}/{name}"
+        if not tune.Tuner.can_restore(path):
+            return path, name
+        try:
+            held = {str(t.config["trial"]["name"]) for t in ExperimentAnalysis(path).trials}
+        except Exception:  # an experiment Tune cannot read: leave it, take the next name
+            continue
+        if wanted <= held:
+            return path, name
+    raise StudyError(f"{storage_path}: 999 Tune experiments named {experiment}-*; remove them")
+
+
 def _tune(
     study: Study,
     out_dir: Path,
@@ -249,12 +276,12 @@ def _tune(
     from ray import tune
 
     storage_path = storage or str(out_dir.resolve())
-    path = f"{storage_path.rstrip('/')}/{experiment}"
     cpus = study.cpus_per_trial
     trainable = tune.with_resources(tune_trainable, {"cpu": cpus})
     todo = [t for t in study.trials if finished_on_disk(t) is None]
     if not todo:  # every trial finished: nothing for Tune to do
         return [finished_on_disk(t) for t in study.trials]  # type: ignore[misc]
+    path, experiment = _experiment_path(storage_path.rstrip("/"), experiment, todo)
     if tune.Tuner.can_restore(path):
         tuner = tune.Tuner.restore(path, trainable, resume_unfinished=True,
                                    resume_errored=False, restart_errored=retry_failed)  # fmt: skip

@@ -20,9 +20,10 @@ Each block expands to ``grid points x replicates`` trials (``seeds: [..]`` inste
 no two trials of a block share one: a derived seed is the first word of
 ``numpy.random.SeedSequence([study seed, block, grid point, replicate])``, so the trials'
 random streams are independent (train.py derives every vehicle's stream from its seed with
-``SeedSequence`` too); listed seeds must be distinct within their block. Two blocks may list
-the same seeds: a study that reproduces a results table has one block per row, each with the
-seeds its runs used (``train.py --seed S``, S = 0..4 for every algorithm).
+``SeedSequence`` too), and a derived seed may not be any other trial's. Listed seeds must be
+distinct within their block; two blocks may list the same seeds: a study that reproduces a
+results table has one block per row, each with the seeds its runs used (``train.py --seed
+S``, S = 0..4 for every algorithm).
 
 Every error is a :class:`StudyError`: one line naming the file, the key and what is accepted.
 """
@@ -344,10 +345,17 @@ def build_study(data: Any, path: str | Path, out_dir: str | Path) -> Study:
     trials_dir = Path(out_dir).resolve() / "trials"
     trials: list[Trial] = []
     labels: set[str] = set()
+    derived: set[str] = set()
     for b, block in enumerate(blocks):
         block_trials = _block_trials(block, b, root, labels, trials_dir, str(path))
         _check_duplicate_seeds(block_trials, f"{path}: trials[{b}]")
         trials += block_trials
+        if "seeds" not in block:  # replicates: derived seeds
+            derived |= {t.name for t in block_trials}
+    for t in trials:  # a derived seed is no other trial's, in any block
+        if t.name in derived:
+            _check_duplicate_seeds([t, *(o for o in trials if o is not t and o.seed == t.seed)],
+                                   str(path))  # fmt: skip
     return Study(name, str(path.resolve()), cpus, trials)
 
 
