@@ -80,7 +80,7 @@ TASKS: tuple[Task, ...] = (
          "the measured signals, the speed and the longitudinal acceleration",
          {"setting": "hils", "observation": "measured", "levitation": "eds",
           "speed_profile": "trip", "spans": "continuous", "payload_range": (-0.3, 0.4)},
-         "hils", "mpc-biexp-meas", "ppo-trip", "evaluation-CapsuleTrip-v0.json"),
+         "hils", "mpc-biexp-meas", "residual-ppo-mpc-trip", "evaluation-CapsuleTrip-v0.json"),
 )  # fmt: skip
 
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"

@@ -4,6 +4,7 @@ digests verify, it is in that task's default evaluation and not in the paper's).
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import shutil
 from pathlib import Path
@@ -105,7 +106,7 @@ def test_ppo_trip_is_shipped_with_verified_digests(tmp_path):
     assert meta["name"] == "ppo-trip" and "validation" in meta["selection"]
     env_kwargs = {k: v for k, v in meta["env_kwargs"].items() if k != "action_mode"}
     assert env_kwargs == json.loads(json.dumps(TRIP_OPTIONS))
-    assert task_named(TRIP).shipped_policy == "ppo-trip"
+    assert (PRETRAINED_DIR / f"{task_named(TRIP).shipped_policy}.zip").is_file()
     # a copy with one byte of the model changed is refused by its recorded SHA-256
     for suffix in (".zip", ".vecnormalize.pkl", ".json"):
         shutil.copy(PRETRAINED_DIR / f"ppo-trip{suffix}", tmp_path / f"ppo-trip{suffix}")
@@ -136,12 +137,49 @@ def test_ppo_trip_runs_on_the_trip_task():
     assert np.ptp(np.ravel(speeds)) > 1.0  # trips: four vehicles at different speeds (m/s)
 
 
-def test_ppo_trip_in_the_trip_tasks_evaluation_only():
+TRIP_POLICIES = ["ppo-trip", "residual-ppo-mpc-trip"]  # trained on the trip task
+
+
+def test_the_trip_policies_in_the_trip_tasks_evaluation_only():
     names = {Path(p).stem for p in shipped_policy_paths(task_named(TRIP).kwargs)}
-    assert names == {"ppo-trip"}
+    assert names == set(TRIP_POLICIES)
     paper = {Path(p).stem for p in shipped_policy_paths({})}
-    assert "ppo-trip" not in paper and {"ppo-hils", "ppo-measured", "ppo-preview"} <= paper
+    assert not paper & names and {"ppo-hils", "ppo-measured", "ppo-preview"} <= paper
     ctrls = evaluate.build_controllers(["passive"], [], shipped=True,
                                        env_kwargs=task_named(TRIP).kwargs)  # fmt: skip
-    assert list(ctrls) == ["passive", "ppo-trip"]
-    assert "ppo-trip" not in evaluate.build_controllers(["passive"], [], shipped=True)
+    # the residual on the MPC needs the MPC's QP solver (the mpc extra): left out without it
+    runs_mpc = importlib.util.find_spec("daqp") is not None
+    assert list(ctrls) == ["passive", *TRIP_POLICIES[: 2 if runs_mpc else 1]]
+    assert not set(TRIP_POLICIES) & set(evaluate.build_controllers(["passive"], [], shipped=True))
+
+
+def test_the_shipped_residual_on_the_trip_mpc_is_the_mpc_plus_a_bounded_correction():
+    """residual-ppo-mpc-trip: the MPC's request plus at most half the action range (its
+    scale), checked against an independent MPC fed the same observations, on four trips; it
+    corrects (the requests differ) and stays within the damper's range."""
+    pytest.importorskip("daqp", reason="the MPC's QP solver (the mpc extra)")
+    from capsule_env.agents.classical import make_controller
+    from capsule_env.agents.residual import ResidualPolicy
+    from capsule_env.agents.sb3_policy import load_policy
+
+    policy = load_policy(PRETRAINED_DIR / "residual-ppo-mpc-trip.zip")
+    assert isinstance(policy, ResidualPolicy) and policy.meta["residual"]["law"] == "mpc-biexp-meas"
+    assert policy.scale == 0.5 and task_named(TRIP).shipped_policy == "residual-ppo-mpc-trip"
+    law = make_controller("mpc-biexp-meas")  # the same law, its own instance
+    envs = gym.make_vec(TRIP, num_envs=4, vectorization_mode="vector_entry_point",
+                        action_mode=policy.env_kwargs["action_mode"])  # fmt: skip
+    obs, _ = envs.reset(seed=5)
+    start = np.ones(4, dtype=bool)
+    gaps = []
+    for _ in range(100):
+        action, _ = policy.predict(obs, episode_start=start, deterministic=True)
+        base, _ = law.predict(obs, episode_start=start, deterministic=True)
+        assert np.all(np.abs(action) <= 1.0)
+        gaps.append(np.abs(action - base))
+        obs, _, terminated, truncated, _ = envs.step(action)
+        assert np.all(np.isfinite(obs)) and not terminated.any()
+        start = np.zeros(4, dtype=bool)
+    envs.close()
+    gaps = np.concatenate(gaps)
+    assert gaps.max() <= 0.5 + 1e-6  # |clip(b + 0.5 r) - b| <= 0.5 |r| <= 0.5 for b in [-1, 1]
+    assert gaps.mean() > 1e-3  # it corrects the MPC
