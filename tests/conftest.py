@@ -10,6 +10,8 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
+import pytest
+
 ENV_ID = "CapsuleSuspension-v0"
 
 DT = 0.005  # s: the control interval (200 Hz), also the sample interval of recorded signals
@@ -67,3 +69,21 @@ def load_script(relative_path: str) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+NO_RAY = (
+    "Ray Tune is not installed (optional, in the scale extra: pip install 'capsule-env[scale]')"
+)
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray for the module (2 CPUs), shut down after it (the sweep's Ray tests)."""
+    ray = pytest.importorskip("ray", reason=NO_RAY)
+    pytest.importorskip("ray.tune", reason=NO_RAY)
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=2, include_dashboard=False)
+    yield ray
+    if started:
+        ray.shutdown()

@@ -18,10 +18,9 @@ from capsule_env.sweep.__main__ import main
 from capsule_env.sweep.runner import run_trial
 from capsule_env.sweep.study import derived_seed
 
+from conftest import NO_RAY
+
 ROOT = Path(__file__).resolve().parent.parent
-NO_RAY = (
-    "Ray Tune is not installed (optional, in the scale extra: pip install 'capsule-env[scale]')"
-)
 NO_RL = (
     "stable-baselines3 is not installed (optional, in the rl extra: pip install 'capsule-env[rl]')"
 )
@@ -384,19 +383,6 @@ def test_a_trial_on_a_short_trip_is_checked_with_its_own_episode_length(kind):
 
 
 # ----------------------------------------------------------------------------- Ray Tune
-@pytest.fixture(scope="module")
-def local_ray():
-    """One local Ray for the module (2 CPUs), shut down after it."""
-    ray = pytest.importorskip("ray", reason=NO_RAY)
-    pytest.importorskip("ray.tune", reason=NO_RAY)
-    started = not ray.is_initialized()
-    if started:
-        ray.init(num_cpus=2, include_dashboard=False)
-    yield ray
-    if started:
-        ray.shutdown()
-
-
 @pytest.mark.scale
 @pytest.mark.rl
 def test_two_trial_ray_sweep_resume_and_no_ray(local_ray, tmp_path, capsys):
@@ -575,58 +561,3 @@ def test_command_line_errors(tmp_path, capsys, monkeypatch):
     assert main([str(study), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "Ray is not installed (pip install 'capsule-env[scale]'); --no-ray runs" in err
-
-
-# ----------------------------------------------------------------------------- --block
-def _two_blocks(tmp_path: Path) -> Path:
-    one = {**GAINS, "grid": {"gain.c_sky": [3000.0]}}
-    return write_study(tmp_path, {"name": "rows", "trials": [{**one, "name": "a"},
-                                                             {**one, "name": "b"}]})  # fmt: skip
-
-
-def _block_runs(tmp_path: Path, capsys, mode: list[str]) -> None:
-    study, out = _two_blocks(tmp_path), tmp_path / "out"
-    assert main([str(study), "--out", str(out), "--block", "zz", *mode]) == 2
-    assert "--block: no block 'zz' in study.json; its blocks: a, b" in capsys.readouterr().err
-    assert main([str(study), "--out", str(out), "--block", "b", *mode]) == 0
-    assert [(r["trial"], r["status"]) for r in rows(out)] == [("a-000", "not run"),
-                                                              ("b-000", "finished")]  # fmt: skip
-    assert not (out / "trials" / "a-000" / "result.json").exists()
-    assert main([str(study), "--out", str(out), "--block", "a", *mode]) == 0
-    table = rows(out)
-    assert [r["status"] for r in table] == ["finished", "finished"]
-    # the two blocks are the same law and gain on the same episodes: the same figure
-    assert table[0]["wk_rms_body_acc_m_s2"] == table[1]["wk_rms_body_acc_m_s2"]
-    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
-    assert main([str(study), "--out", str(out), *mode]) == 0  # the whole study: nothing to run
-    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
-
-
-def test_block_runs_one_row_of_a_study_without_ray(tmp_path, capsys):
-    """--block runs that block's trials only, records the others as not run (or as they
-    were), and a later --block or whole run in the same folder leaves finished ones alone."""
-    _block_runs(tmp_path, capsys, ["--no-ray"])
-
-
-@pytest.mark.scale
-def test_block_runs_one_row_of_a_study_on_ray(local_ray, tmp_path, capsys):
-    """The same on Ray: each set of blocks has its own Tune experiment, so a second block in
-    the same folder is not mistaken for the first one's finished experiment."""
-    _block_runs(tmp_path, capsys, ["--quiet"])
-
-
-@pytest.mark.scale
-def test_a_grown_study_runs_its_new_trials_on_ray(local_ray, tmp_path):
-    """A study run whole on Ray, then grown by a block: Tune's experiment of the first run
-    does not hold the new trial, so restoring it would not run it; the new trial runs (in a
-    second experiment) and the finished ones are not run again."""
-    one = {**GAINS, "grid": {"gain.c_sky": [3000.0]}}
-    out = tmp_path / "out"
-    first = write_study(tmp_path, {"name": "g", "trials": [{**one, "name": "a"}]}, "1.json")
-    assert main([str(first), "--out", str(out), "--quiet"]) == 0
-    grown = write_study(tmp_path, {"name": "g", "trials": [{**one, "name": "a"},
-                                                           {**one, "name": "b"}]}, "2.json")  # fmt: skip
-    assert main([str(grown), "--out", str(out), "--quiet"]) == 0
-    assert [r["status"] for r in rows(out)] == ["finished", "finished"]
-    assert (attempts(out, "a-000"), attempts(out, "b-000")) == (1, 1)
-    assert (out / "tune").is_dir() and (out / "tune-2").is_dir()
