@@ -1,6 +1,7 @@
 """Rows studies and experiments/check_row_studies.py: a study's trial trains the very run that
-``train.py`` trained with the same arguments (the same policy weights, bit for bit, on this
-machine: both are our code on one CPU with one torch thread), the checker accepts that study
+``train.py`` trained with the same arguments (the same policy weights, bit for bit: both runs
+are in one process on one CPU with one torch thread, so torch does the same operations in the
+same order; across machines this is not promised), the checker accepts that study
 against the run's record and names the key of a study that would train something else, and the
 repository's rows studies are valid studies."""
 
