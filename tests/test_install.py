@@ -160,7 +160,7 @@ def test_a_writable_installation_warns_nothing(site, tmp_path):
 
 
 #: The top layer: the commands, which put the controllers and the env together.
-COMMANDS = ("evaluate.py", "train.py", "sweep")
+COMMANDS = ("evaluate.py", "evaluate_tables.py", "train.py", "sweep")  # + evaluate.py's tables
 
 
 def test_the_library_never_imports_the_controllers_or_the_scripts():
