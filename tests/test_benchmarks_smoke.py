@@ -183,3 +183,28 @@ def test_soak_quick_runs_and_counts(tmp_path):
     assert data["total"]["vehicle_steps"] == sum(r["vehicle_steps"] for r in data["configurations"])
     assert data["total"]["non_finite"] == 0 and data["total"]["out_of_space"] == 0
     assert len(data["configurations"]) == 6
+
+
+@pytest.mark.rl
+def test_bench_compile_times_both_and_checks_its_arithmetic(tmp_path):
+    """bench_compile.py times an eager and a compiled PPO step; its speed-up and break-even
+    are the quotients of its own figures (no speed asserted); bad input is one line."""
+    pytest.importorskip("stable_baselines3", reason=NO_SB3)
+    out = tmp_path / "compile.json"
+    run_script("benchmarks/bench_compile.py", "--batch", "64", "--steps", "3", "--json", str(out))
+    data = json.loads(out.read_text())
+    eager, compiled = data["eager"], data["compiled"]
+    assert eager["ms_per_step"] > 0 and compiled["ms_per_step"] > 0
+    assert math.isclose(data["speed_up"], eager["ms_per_step"] / compiled["ms_per_step"])
+    saved_s = (eager["ms_per_step"] - compiled["ms_per_step"]) / 1e3
+    if saved_s > 0:
+        expected = (compiled["first_call_s"] - eager["first_call_s"]) / saved_s
+        assert math.isclose(data["break_even_steps"], expected)
+    else:
+        assert data["break_even_steps"] is None
+    for argv in (["--steps", "0"], ["--json", str(tmp_path)]):
+        result = subprocess.run([sys.executable, "benchmarks/bench_compile.py", *argv], cwd=ROOT,
+                                capture_output=True, text=True)  # fmt: skip
+        assert result.returncode == 2
+        assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+        assert "bench_compile.py: error: --" in result.stderr
