@@ -13,7 +13,7 @@ observation and that budget. Three kinds of arguments:
 - :data:`ADJUSTABLE`: restored unless given again; a value given holds from then on (a longer
   ``--total-timesteps`` trains on; the learning-rate schedule follows the new budget).
 - the others (``output_dir``, ``resume``, ``tensorboard``, ``threads``, ``env_threads``,
-  ``progress``, ``device``, ``verbose``): chosen by each process, not stored.
+  ``compile``, ``progress``, ``device``, ``verbose``): chosen by each process, not stored.
 
 "Given" is what the command line named (``Args.explicit``, set by the parser); for arguments
 built in code (``explicit`` None) every field that is not None counts as given. Checkpoints of
@@ -37,7 +37,7 @@ FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval
 ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_minutes",
               "keep_replay_buffers")  # fmt: skip
 #: Chosen by each process: written into the command that continues a run when given.
-PROCESS = ("tensorboard", "threads", "env_threads", "device", "verbose", "progress")
+PROCESS = ("tensorboard", "threads", "env_threads", "compile", "device", "verbose", "progress")
 
 
 def given_arguments(args: Any) -> set[str]:

@@ -398,6 +398,7 @@ class Run:
             "seed": self.args.seed,
             "num_envs": model.n_envs,
             "hyperparams": self.plan.hp,
+            "compiled_update": "evaluate_actions" in vars(model.policy),  # agents/compiled.py
             "args": run_arguments(self.args, self.plan.total, self.plan.num_envs, self.name),
             "best": self.best,
             **self.residual_block(),

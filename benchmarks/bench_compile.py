@@ -15,8 +15,10 @@ compilation), the mean of ``--steps`` steps after 20 untimed ones, the speed-up 
 after which the compilation has paid for itself. One torch thread (train.py's setting) unless
 ``--threads``. Random data: the cost of a step does not depend on the values.
 
-Not wired into training: SB3 calls the policy at other batch sizes in its rollouts (one row per
-vehicle), each of which would compile again; this measures what the update alone could gain.
+This measures the gradient step alone, with the whole loss compiled. In training, ``train.py
+--compile`` and ``bench_training.py --compile`` compile ``policy.evaluate_actions``, what SB3's
+``PPO.train`` calls on every minibatch (``capsule_env/agents/compiled.py``); the rollouts'
+forward passes (one row per vehicle) stay eager.
 """
 
 from __future__ import annotations

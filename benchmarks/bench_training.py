@@ -3,6 +3,7 @@
     python benchmarks/bench_training.py                        # every algorithm, 120 s each
     python benchmarks/bench_training.py --algos ppo sac --budget-s 60 --json out.json
     python benchmarks/bench_training.py --algos ppo --hp n_epochs=2 --hp batch_size=8192
+    python benchmarks/bench_training.py --algos ppo --compile both   # eager, then compiled
 
 For each algorithm of ``--algos`` (``capsule_env.agents.algorithms``), in one process: the
 run ``train.py --algo ALGO`` would make (``hyperparams/<algo>.yml``, its env arguments: the
@@ -22,6 +23,11 @@ from numba's cache (or compilation) is reported on its own. Where the time goes:
 (inside the env's ``step_wait``), ``rollout_other_s`` (the rest of collecting: policy forward
 passes, buffers, normalisation, callbacks), ``update_s`` (the algorithm's ``train``: the
 gradient steps). The machine, its load average (start and end) and the command are in the JSON.
+
+``--compile on`` runs PPO's update under ``torch.compile`` as ``train.py --compile`` does
+(``capsule_env.agents.compiled``); ``--compile both`` runs each algorithm eager, then compiled
+(reported as ``ppo+compile``), in the same process. The compilation happens in the first update,
+inside ``train_s`` (``first_update_s`` says how long that update took).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ import numpy as np
 import torch
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.algorithms import ALGORITHMS, ON_POLICY, algorithm_class
+from capsule_env.agents.compiled import check_compile, compile_update
 from capsule_env.agents.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
@@ -111,6 +118,7 @@ class Clock:
     eval_s: float = 0.0
     collect_s: float = 0.0
     update_s: float = 0.0
+    first_update_s: float | None = None
 
     def train_s(self) -> float:
         return time.perf_counter() - self.t0 - self.eval_s
@@ -168,7 +176,10 @@ def timed_phases(model: Any, clock: Clock) -> None:
         try:
             return update(*args, **kwargs)
         finally:
-            clock.update_s += time.perf_counter() - t0
+            seconds = time.perf_counter() - t0
+            clock.update_s += seconds
+            if clock.first_update_s is None:
+                clock.first_update_s = seconds
 
     model.collect_rollouts, model.train = timed_collect, timed_update
 
@@ -182,6 +193,20 @@ class Setup:
     env_kwargs: dict
     num_envs: int
     total: int
+    compiled: bool = False
+
+
+def runs_of(args: argparse.Namespace) -> dict[str, Setup]:
+    """The runs, by the name they are reported under: each algorithm, eager (``ALGO``) and/or
+    compiled (``ALGO+compile``) as ``--compile`` says."""
+    modes = {"off": (False,), "on": (True,), "both": (False, True)}[args.compile]
+    runs = {}
+    for algo in args.algos:
+        for compiled in modes:
+            setup = setup_for(algo, args.hp, args.num_envs, args.timesteps)
+            setup.compiled = compiled
+            runs[algo + ("+compile" if compiled else "")] = setup
+    return runs
 
 
 def setup_for(algo: str, overrides: dict, num_envs: int | None, timesteps: int | None) -> Setup:
@@ -206,6 +231,8 @@ def make_model(setup: Setup, seed: int) -> tuple[Any, TimedVecEnv, float]:
     env = VecNormalize(VecMonitor(timed), **normalize_kwargs_from(setup.hp))
     model = algorithm_class(setup.algo)(env=env, seed=seed, device="cpu", verbose=0,
                                         **algo_kwargs_from(setup.hp))  # fmt: skip
+    if setup.compiled:
+        compile_update(model)
     return model, timed, first_step_s
 
 
@@ -227,6 +254,7 @@ def bench_algo(setup: Setup, validation: Validation, bar: float, args: Any) -> d
     reached = callback.reached
     return {
         "num_envs": setup.num_envs,
+        "compiled_update": setup.compiled,
         "hyperparams": {k: v for k, v in setup.hp.items() if k != "env_kwargs"},
         "num_timesteps": steps,
         "train_s": train_s,
@@ -234,6 +262,7 @@ def bench_algo(setup: Setup, validation: Validation, bar: float, args: Any) -> d
         "env_s": timed.env_seconds,
         "rollout_other_s": clock.collect_s - clock.eval_s - timed.env_seconds,
         "update_s": clock.update_s,
+        "first_update_s": clock.first_update_s,
         "eval_s": clock.eval_s,
         "first_step_s": first_step_s,
         "stopped_by": _stopped_by(reached is not None and args.stop_at_bar, train_s, args.budget_s),
@@ -334,6 +363,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=1,
         help="numba threads of the env kernel (default 1, train.py's default)",
     )
+    p.add_argument(
+        "--compile",
+        choices=("off", "on", "both"),
+        default="off",
+        help="PPO's update under torch.compile: off, on, or both (eager, then compiled)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", help="write the results here (atomically)")
     args = p.parse_args(argv)
@@ -357,6 +392,9 @@ def check_args(args: argparse.Namespace) -> None:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if args.compile != "off":
+        for algo in args.algos:
+            check_compile(algo, True)
     args.hp = parse_hp(args.hp)
     if args.json:
         check_writable_file(args.json, "--json")
@@ -371,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
                "torch": torch.__version__,
                "command": shlex.join(["python", "benchmarks/bench_training.py",
                                       *(sys.argv[1:] if argv is None else argv)])}  # fmt: skip
-    setups = {a: setup_for(a, args.hp, args.num_envs, args.timesteps) for a in args.algos}
+    setups = runs_of(args)
     first = next(iter(setups.values())).env_kwargs
     for algo, setup in setups.items():
         if setup.env_kwargs != first:

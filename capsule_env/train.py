@@ -37,6 +37,7 @@ from stable_baselines3.common.utils import set_random_seed
 
 from capsule_env.agents.algorithms import ON_POLICY
 from capsule_env.agents.checkpoints import logged_timesteps, resume_model, save_policy, saved_at
+from capsule_env.agents.compiled import check_compile, compile_update
 from capsule_env.agents.residual import zero_last_layer
 from capsule_env.agents.run_args import continue_command
 from capsule_env.agents.training import (
@@ -110,6 +111,10 @@ class Args:
     """numba threads of the env kernel (1: the env and the learner take turns on one core; on
     a 2-core machine that other jobs share, 2 made PPO's training 2.2 x slower: the kernel's
     threads wait for a core at every step; benchmarks/bench_training.py --env-threads)"""
+    compile: bool = False
+    """PPO: run the update's forward and backward passes under torch.compile (the first
+    update compiles, for seconds; then each gradient step is faster: agents/compiled.py,
+    docs/benchmarks.md); the saved policy is the same as without"""
     progress: bool = True
     """show a progress bar"""
     hyperparams: str | None = None
@@ -130,6 +135,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
     complete save left them."""
     try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
         plan = prepare(args)
+        check_compile(plan.args.algo, plan.args.compile)  # the algorithm a resumed run restored
     except (ValueError, OSError, TypeError) as exc:
         raise SystemExit(f"train.py: error: {exc}") from None
     args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
@@ -172,11 +178,14 @@ def _model(args: Args, plan: Any, env: Any, run_seed: int) -> Any:
                               tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
         if args.residual:  # start from the law's behaviour exactly (the residual's mean is 0)
             zero_last_layer(model)
-        return model
-    # Algo.load(env=env): learn() first resets the env, which adds that one batch of
-    # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
-    return resume_model(plan.algo_cls, plan.ckpt, env, device=args.device, verbose=args.verbose,
-                        tensorboard_log=plan.tensorboard_log)  # fmt: skip
+    else:
+        # Algo.load(env=env): learn() first resets the env, which adds that one batch of
+        # observations to the checkpoint's VecNormalize statistics (agents/checkpoints.py)
+        model = resume_model(plan.algo_cls, plan.ckpt, env, device=args.device,
+                             verbose=args.verbose, tensorboard_log=plan.tensorboard_log)  # fmt: skip
+    if args.compile:
+        compile_update(model)
+    return model
 
 
 def _learn(run: Run, model: Any, extra_callbacks: list | None) -> bool:

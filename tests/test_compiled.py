@@ -1,0 +1,118 @@
+"""``torch.compile`` of PPO's update (agents/compiled.py, ``train.py --compile``): it trains as
+the eager update does, within float32 rounding, and leaves the saved files as they were."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import NO_SB3, NO_YAML
+
+pytest.importorskip("stable_baselines3", reason=NO_SB3)
+pytest.importorskip("yaml", reason=NO_YAML)
+
+import torch  # noqa: E402
+from capsule_env.agents.compiled import check_compile, compile_update, is_compiled  # noqa: E402
+from capsule_env.agents.run_args import continue_command  # noqa: E402
+from capsule_env.agents.sb3_policy import SB3Policy  # noqa: E402
+from test_train import edited_yml, fast_args  # noqa: E402
+
+from capsule_env import train  # noqa: E402
+
+pytestmark = pytest.mark.rl
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _ppo_parameters(compiled: bool) -> tuple[dict, dict]:
+    """PPO's parameters before and after two updates (4 vehicles x 64 steps, minibatches of 64,
+    2 epochs: 16 gradient steps) on the ride task, seed 3, eager or with the update compiled."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+
+    env = VecNormalize(CapsuleSuspensionSB3VecEnv(4, setting="hils", action_mode="force",
+                                                  observation="measured"))  # fmt: skip
+    model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, n_epochs=2, learning_rate=1e-3,
+                seed=3, device="cpu", policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0})  # fmt: skip
+    start = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    if compiled:
+        compile_update(model)
+        assert is_compiled(model)
+    model.learn(512)
+    env.close()
+    return start, {k: v.clone() for k, v in model.policy.state_dict().items()}
+
+
+def test_compiled_update_trains_as_the_eager_one():
+    from torch._dynamo.utils import counters
+
+    torch.set_num_threads(1)
+    start, eager = _ppo_parameters(False)
+    _, eager_again = _ppo_parameters(False)
+    graphs_before = counters["stats"]["unique_graphs"]
+    _, compiled = _ppo_parameters(True)
+    assert counters["stats"]["unique_graphs"] > graphs_before  # dynamo did compile a graph
+    for name, value in eager.items():
+        # the reference is exact: the same seed, eager twice, gives the same bits
+        torch.testing.assert_close(eager_again[name], value, rtol=0, atol=0)
+        change = (value - start[name]).abs().max().item()
+        difference = (compiled[name] - value).abs().max().item()
+        # Fused kernels sum in another order: float32 rounding (~1e-7 relative per operation)
+        # carried through 16 Adam steps (eps 1e-5 keeps a near-zero gradient from turning a
+        # rounding difference into a full step). Measured: at most 3e-8 here, against updates
+        # of 3e-3..2e-2; the bound 1e-5 is 300 x that and still 300 x below the smallest
+        # update, so a wrong gradient (an update of another size or sign) fails it.
+        assert difference <= 1e-5, (name, difference)
+        assert change >= 100 * 1e-5, (name, change)  # every tensor did learn
+
+
+def test_train_py_compile_option_saves_resumes_and_loads(tmp_path):
+    yml = edited_yml("ppo", tmp_path, n_steps=256, batch_size=256, n_epochs=2)
+    argv = fast_args(yml, tmp_path / "run", "--total-timesteps", "1024", "--eval-freq", "0",
+                     "--compile")  # fmt: skip
+    args = train.parse_args(argv)
+    summary = train.train(args)
+    assert is_compiled(summary["model"])
+    meta = json.loads((tmp_path / "run" / "final_model.json").read_text())
+    assert meta["compiled_update"] is True
+    assert "--compile" in continue_command(args, tmp_path / "run")
+    # the saved policy loads and acts without torch.compile, as its own parameters say
+    policy = SB3Policy.load(tmp_path / "run" / "final_model.zip")
+    assert not is_compiled(policy.model)
+    for name, value in summary["model"].policy.state_dict().items():
+        torch.testing.assert_close(policy.model.policy.state_dict()[name], value, rtol=0, atol=0)
+    action, _ = policy.predict(np.zeros((2, policy.obs_rms.mean.shape[0]), dtype=np.float32))
+    assert action.shape == (2, 1) and np.all(np.abs(action) <= 1)
+    # --compile is each process's choice: a resume compiles again only when asked
+    resumed = train.train(train.parse_args([*argv[:-1], "--total-timesteps", "2048",
+                                            "--resume", "auto", "--compile"]))  # fmt: skip
+    assert resumed["num_timesteps"] == 2048 and is_compiled(resumed["model"])
+    plain = train.train(train.parse_args([*argv[:-1], "--total-timesteps", "3072",
+                                          "--resume", "auto"]))  # fmt: skip
+    assert plain["num_timesteps"] == 3072 and not is_compiled(plain["model"])
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3", "tqc", "crossq", "recurrentppo"])
+def test_compile_is_refused_for_other_algorithms(algo):
+    with pytest.raises(ValueError, match=f"--compile serves ppo only.*not {algo}"):
+        check_compile(algo, True)
+    check_compile(algo, False)  # without --compile, nothing to refuse
+
+
+def test_train_py_compile_with_sac_is_one_line(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "train.py", "--algo", "sac", "--compile", "--output-dir",
+         str(tmp_path), "--total-timesteps", "10", "--no-progress"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert result.returncode != 0
+    assert result.stderr.strip().splitlines() == [
+        "train.py: error: --compile serves ppo only (its update's evaluate_actions), not sac"
+    ]
