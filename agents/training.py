@@ -51,6 +51,7 @@ from capsule_env.agents.checkpoints import (
     save_policy,
     statistics_path,
 )
+from capsule_env.agents.compiled import is_compiled
 from capsule_env.agents.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
@@ -398,7 +399,7 @@ class Run:
             "seed": self.args.seed,
             "num_envs": model.n_envs,
             "hyperparams": self.plan.hp,
-            "compiled_update": "evaluate_actions" in vars(model.policy),  # agents/compiled.py
+            "compiled_update": is_compiled(model),  # this process's update (agents/compiled.py)
             "args": run_arguments(self.args, self.plan.total, self.plan.num_envs, self.name),
             "best": self.best,
             **self.residual_block(),

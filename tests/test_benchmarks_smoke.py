@@ -175,6 +175,7 @@ def _check_training_run(r: dict, bar: float) -> None:
         assert r["time_to_bar_s"] == below[0]["train_s"] and below[0] == evals[-1]
 
 
+@pytest.mark.rl
 def test_bench_training_bad_input_is_one_line():
     for argv in (["--algos", "ppo", "a2c"], ["--budget-s", "0"], ["--hp", "n_steps"],
                  ["--compile", "on", "--algos", "sac"], ["--compile", "maybe"]):  # fmt: skip
