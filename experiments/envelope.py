@@ -92,7 +92,7 @@ class Args:
     """comma-separated sweeps to run: speed, payload, spans, trip"""
     controllers: str = field(default_factory=_default_controllers)
     """comma-separated classical controllers (names of capsule_env.agents)"""
-    policies: str = "ppo-measured,ppo-trip"
+    policies: str = "ppo-measured,ppo-trip,residual-ppo-mpc-trip"
     """comma-separated shipped policies (capsule_env/pretrained; '' for none)"""
     oracle: str = "speed/eds/150,speed/eds/400,speed/eds/810,speed/eds/1200,trip"
     """comma-separated point keys at which to search the clairvoyant bound (2-5 min each on a
