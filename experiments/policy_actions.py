@@ -7,11 +7,14 @@
 Why: a learned policy that ends at the passive damper's Wk may ask for nothing, or it may ask
 for the wrong thing. Both look the same in the metric. This script runs each controller
 deterministically on the validation bank (guideway seed 7, episodes ``--first-seed``
-(5000) .. + ``--episodes`` (10), 10 s, ``hils``; what train.py evaluates on). It uses the task's
-options with the controller's own over them (what it reads, how it acts). Then it reports:
+(5000) .. + ``--episodes`` (10), 10 s; what train.py evaluates on), in the task's setting
+(``hils`` for the registered ride, preview and trip tasks). It uses the task's options with the
+controller's own over them (what it reads, how it acts). Then it reports:
 
-- the mean and standard deviation of its actions, and the share with ``|a| >= 0.95``. In force
-  mode the action is the force request as a fraction of the damper's ``max_force_n``.
+- the mean and standard deviation of its actions, and the share with ``|a| >= 0.95``, with the
+  action mode they are in (``action_mode``). In force mode the action is the force request as
+  a fraction of the damper's ``max_force_n``; in current mode, of the coil's current range, so
+  the rows of two modes do not compare.
 - its Wk-weighted RMS body acceleration (m/s^2) on those episodes;
 - for SAC, TQC and CrossQ policies, the entropy coefficient ``alpha`` the run ended with.
 
@@ -68,10 +71,28 @@ def action_statistics(controller: Any, env_kwargs: dict, seeds: list[int],
     values = actions[~rollout.terminated].ravel()
     if values.size == 0:
         raise ValueError("every episode hit the bump stop: no actions to describe")
-    return {"mean": float(values.mean()), "std": float(values.std()),
+    return {"action_mode": rollout.action_mode, "mean": float(values.mean()),
+            "std": float(values.std()),
             "share_at_bound": float(np.mean(np.abs(values) >= AT_BOUND)),
             "samples": int(values.size), "terminated_episodes": int(rollout.terminated.sum()),
             "wk_rms_body_acc_m_s2": float(episode_metrics(rollout, None)["wk_rms_body_acc_m_s2"])}  # fmt: skip
+
+
+def check_observation(name: str, controller: Any, env_kwargs: dict) -> None:
+    """``ValueError`` when the saved policy inside ``controller`` reads observations of another
+    shape than the env ``env_kwargs`` gives (a policy made for another task)."""
+    from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+
+    model = getattr(getattr(controller, "policy", controller), "model", None)
+    space = getattr(model, "observation_space", None)
+    if space is None:
+        return
+    env = CapsuleSuspensionVectorEnv(num_envs=1, **env_kwargs)
+    shape = env.single_observation_space.shape
+    env.close()
+    if tuple(space.shape) != tuple(shape):
+        raise ValueError(f"the policy reads observations of shape {tuple(space.shape)}, the task's "
+                         f"env gives {tuple(shape)}: a policy made for another task?")  # fmt: skip
 
 
 def entropy_coefficient(controller: Any) -> float | None:
@@ -127,6 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not 1 <= args.episodes <= 100:
             raise ValueError(f"--episodes must be in [1, 100], got {args.episodes}")
+        if not 0 <= args.first_seed <= 2**63 - 1 - args.episodes:
+            raise ValueError(f"--first-seed must be in [0, 2**63 - 1 - episodes], got "
+                             f"{args.first_seed}")  # fmt: skip
         task = task_env_kwargs(args.task)
         if args.json is not None:
             check_writable_file(args.json, "--json")
@@ -138,14 +162,17 @@ def main(argv: list[str] | None = None) -> int:
     for name, controller in controllers.items():
         own = {k: v for k, v in controller.env_kwargs.items() if k != "guideway_seed"}
         kwargs = {**task, **own, "guideway_seed": VALIDATION_GUIDEWAY_SEED}
-        row = {
-            **action_statistics(controller, kwargs, seeds),
-            "alpha": entropy_coefficient(controller),
-        }
+        try:
+            check_observation(name, controller, kwargs)
+            row = {**action_statistics(controller, kwargs, seeds),
+                   "alpha": entropy_coefficient(controller)}  # fmt: skip
+        except (ValueError, TypeError) as exc:
+            parser.error(f"{name}: {exc}")
         results[name] = row
         alpha = f", alpha {row['alpha']:.3g}" if row["alpha"] is not None else ""
-        print(f"{name}: action mean {row['mean']:+.3f}, std {row['std']:.3f}, at the bound "
-              f"{100 * row['share_at_bound']:.1f} %; Wk {row['wk_rms_body_acc_m_s2']:.4f}{alpha}")  # fmt: skip
+        print(f"{name}: {row['action_mode']} mode, action mean {row['mean']:+.3f}, std "
+              f"{row['std']:.3f}, at the bound {100 * row['share_at_bound']:.1f} %; Wk "
+              f"{row['wk_rms_body_acc_m_s2']:.4f}{alpha}")  # fmt: skip
     if args.json is not None:
         out = {"command": "python experiments/policy_actions.py " + " ".join(sys.argv[1:] if argv is None else argv),
                "task": args.task, "guideway_seed": VALIDATION_GUIDEWAY_SEED, "seeds": seeds,

@@ -61,6 +61,34 @@ def test_a_request_alternating_between_the_bounds(pa):
     assert row["share_at_bound"] == 1.0
 
 
+class Squares(Constant):
+    """Episode k asks for k**2 / 10 of the force range at every step."""
+
+    def __init__(self) -> None:
+        super().__init__(0.0)
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return (np.arange(len(obs), dtype=np.float32)[:, None] ** 2) / 10, state
+
+
+def test_an_episode_that_hits_the_bump_stop_is_left_out(pa):
+    # Episodes 5000..5003 with these requests reach strokes of 11.4, 12.5, 11.6 and 10.8 mm in
+    # 2 s (no limit): a 12 mm bump stop ends episode 1 only (margins of 0.4 mm and more).
+    kwargs = {**RIDE, "stroke_limit_m": 0.012}
+    row = pa.action_statistics(Squares(), kwargs, [5000, 5001, 5002, 5003], episode_length_s=2.0)
+    assert row["terminated_episodes"] == 1
+    kept = np.array([0.0, 0.4, 0.9])  # episodes 0, 2 and 3; all four would give a mean of 0.35
+    assert row["mean"] == pytest.approx(kept.mean(), abs=1e-7)
+    assert row["std"] == pytest.approx(kept.std(), abs=1e-7)
+    assert row["samples"] == 3 * 400
+
+
+@pytest.mark.parametrize("value, share", [(0.96, 1.0), (0.94, 0.0), (-0.96, 1.0)])
+def test_the_bound_is_095(pa, value, share):
+    row = pa.action_statistics(Constant(value), RIDE, [5000], episode_length_s=0.1)
+    assert row["share_at_bound"] == share and row["action_mode"] == "force"
+
+
 def test_its_wk_is_evaluations_on_the_same_episodes(pa):
     from capsule_env.agents import classical_controllers
 
@@ -75,17 +103,28 @@ def test_its_wk_is_evaluations_on_the_same_episodes(pa):
     assert 0.0 < row["std"] < 1.0
 
 
-def test_entropy_coefficient_of_a_sac_family_model(pa):
+def test_entropy_coefficient_of_a_sac_model(pa):
     torch = pytest.importorskip("torch")
+    pytest.importorskip("stable_baselines3")
+    from capsule_env.agents.sb3_policy import SB3Policy
+    from stable_baselines3 import PPO, SAC
 
-    class Model:
-        log_ent_coef = torch.tensor([math.log(0.137)])
+    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
 
-    class Policy:
-        model = Model()
-
-    assert pa.entropy_coefficient(Policy()) == pytest.approx(0.137, rel=1e-6)
+    env = CapsuleSuspensionSB3VecEnv(1, setting="hils", action_mode="force", observation="measured")
+    sac = SAC("MlpPolicy", env, ent_coef="auto_0.137", device="cpu", seed=0)
+    assert pa.entropy_coefficient(SB3Policy.from_model(sac, None)) == pytest.approx(0.137, rel=1e-6)
+    with torch.no_grad():
+        sac.log_ent_coef.fill_(math.log(0.01))  # what training moves
+    assert pa.entropy_coefficient(SB3Policy.from_model(sac, None)) == pytest.approx(0.01, rel=1e-6)
+    ppo = PPO("MlpPolicy", env, n_steps=8, batch_size=8, device="cpu")
+    assert pa.entropy_coefficient(SB3Policy.from_model(ppo, None)) is None
     assert pa.entropy_coefficient(Constant(0.0)) is None
+    # a policy whose observations are not the env's is refused, naming both shapes
+    with pytest.raises(ValueError, match=r"shape \(9,\), the task's env gives \(41,\)"):
+        pa.check_observation("p", SB3Policy.from_model(ppo, None),
+                             {"setting": "hils", "observation": "measured", "preview_points": 32})  # fmt: skip
+    env.close()
 
 
 @pytest.mark.parametrize(
@@ -95,6 +134,7 @@ def test_entropy_coefficient_of_a_sac_family_model(pa):
         (["--policy", "/nonexistent.zip"], "--policy /nonexistent.zip"),
         (["--task", "Foo-v0", "--law", "passive"], "--task"),
         (["--episodes", "0", "--law", "passive"], "--episodes must be in [1, 100]"),
+        (["--first-seed", "-1", "--law", "passive"], "--first-seed must be in [0,"),
         ([], "give at least one --policy or --law"),
     ],
 )
