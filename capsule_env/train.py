@@ -134,10 +134,11 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
     failed write (a full disk) raises ``SystemExit`` with one line too, the files as the last
     complete save left them."""
     try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
-        if not args.resume:  # before any folder is made; a resumed run's algorithm: below
+        if not args.resume:  # before any folder is made
             check_compile(args.algo, args.compile)
         plan = prepare(args)
-        check_compile(plan.args.algo, plan.args.compile)
+        if args.resume:  # the algorithm the checkpoint restored
+            check_compile(plan.args.algo, plan.args.compile)
     except (ValueError, OSError, TypeError) as exc:
         raise SystemExit(f"train.py: error: {exc}") from None
     args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
