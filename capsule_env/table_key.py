@@ -44,7 +44,7 @@ DESCRIPTIONS = {
     "mpc-biexp": "semi-active MPC: 50 ms plan inside the damper's band, Bi-exp. inverse",
     "preview-mpc-biexp-meas": "semi-active MPC with the guideway 1 s ahead, Bi-exp. inverse",
     "preview-mpc-biexp": "semi-active MPC with the guideway 1 s ahead, Bi-exp. inverse",
-    "oracle": "clairvoyant bound: current searched knowing the guideway, no noise or delay",
+    "oracle": "clairvoyant search: current searched knowing the guideway, no noise or delay",
 }
 
 #: What a row reads, by its observation set (``entry["observation"]`` of the results).

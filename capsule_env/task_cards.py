@@ -1,7 +1,8 @@
 """The task cards of docs/tasks.md, generated from an evaluation's JSON file.
 
 ``python -m capsule_env.task_cards docs/tasks.md`` rewrites the block between the page's
-``<!-- generated: task cards -->`` markers from ``docs/figures/evaluation.json`` (written by
+``<!-- generated: task cards -->`` markers, and the README's table of the tasks between its
+``<!-- generated: readme tasks -->`` markers, from ``docs/figures/evaluation.json`` (written by
 ``evaluate.py --oracle --json``): per task, the Wk-weighted RMS car-body acceleration and the
 normalised score of the passive damper, the task's best tuned classical law, its shipped policy
 and the oracle, with what each reads.
@@ -15,7 +16,7 @@ from pathlib import Path
 
 from capsule_env.tasks import TASKS, Task, normalised_score
 
-__all__ = ["task_cards", "load_results", "sync_page"]
+__all__ = ["task_cards", "readme_table", "load_results", "sync_page"]
 
 
 def _reads(row: dict) -> str:
@@ -41,12 +42,13 @@ def _card(task: Task, results: dict) -> list[str]:
     if task.shipped_policy:
         rows += [(task.shipped_policy, "shipped learned policy")]
     if has_oracle:
-        rows += [("oracle", "clairvoyant bound (a reference, not a law)")]
+        rows += [("oracle", "clairvoyant search (a reference, not a law or a limit)")]
     lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
              f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
              "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
              "acceleration on guideway seeds "
              f"{results['seeds'][0]}..{results['seeds'][1]} (`docs/figures/{task.results}`).",
+             f"- Use as the baseline: {task.use}",
              ""]  # fmt: skip
     if not has_oracle:
         lines += ["No normalised score: the results file has no oracle row (`evaluate.py "
@@ -79,22 +81,59 @@ def task_cards(results: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+def _readme_cell(wk: dict[str, float], name: str) -> str:
+    return f"{wk[name]:.4f} `{name}`" if name else "-"
+
+
+def readme_table(results: dict[str, dict]) -> str:
+    """The README's one table of the tasks: per task, the Wk (m/s²) of passive, the best tuned
+    classical law, the shipped policy and the oracle, from the same files as the cards."""
+    lines = ["| task | what it is | passive | best classical law | shipped policy | oracle |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for task in TASKS:
+        rows = results[task.results]["settings"][task.setting]["controllers"]
+        wk = {name: row["wk_rms_body_acc_m_s2"] for name, row in rows.items()}
+        oracle = f"{wk['oracle']:.4f}" if "oracle" in wk else "-"
+        lines.append(f"| `{task.env_id}` | {task.headline} | {wk['passive']:.4f} | "
+                     f"{_readme_cell(wk, task.best_classical)} | "
+                     f"{_readme_cell(wk, task.shipped_policy)} | {oracle} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 BEGIN, END = "<!-- generated: task cards -->", "<!-- end generated: task cards -->"
+README_BEGIN, README_END = (
+    "<!-- generated: readme tasks -->",
+    "<!-- end generated: readme tasks -->",
+)
 
 
-def sync_page(page: Path, results_json: Path) -> bool:
-    """Rewrite the generated block of ``page``; True when it changed."""
+def _replace_block(page: Path, begin: str, end: str, block: str) -> bool:
     text = page.read_text()
-    head, _, rest = text.partition(BEGIN)
-    _, _, tail = rest.partition(END)
-    cards = task_cards(load_results(results_json.parent))
-    new = f"{head}{BEGIN}\n\n{cards}\n{END}{tail}"
+    head, found, rest = text.partition(begin)
+    if not found or end not in rest:
+        raise ValueError(f"{page} has no block between {begin} and {end}")
+    _, _, tail = rest.partition(end)
+    new = f"{head}{begin}\n{block}\n{end}{tail}"
     if new != text:
         page.write_text(new)
     return new != text
 
 
-if __name__ == "__main__":  # python -m capsule_env.task_cards docs/tasks.md
+def sync_page(page: Path, results_json: Path) -> bool:
+    """Rewrite the generated block of ``page`` (docs/tasks.md); True when it changed."""
+    cards = task_cards(load_results(results_json.parent))
+    return _replace_block(page, BEGIN, END, f"\n{cards}")
+
+
+def sync_readme(readme: Path, figures: Path) -> bool:
+    """Rewrite the README's generated table of the tasks from ``figures``; True when changed."""
+    return _replace_block(readme, README_BEGIN, README_END, readme_table(load_results(figures)))
+
+
+if __name__ == "__main__":  # python -m capsule_env.task_cards docs/tasks.md [README.md]
     target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/tasks.md")
-    source = target.parent / "figures" / "evaluation.json"
-    print(("updated " if sync_page(target, source) else "unchanged ") + str(target))
+    figures = target.parent / "figures"
+    print(("updated " if sync_page(target, figures / "evaluation.json") else "unchanged ")
+          + str(target))  # fmt: skip
+    readme = Path(sys.argv[2]) if len(sys.argv) > 2 else target.parent.parent / "README.md"
+    print(("updated " if sync_readme(readme, figures) else "unchanged ") + str(readme))

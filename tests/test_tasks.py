@@ -114,3 +114,27 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="passive_m_s2 must exceed oracle_m_s2"):
         normalised_score(0.2, 0.2, 0.25)
     assert task_named("CapsuleRide-v0").setting == "hils"
+
+
+def test_each_card_says_which_law_to_use_with_the_results_figures():
+    # the advice quotes figures: they must be the results files' (rounded as quoted)
+    results = load_results(ROOT / "docs" / "figures")
+    for task in TASKS:
+        assert task.use and f"`{task.best_classical}`" in task.use, task.env_id
+    hils = {n: r["wk_rms_body_acc_m_s2"] for n, r in RESULTS["settings"]["hils"]["controllers"]
+            .items()}  # fmt: skip
+    ride, preview = task_named("CapsuleRide-v0").use, task_named("CapsuleRidePreview-v0").use
+    assert f"{hils['mpc-biexp-meas'] / hils['lqr-clipped-biexp-meas']:.3f} x" in ride
+    assert f"{(hils['lqr-clipped-biexp-meas'] / hils['mpc-biexp-meas'] - 1) * 100:.1f} %" in ride
+    lq, mpc = hils["preview-lq-biexp-meas"], hils["preview-mpc-biexp-meas"]
+    assert f"{(lq / mpc - 1) * 100:.1f} %" in preview
+    trip = results["evaluation-CapsuleTrip-v0.json"]["settings"]["hils"]["controllers"]
+    assert f"({trip['lqr-sched-biexp-meas']['wk_rms_body_acc_m_s2']:.4f})" in task_named(
+        "CapsuleTrip-v0").use  # fmt: skip
+
+
+def test_readme_table_of_tasks_in_sync():
+    from capsule_env.task_cards import readme_table
+
+    readme = (ROOT / "README.md").read_text()
+    assert readme_table(load_results(ROOT / "docs" / "figures")) in readme
