@@ -52,3 +52,29 @@ def test_relative_links_point_at_files():
         if "://" in target:
             continue
         assert (ROOT / target).exists(), target
+
+
+def test_index_layout_names_only_what_exists():
+    # the site's layout listing named a dampers.py that had become the dampers/ package
+    index = (ROOT / "docs" / "index.md").read_text()
+    block = re.search(r"## Layout\n.*?^```\n(.*?)^```", index, flags=re.S | re.M)[1]
+    folder = ROOT
+    for line in block.splitlines():
+        if not line[:1].isspace():  # a top-level entry: "capsule_env/", "agents/", ...
+            folder = ROOT
+        names = re.findall(r"(?:^|\s)([\w.]+/|[\w]+\.py)(?=\s|,|$)", line[:25])
+        for name in names:
+            where = folder / name if line[:1].isspace() else ROOT / name
+            assert where.exists(), f"docs/index.md's layout names {name}, absent from {folder}"
+        if line.startswith("capsule_env/"):
+            folder = ROOT / "capsule_env"
+
+
+def test_howto_train_counts_the_shipped_policies():
+    # it said "Five policies ship" over a table of six
+    words = {4: "Four", 5: "Five", 6: "Six", 7: "Seven", 8: "Eight", 9: "Nine", 10: "Ten"}
+    shipped = sorted((ROOT / "capsule_env" / "pretrained").glob("*.json"))
+    page = (ROOT / "docs" / "howto-train.md").read_text()
+    assert f"{words[len(shipped)]} policies ship in `capsule_env/pretrained/`" in page
+    for meta in shipped:
+        assert f"| `{meta.stem}` |" in page, meta.stem
