@@ -23,8 +23,13 @@ runs' scores with a 95 % stratified-bootstrap interval, the probability of impro
 each of the task's classical laws (each a deterministic law: its one score entered as two
 identical runs, so ``P`` is the share of runs above it, ties one half, with the bootstrap over
 the learned runs), the IQM's Wk and its ratio to each law, the env steps and wall-clock
-seconds of the runs. The task's check law (the first of :data:`TASK_LAWS`) is re-evaluated
-here on the same episodes as a check of the pipeline (it must reproduce the file's figure).
+seconds of the runs. These intervals resample the seeds only, each run's Wk being its mean over
+the same 10 episodes. Every law of the task is re-evaluated here episode by episode (the
+first, the check law, must reproduce the file's figure: a check of the pipeline), each run's
+Wk is kept per episode (``eval_wk_per_episode_m_s2``), and the IQM's ratio to each law gets a
+paired interval over seeds AND episodes (:func:`capsule_env.rl_statistics.
+paired_ratio_interval`, the episodes drawn jointly for the group and the law):
+``ratio_paired_to_LAW`` = ``{"value", "seeds_and_episodes", "seeds_only"}``.
 
 Curves: the runs' training-time evaluations (``evaluations.jsonl``, validation bank) as the
 normalised score on that bank, ``(passive - Wk) / (passive - oracle)`` with the passive damper
@@ -85,13 +90,16 @@ def _references(task_id: str = "CapsuleRide-v0") -> dict[str, float]:
     return refs
 
 
-def _wk(policy, guideway_seed: int, episodes: int, first_seed: int, task: dict) -> float:
-    """Mean Wk of ``policy`` on the task's options ``task``, its own over them."""
-    from capsule_env.evaluation import episode_metrics, run_episodes
+def _wk_episodes(policy, guideway_seed: int, episodes: int, first_seed: int,
+                 task: dict) -> list[float]:  # fmt: skip
+    """Wk of ``policy`` on each episode of the task's options ``task``, its own over them."""
+    from capsule_env import metrics
+    from capsule_env.evaluation import run_episodes
 
     kwargs = {**task, **policy.env_kwargs, "setting": "hils", "guideway_seed": guideway_seed}
     rollout = run_episodes(policy, kwargs, episodes, first_seed, LENGTH_S)
-    return float(episode_metrics(rollout, None)["wk_rms_body_acc_m_s2"])
+    acc = rollout.signals["car_body_acceleration_m_s2"]
+    return [float(w) for w in metrics.wk_weighted_rms(acc, rollout.dt_s)]
 
 
 def _validation_references(task_id: str) -> tuple[float, float] | None:
@@ -146,12 +154,14 @@ def _run_record(folder: Path, task: dict) -> dict:
     lines = (folder / "evaluations.jsonl").read_text().splitlines()
     curve = [json.loads(line) for line in lines if line.strip()]
     policy = load_policy(folder / "best_model.zip")
+    per_episode = _wk_episodes(policy, EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
     return {
         "folder": str(folder),
         "seed": best.get("seed"),
         "residual": best.get("residual"),
         "env_kwargs": best.get("env_kwargs"),
-        "eval_wk_m_s2": _wk(policy, EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task),
+        "eval_wk_m_s2": float(np.mean(per_episode)),
+        "eval_wk_per_episode_m_s2": per_episode,
         "validation_wk_m_s2": best["best"]["wk_rms_body_acc_m_s2"],
         "best_at_timesteps": best["best"]["num_timesteps"],
         "num_timesteps": final["num_timesteps"],
@@ -161,16 +171,39 @@ def _run_record(folder: Path, task: dict) -> dict:
     }
 
 
-def _law_wk(law: str, guideway_seed: int, episodes: int, first_seed: int, task: dict) -> float:
+def _law_wk(law: str, guideway_seed: int, episodes: int, first_seed: int,
+            task: dict) -> list[float]:  # fmt: skip
+    """The law's Wk on each episode."""
     from capsule_env.agents.classical import make_controller
 
-    return _wk(make_controller(law), guideway_seed, episodes, first_seed, task)
+    return _wk_episodes(make_controller(law), guideway_seed, episodes, first_seed, task)
 
 
-def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: list[str]) -> dict:
+def _paired_ratios(runs: list[dict], law_episodes: dict[str, list[float]]) -> dict:
+    """Per law, the group's IQM Wk over the law's on the same episodes with paired intervals
+    over seeds and episodes and over seeds alone; empty unless every run has its Wk per
+    episode on the law's episodes (JSONs made before these were kept)."""
+    from capsule_env.rl_statistics import paired_ratio_interval
+
+    per_episode = [r.get("eval_wk_per_episode_m_s2") for r in runs]
+    out = {}
+    for law, law_wk in law_episodes.items():
+        if any(p is None or len(p) != len(law_wk) for p in per_episode):
+            continue
+        both = paired_ratio_interval(np.array(per_episode), np.array(law_wk))
+        seeds = paired_ratio_interval(np.array(per_episode), np.array(law_wk), resample="seeds")
+        out[f"ratio_paired_to_{law}"] = {"value": both.value,
+                                         "seeds_and_episodes": [both.low, both.high],
+                                         "seeds_only": [seeds.low, seeds.high]}  # fmt: skip
+    return out
+
+
+def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: list[str],
+                law_episodes: dict[str, list[float]] | None = None) -> dict:  # fmt: skip
     """Per group: IQM score and Wk with 95 % intervals, ratio to and P(improvement) over each
     of ``laws``; the normalised score when ``refs`` has an oracle, else ``Wk_passive - Wk``
-    (m/s^2) underneath and ``iqm_score`` None."""
+    (m/s^2) underneath and ``iqm_score`` None; with ``law_episodes`` (each law's Wk per
+    evaluation episode) the paired seeds x episodes ratios of :func:`_paired_ratios`."""
     from capsule_env.rl_statistics import iqm, probability_of_improvement
 
     passive, oracle = refs["passive"], refs.get("oracle")
@@ -197,6 +230,7 @@ def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: li
             poi = probability_of_improvement(scores[group], np.full((2, 1), score(refs[law])))
             row[f"p_improvement_over_{law}"] = [poi.value, poi.low, poi.high]
             row[f"ratio_to_{law}"] = to_wk(est.value) / refs[law]
+        row.update(_paired_ratios(records[group], law_episodes or {}))
         row["env_steps"] = [r["num_timesteps"] for r in records[group]]
         row["wall_time_s"] = [r["wall_time_s"] for r in records[group]]
         out[group] = row
@@ -272,8 +306,11 @@ def _summary(result: dict, laws: list[str]) -> list[str]:
         score = ("" if row["iqm_score"] is None else f"IQM score {row['iqm_score']:.3f} "
                  f"[{row['iqm_ci95'][0]:.3f}, {row['iqm_ci95'][1]:.3f}], ")  # fmt: skip
         lo, hi = row["iqm_wk_ci95_m_s2"]
+        paired = row.get(f"ratio_paired_to_{best}")
+        both = ("" if paired is None else ", paired over seeds and episodes [{:.3f}, {:.3f}]"
+                .format(*paired["seeds_and_episodes"]))  # fmt: skip
         lines.append(f"{group}: {score}IQM Wk {row['iqm_wk_m_s2']:.4f} [{lo:.4f}, {hi:.4f}] = "
-                     f"{row[f'ratio_to_{best}']:.3f} x {best}, P(> {best}) "
+                     f"{row[f'ratio_to_{best}']:.3f} x {best}{both}, P(> {best}) "
                      f"{row[f'p_improvement_over_{best}'][0]:.2f}")  # fmt: skip
     check = laws[0]
     lines.append(f"{check} re-evaluated {result['law_check_eval_wk_m_s2']:.4f} (file "
@@ -333,13 +370,17 @@ def main(argv: list[str] | None = None) -> int:
     use_one_torch_thread()
     task, laws = dict(task_named(args.task).kwargs), list(TASK_LAWS[args.task])
     refs = _references(args.task)
-    law_eval = _law_wk(laws[0], EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
-    law_val = _law_wk(laws[0], VALIDATION_GUIDEWAY_SEED, VAL_EPISODES, VAL_FIRST_SEED, task)
+    law_episodes = {law: _law_wk(law, EVALUATION_GUIDEWAY_SEED, EPISODES, FIRST_SEED, task)
+                    for law in laws}  # fmt: skip
+    law_eval = float(np.mean(law_episodes[laws[0]]))
+    law_val = float(np.mean(_law_wk(laws[0], VALIDATION_GUIDEWAY_SEED, VAL_EPISODES,
+                                    VAL_FIRST_SEED, task)))  # fmt: skip
     records = {g: [_run_record(f, task) for f in fs] for g, fs in groups.items()}
     law_level = None if val_refs is None else float(normalised(law_val, val_refs))
     result = {"task": args.task, "laws": laws, "references_eval_wk_m_s2": refs,
               "law_check_eval_wk_m_s2": law_eval, "law_validation_wk_m_s2": law_val,
-              "machine": _machine(), "statistics": _statistics(records, refs, laws),
+              "laws_eval_wk_per_episode_m_s2": law_episodes, "machine": _machine(),
+              "statistics": _statistics(records, refs, laws, law_episodes),
               "validation_passive_oracle_wk_m_s2": val_refs,
               "curves_score": "wk_law_over_wk" if val_refs is None else "normalised",
               "curves": _curves(records, law_val, val_refs), "runs": records}  # fmt: skip

@@ -150,3 +150,22 @@ def test_a_validation_file_made_on_other_episodes_is_refused(lb, tmp_path, monke
     monkeypatch.setattr(lb, "ROOT", tmp_path)
     with pytest.raises(ValueError, match="not the validation bank's"):
         lb._validation_references("CapsuleRide-v0")
+
+
+def test_paired_ratios_need_every_run_per_episode(lb):
+    # each run a fixed multiple of the law on every episode: the ratio is the IQM of the
+    # multiples whatever episodes are drawn; a run without its episodes (a JSON made before
+    # they were kept) leaves the paired ratio out
+    law = [0.30, 0.45, 0.38, 0.52]
+    runs = [{"eval_wk_per_episode_m_s2": [k * w for w in law], "eval_wk_m_s2": k * 0.4125,
+             "num_timesteps": 1, "wall_time_s": 1.0} for k in (0.97, 0.98, 0.99, 1.00, 1.01)]  # fmt: skip
+    row = lb._statistics({"a": runs}, REFS, LAWS, {"mpc-biexp-meas": law})["a"]
+    paired = row["ratio_paired_to_mpc-biexp-meas"]
+    assert paired["value"] == pytest.approx(0.99)  # the middle three's mean
+    low, high = paired["seeds_and_episodes"]
+    assert 0.97 <= low < 0.99 < high <= 1.01
+    assert paired["seeds_only"] == pytest.approx([low, high], abs=0.005)
+    assert "ratio_paired_to_lqr-clipped-biexp-meas" not in row  # no episodes given for it
+    del runs[0]["eval_wk_per_episode_m_s2"]
+    row = lb._statistics({"a": runs}, REFS, LAWS, {"mpc-biexp-meas": law})["a"]
+    assert "ratio_paired_to_mpc-biexp-meas" not in row
