@@ -134,9 +134,10 @@ def tables(data: dict) -> str:
              f"{c['guideway_seed']}), setting `{c['setting']}`, measured signals; "
              f"{data.get('runtime_s', 0.0) / 60:.1f} min of computation in all. Wk-weighted "
              "RMS car-body acceleration (m/s²), mean over the episodes; bold: the lowest of "
-             "the controllers (the oracle, a bound, aside); `best / passive`: that lowest over "
-             "the passive damper's; `headroom closed`, where the oracle ran: `(passive - best) "
-             "/ (passive - oracle)`; `guideway scale`: the mean factor the env applied to the "
+             "the controllers (the oracle, a clairvoyant local search, aside: a reference, not "
+             "a limit); `best / passive`: that lowest over the passive damper's; `headroom "
+             "closed`, where the oracle ran: `(passive - best) / (passive - oracle)`; `guideway "
+             "scale`: the mean factor the env applied to the "
              "random profile's window to bring its peak to 8 mm.", ""]  # fmt: skip
     notes: list[str] = []
     groups = [("speed", "eds", "Speed, EDS levitation (km/h)"),

@@ -1,18 +1,18 @@
 """Trips: the capsule's speed from lift-off to cruise and back, and windows of it for episodes.
 
-A trip accelerates at a constant comfort limit from the lift-off speed to the cruise speed,
-cruises, and brakes at a constant limit back to the lift-off speed (below it the capsule rolls
+A trip accelerates at a constant rate from the lift-off speed to the cruise speed,
+cruises, and brakes at a constant rate back to the lift-off speed (below it the capsule rolls
 on its wheels, outside this model). Speed and position are closed-form piecewise linear and
 quadratic functions of time; an episode is a window of a trip starting at a time drawn from the
 vehicle's own random stream, and the guideway is sampled at the position travelled.
 
 Defaults, [reconstructed], each overridable (:class:`TripParams`): cruise at 1000 km/h (the
 capsule's design speed in the paper's introduction); lift-off at 150 km/h (as
-:class:`capsule_env.levitation.EdsParams`); acceleration and braking at 1.0 m/s^2, inside the
-0.11-0.15 g longitudinal comfort range of ground-transport studies (Hoberock, "A survey of
-longitudinal acceleration comfort studies in ground transportation vehicles", J. Dyn. Syst.
-Meas. Control 99(2):76-84, 1977), so that the speed-up takes about 4 minutes; a cruise of 10
-minutes. Pure numpy.
+:class:`capsule_env.levitation.EdsParams`); acceleration and braking at 1.0 m/s^2 (0.102 g),
+just below the 0.11-0.15 g longitudinal comfort range of ground-transport studies (Hoberock, "A
+survey of longitudinal acceleration comfort studies in ground transportation vehicles", J.
+Dyn. Syst. Meas. Control 99(2):76-84, 1977), so that the speed-up takes about 4 minutes; a
+cruise of 10 minutes. Pure numpy.
 """
 
 from __future__ import annotations

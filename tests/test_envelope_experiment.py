@@ -149,7 +149,9 @@ def test_tables_from_a_hand_written_json():
     assert "| `ppo` | – | **0.2700** |" in lines
     assert "| best / passive | 0.750 | 0.900 |" in lines
     assert "- `ppo` at `payload/-0.30`: not run: x" in lines
-    assert "| `oracle` | 0.1000 | – |" in lines  # a bound, never bold, last
+    assert "| `oracle` | 0.1000 | – |" in lines  # a reference, never bold, last
+    # the oracle is a local search: an achievable reference, never called a bound or a limit
+    assert "a bound" not in lines[0] and "a clairvoyant local search" in lines[0]
     assert lines.index("| `oracle` | 0.1000 | – |") == lines.index("| `ppo` | – | **0.2700** |") + 1
     assert "| headroom closed | 0.50 | – |" in lines  # (0.2 - 0.15) / (0.2 - 0.1)
 

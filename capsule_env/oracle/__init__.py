@@ -1,5 +1,7 @@
-"""The clairvoyant bound: the lowest Wk-weighted RMS body acceleration a controller that knows
-the whole guideway in advance reaches, per episode, found by local search.
+"""The clairvoyant oracle: per episode, the lowest Wk-weighted RMS body acceleration that a
+multi-start local search finds for a controller knowing the whole guideway in advance. An
+achievable, not a certified, reference: an upper bound on the clairvoyant optimum and a lower
+bound on nothing (the name ``clairvoyant_bound`` is historical).
 
     from capsule_env.oracle import clairvoyant_bound
     result = clairvoyant_bound({"setting": "hils"}, seeds=range(1000, 1010))
@@ -8,10 +10,11 @@ the whole guideway in advance reaches, per episode, found by local search.
 
 What is searched: the applied coil-current sequence ``u_t`` in ``[0, i_max]`` of each episode
 (``T`` control steps), set directly on the plant: no sensor noise, no control delay, no
-inverse model (the coil's lag, where the setting has one, stays: it is physics). It is the
-physical headroom of the semi-active damper on that guideway, not a controller: every causal
+inverse model (the coil's lag, where the setting has one, stays: it is physics). It is a
+reference for the semi-active damper on that guideway, not a controller: every causal
 controller reads less (noisy sensors, 5 ms late, no knowledge of the guideway ahead or of the
-vehicle's own state beyond its estimates).
+vehicle's own state beyond its estimates), but the search is local, so no causal controller is
+proven unable to reach a lower figure.
 
 The method (:mod:`capsule_env.oracle.plant`, :mod:`capsule_env.oracle.search`):
 
@@ -32,7 +35,8 @@ The method (:mod:`capsule_env.oracle.plant`, :mod:`capsule_env.oracle.search`):
 
 How far from the global optimum: the problem is not convex (the damper force is a nonlinear,
 hysteretic function of the current and the motion), so a local search gives an *upper* bound
-on the clairvoyant optimum, and a lower bound on no controller. :class:`OracleResult` reports
+on the clairvoyant optimum, and a lower bound on no controller (a certified floor is not
+computed). :class:`OracleResult` reports
 how much the answer depends on the start (``spread_m_s2``, the range over the starts of what
 each reached) and what the restarts added (``restart_gain_m_s2``); the README quotes both for
 the evaluation seeds. A spread of a few per cent means the true optimum may lie a few per cent

@@ -1,4 +1,5 @@
-"""The clairvoyant bound: multi-start L-BFGS-B over the applied coil currents of each episode.
+"""The clairvoyant oracle: multi-start L-BFGS-B over the applied coil currents of each episode
+(a local search: an achievable reference, not a certified limit).
 
 See :mod:`capsule_env.oracle` for the method and what the numbers mean.
 """
@@ -341,7 +342,7 @@ def _starts(
     return names, np.stack(arrays)
 
 
-# ------------------------------------------------------------------------------ the bound
+# ------------------------------------------------------------------------------ the search
 def _check_arguments(
     env_kwargs: Any, seeds: Any, options: dict[str, Any]
 ) -> tuple[dict[str, Any], tuple[int, ...]]:
@@ -445,11 +446,12 @@ def clairvoyant_bound(
     stroke_penalty: float = 1000.0,
     random_seed: int = 0,
 ) -> OracleResult:
-    """The lowest Wk-weighted RMS body acceleration a clairvoyant controller reaches by local
-    search, per episode: the applied coil-current sequence ``u_t`` in ``[0, i_max]`` that
-    minimises it, knowing the whole guideway, setting the current applied to the plant
-    directly (no noise, no delay, no inverse model; the coil lag, where the setting has one,
-    stays: it is physics).
+    """The lowest Wk-weighted RMS body acceleration a multi-start local search finds for a
+    clairvoyant controller, per episode: the applied coil-current sequence ``u_t`` in
+    ``[0, i_max]`` that the search ends at, knowing the whole guideway, setting the current
+    applied to the plant directly (no noise, no delay, no inverse model; the coil lag, where the
+    setting has one, stays: it is physics). An upper bound on the clairvoyant optimum, a lower
+    bound on nothing: the name is historical.
 
     Parameters
     ----------
