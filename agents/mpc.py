@@ -27,7 +27,14 @@ intervals by a quadratic programme (:mod:`capsule_env.agents.mpc_qp`,
   ``solver={"backend": "osqp"}``), both from the ``mpc`` extra
   (:mod:`capsule_env.agents.mpc_solver`). A failed or time-limited solve falls back to the
   unconstrained LQ law (clipped by the env's inverse like the clipped LQR), counted in
-  :attr:`MPCController.counters`.
+  :attr:`MPCController.counters`, with a ``RuntimeWarning`` once such steps are at least 10
+  and more than 1 % of the planned ones (naming the option to raise);
+- **bad samples**: a vehicle whose observation holds a NaN or inf in a column the law reads
+  requests 0 N that step (the env's inverse makes it 0 A, the passive damper); the sample
+  enters none of the law's state (not the Wk filter nor the solver's warm start; the previous
+  plan is dropped, as after a fallback; the request in flight is the 0 A force), the vehicle's
+  next finite observation is planned as usual, and the other vehicles are untouched. Counted
+  (``nonfinite_steps``), warned about once.
 
 What it gives up: the global optimum of the non-convex problem (a hybrid MIQP would find it):
 the sign pattern is a local choice, and the linearised edges are exact only at the reference
@@ -37,11 +44,19 @@ produced (the request is assumed produced when inside the band).
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from capsule_env.agents.mpc_qp import CondensedQP, band_edges, condense, prediction_model
-from capsule_env.agents.mpc_solver import BandQP, PlanResult, SolverOptions
+from capsule_env.agents.mpc_solver import (
+    BandQP,
+    PlanResult,
+    SolverOptions,
+    check_integer,
+    check_real,
+)
 from capsule_env.agents.preview_lq import (
     DEFAULT_PREVIEW_HORIZON_S,
     DEFAULT_PREVIEW_POINTS,
@@ -68,16 +83,22 @@ DEFAULT_HORIZON_STEPS = 10
 #: The ``hils`` setting's coil time constant (s), the lag the prediction model plans for.
 HILS_COIL_TIME_CONSTANT_S = EnvConfig(setting="hils").effective_coil_time_constant_s
 _WEIGHTS = ("q_stroke", "q_levitation", "r_force")
+#: The solver-failure warning: raised once, when at least this many planned vehicle-steps
+#: fell back to the LQ law and they are more than this fraction of the planned ones.
+FAILING_MIN_STEPS = 10
+FAILING_FRACTION = 0.01
 
 
-def _check_int(name: str, value: Any, low: int, high: int) -> int:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, np.integer))
-        or not (low <= value <= high)
-    ):
-        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-    return int(value)
+def _check_weight(name: str, value: Any) -> None:
+    """``ValueError`` naming ``name`` unless ``value`` is a real number or a 1-D array of
+    them (not bools), one per vehicle."""
+    try:
+        array = np.asarray(value)
+    except ValueError:  # a ragged sequence
+        array = np.asarray(None)
+    if array.dtype.kind not in "iuf" or array.ndim > 1 or array.size == 0:
+        raise ValueError(f"{name} must be a real number or a 1-D array of one per vehicle, got "
+                         f"{value!r}")  # fmt: skip
 
 
 class MPCController(ForceLaw):
@@ -86,8 +107,8 @@ class MPCController(ForceLaw):
     Parameters
     ----------
     inverse_model : ``"bi_exponential"`` (the band's model and the env's inverse) or ``"tanh"``.
-    q_stroke, q_levitation (1/s^4), r_force (1/kg^2) : cost weights, scalars or one per
-        vehicle; None: the tuned values of this law, else those of its linear twin
+    q_stroke, q_levitation (1/s^4), r_force (1/kg^2) : cost weights, scalars or 1-D arrays of
+        one per vehicle (checked against the batch at the first step); None: the tuned values of this law, else those of its linear twin
         (:data:`LINEAR_TWIN`), else 1e3, 1e3, 1e-9 [reconstructed].
     observation : ``"measured"`` (default) or ``"full_state"``.
     preview : read the surveyed guideway ahead (``preview_points`` over ``preview_horizon_s``).
@@ -106,7 +127,8 @@ class MPCController(ForceLaw):
         ``max_passes`` (solves per step while the sign pattern changes, default 2),
         ``constrained_steps`` (the intervals under the band, default the first 3; 0: all),
         ``secant_m_s`` (the band edges' slope: the secant over this rate; default 1e-4 m/s,
-        the tangent); OSQP's ``eps_abs``, ``eps_rel`` (1e-3), ``polish``.
+        the tangent); OSQP's ``eps_abs``, ``eps_rel`` (1e-3), ``polish`` (a bool). Integers
+        and numbers are checked by type (a bool is neither): ``ValueError`` naming the option.
     """
 
     q_stroke: np.ndarray  # the weights, set by _set_gains
@@ -140,21 +162,13 @@ class MPCController(ForceLaw):
                              f"band), got {inverse_model!r}")  # fmt: skip
         super().__init__("preview-mpc" if preview else "mpc", inverse_model, max_force_n,
                          observation)  # fmt: skip
-        self.horizon_steps = _check_int("horizon_steps", horizon_steps, 1, 200)
-        self.delay_steps = _check_int("delay_steps", delay_steps, 0, 10)
+        self.horizon_steps = check_integer("horizon_steps", horizon_steps, 1, 200)
+        self.delay_steps = check_integer("delay_steps", delay_steps, 0, 10)
         self.move_blocks = self._check_blocks(move_blocks)
-        if not (isinstance(dt_s, (int, float)) and 1e-4 <= dt_s <= 0.1):
-            raise ValueError(f"dt_s must be in [1e-4, 0.1] s, got {dt_s!r}")
-        if not (isinstance(coil_time_constant_s, (int, float)) and 0 <= coil_time_constant_s <= 1):
-            raise ValueError(f"coil_time_constant_s must be in [0, 1] s, got "
-                             f"{coil_time_constant_s!r}")  # fmt: skip
-        unknown = sorted(set(solver or {}) - set(SolverOptions.__dataclass_fields__))
-        if unknown:
-            raise ValueError(f"unknown solver option(s) {unknown}; accepted: "
-                             f"{', '.join(SolverOptions.__dataclass_fields__)}")  # fmt: skip
-        self.solver_options = SolverOptions(**(solver or {}))
-        self.solver_options.check()
-        self.dt_s, self.coil_time_constant_s = float(dt_s), float(coil_time_constant_s)
+        self.dt_s = check_real("dt_s", dt_s, 1e-4, 0.1, unit=" s")
+        self.coil_time_constant_s = check_real("coil_time_constant_s", coil_time_constant_s,
+                                               0.0, 1.0, unit=" s")  # fmt: skip
+        self.solver_options = self._check_solver(solver)
         self.preview_points = self.n_rises = 0
         if preview:
             self._set_preview(preview_points, preview_horizon_s)
@@ -168,7 +182,20 @@ class MPCController(ForceLaw):
                                       self.coil_time_constant_s, wk_cost)  # fmt: skip
         self.damper: Any = EnvConfig(inverse_model=inverse_model).inverse_damper
         self._qps: list[BandQP] = []
+        self._warned = {"nonfinite": False, "failing": False}  # each warning once
         self.reset_counters()
+
+    @staticmethod
+    def _check_solver(solver: Any) -> SolverOptions:
+        if solver is None:
+            return SolverOptions()
+        if not isinstance(solver, Mapping):
+            raise ValueError(f"solver must be a dict of solver options or None, got {solver!r}")
+        unknown = sorted(set(solver) - set(SolverOptions.__dataclass_fields__))
+        if unknown:
+            raise ValueError(f"unknown solver option(s) {unknown}; accepted: "
+                             f"{', '.join(SolverOptions.__dataclass_fields__)}")  # fmt: skip
+        return SolverOptions(**solver).check()
 
     def _check_blocks(self, blocks: Any) -> tuple[int, ...] | None:
         if blocks is None:
@@ -176,7 +203,7 @@ class MPCController(ForceLaw):
         blocks = tuple(blocks)
         if (
             not blocks
-            or any(_check_int("move_blocks", b, 1, 200) < 1 for b in blocks)
+            or any(check_integer("move_blocks", b, 1, 200) < 1 for b in blocks)
             or sum(blocks) != self.horizon_steps
         ):
             raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
@@ -184,10 +211,9 @@ class MPCController(ForceLaw):
         return blocks
 
     def _set_preview(self, points: int, horizon_s: float) -> None:
-        self.preview_points = _check_int("preview_points", points, 1, 64)
-        if not (isinstance(horizon_s, (int, float)) and 1e-3 <= horizon_s <= 10.0):
-            raise ValueError(f"preview_horizon_s must be in [0.001, 10] s, got {horizon_s!r}")
-        self.preview_horizon_s = float(horizon_s)
+        self.preview_points = check_integer("preview_points", points, 1, 64)
+        self.preview_horizon_s = check_real("preview_horizon_s", horizon_s, 1e-3, 10.0,
+                                            unit=" s")  # fmt: skip
         self.n_rises = max(self.horizon_steps, int(round(horizon_s / self.dt_s)))
         self.env_kwargs = {**self.env_kwargs, "preview_points": self.preview_points,
                            "preview_horizon_s": self.preview_horizon_s}  # fmt: skip
@@ -198,7 +224,16 @@ class MPCController(ForceLaw):
         units = {"r_force": "1_kg2", "q_stroke": "1_s4", "q_levitation": "1_s4"}  # searched first
         fallback = {g: float(twin.get(f"{g}_{units[g]}", v)) for g, v in fallback.items()}
         given = {"q_stroke": q_stroke, "q_levitation": q_levitation, "r_force": r_force}
+        for name, value in given.items():
+            if value is not None:
+                _check_weight(name, value)
         self._set_gains(units, given, fallback)
+        lengths = {g: getattr(self, g).size for g in _WEIGHTS if getattr(self, g).size > 1}
+        if len(set(lengths.values())) > 1:
+            raise ValueError("q_stroke, q_levitation and r_force given per vehicle must have "
+                             f"the same length, got {lengths}")  # fmt: skip
+        #: The batch size the per-vehicle weights are for (None: scalars, any batch).
+        self.weight_vehicles = max(lengths.values()) if lengths else None
         w = np.broadcast_arrays(self.q_stroke, self.q_levitation, self.r_force)
         if (
             not all(np.all(np.isfinite(a)) for a in w)
@@ -216,10 +251,16 @@ class MPCController(ForceLaw):
         return (*super().signals_read, *lag, *ahead)
 
     def reset_counters(self) -> None:
-        """Zero :attr:`counters` (steps planned, solves, failed and time-limited solves,
-        steps on the fallback law)."""
+        """Zero :attr:`counters`: ``vehicle_steps`` (every vehicle's step, the non-finite
+        ones included), ``solves`` (QP solves), ``failed_solves`` and ``time_limited_solves``
+        (steps whose solve failed or ran over ``time_limit_s``), ``fallback_steps`` (steps on
+        the unconstrained LQ law for that reason; a RuntimeWarning once they are at least
+        :data:`FAILING_MIN_STEPS` and more than :data:`FAILING_FRACTION` of the planned
+        steps) and ``nonfinite_steps`` (steps with a non-finite observation: 0 N requested).
+        The warnings are not re-armed: once per controller."""
         self.counters = {"vehicle_steps": 0, "solves": 0, "failed_solves": 0,
-                         "time_limited_solves": 0, "fallback_steps": 0}  # fmt: skip
+                         "time_limited_solves": 0, "fallback_steps": 0,
+                         "nonfinite_steps": 0}  # fmt: skip
 
     def reset(self) -> None:
         self._qps = []
@@ -238,6 +279,10 @@ class MPCController(ForceLaw):
 
     def _build(self, n: int) -> None:
         """One QP per vehicle (one condensed problem per distinct weight set)."""
+        if self.weight_vehicles not in (None, n):
+            raise ValueError(f"q_stroke, q_levitation, r_force: {self.weight_vehicles} values "
+                             f"(one per vehicle) for a batch of {n} vehicles; give scalars or "
+                             f"{n} values")  # fmt: skip
         weights = [np.broadcast_to(getattr(self, g), (n,)) for g in _WEIGHTS]
         cache: dict[tuple[float, float, float], CondensedQP] = {}
         self._qps = []
@@ -292,31 +337,86 @@ class MPCController(ForceLaw):
         return result
 
     def desired_force(self, obs: np.ndarray) -> np.ndarray:
+        """The first planned force of each vehicle (N); 0 N (the damper's 0 A) for a vehicle
+        whose observation is not finite, kept out of the law's state (:meth:`nonfinite`)."""
         n = obs.shape[0]
         if len(self._qps) != n:
             self._build(n)
-        z0, rises = self.state_and_rises(obs)
-        rate = self.signal(obs, "relative_velocity")
-        stroke = self.signal(obs, "stroke")
-        force = np.empty(n)
-        for k in range(n):
-            result = self.plan(k, z0[k], rises[k], float(rate[k]), float(stroke[k]))
-            if result.u is None:  # the fallback: the unconstrained LQ law (clipped by the env)
-                qp = self._qps[k].qp
-                force[k] = -(qp.lq_gain @ z0[k] + qp.lq_rise_gain[: rises.shape[1]] @ rises[k])
-                self.counters["fallback_steps"] += 1
-                self._ref_rate[k] = np.nan
-                continue
-            force[k] = result.u[0]
-            assert result.rate_m_s is not None and result.stroke_m is not None  # a solved plan
-            self._ref_rate[k] = np.append(result.rate_m_s[1:], result.rate_m_s[-1])
-            self._ref_stroke[k] = np.append(result.stroke_m[1:], result.stroke_m[-1])
+        bad = self.nonfinite(obs)
+        clean = np.where(np.isfinite(obs), obs, 0.0) if bad.any() else obs
+        wk_before = self._wk_state[bad]
+        z0, rises = self.state_and_rises(clean)
+        self._wk_state[bad] = wk_before  # the bad sample does not enter the Wk filter
+        rate = self.signal(clean, "relative_velocity")
+        stroke = self.signal(clean, "stroke")
+        force = np.zeros(n)
+        for k in np.flatnonzero(~bad).tolist():
+            force[k] = self._first_move(k, z0[k], rises[k], float(rate[k]), float(stroke[k]))
+        self._ref_rate[bad] = np.nan  # the next plan starts afresh
         self.counters["vehicle_steps"] += n
+        self._warn_if_failing()
         force = np.clip(force, -self.max_force_n, self.max_force_n)
         if self.delay_steps:  # what the damper will make of it: the band at the measured rate
             made = self.achievable(force, stroke, rate)
             self._in_flight = np.concatenate([made[:, None], self._in_flight[:, :-1]], axis=1)
         return force
+
+    def _first_move(self, k: int, z0: np.ndarray, rises: np.ndarray, rate: float,
+                    stroke: float) -> float:  # fmt: skip
+        """Vehicle ``k``'s planned force now, or the fallback's (the unconstrained LQ law,
+        clipped by the env) when the solve fails."""
+        result = self.plan(k, z0, rises, rate, stroke)
+        if result.u is None:
+            qp = self._qps[k].qp
+            self.counters["fallback_steps"] += 1
+            self._ref_rate[k] = np.nan
+            return float(-(qp.lq_gain @ z0 + qp.lq_rise_gain[: rises.shape[0]] @ rises))
+        assert result.rate_m_s is not None and result.stroke_m is not None  # a solved plan
+        self._ref_rate[k] = np.append(result.rate_m_s[1:], result.rate_m_s[-1])
+        self._ref_stroke[k] = np.append(result.stroke_m[1:], result.stroke_m[-1])
+        return float(result.u[0])
+
+    def nonfinite(self, obs: np.ndarray) -> np.ndarray:
+        """Which vehicles' observations hold a NaN or inf in a column the law reads (bool,
+        (n,)); counted in ``counters["nonfinite_steps"]``, warned about once per controller."""
+        columns = [self._columns[c] for c in self.signals_read if c in self._columns]
+        columns += range(obs.shape[1] - self.preview_points, obs.shape[1])
+        bad = ~np.all(np.isfinite(obs[:, columns]), axis=1)
+        if bad.any():
+            self.counters["nonfinite_steps"] += int(bad.sum())
+            if not self._warned["nonfinite"]:
+                self._warned["nonfinite"] = True
+                warnings.warn(
+                    f"{self.name}: a non-finite observation (vehicle {int(np.argmax(bad))} of "
+                    f"{bad.size}): requested 0 N (the damper's 0 A) for it and kept it out of "
+                    "the plan's state; counted in counters['nonfinite_steps'] (warned once)",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+        return bad
+
+    def _warn_if_failing(self) -> None:
+        """Warn once when the solver failed on at least :data:`FAILING_MIN_STEPS` planned
+        vehicle-steps, more than :data:`FAILING_FRACTION` of them."""
+        c, o = self.counters, self.solver_options
+        fell_back, planned = c["fallback_steps"], c["vehicle_steps"] - c["nonfinite_steps"]
+        if (
+            self._warned["failing"]
+            or fell_back < FAILING_MIN_STEPS
+            or fell_back <= FAILING_FRACTION * planned
+        ):
+            return
+        self._warned["failing"] = True
+        option = "time_limit_s" if c["time_limited_solves"] > c["failed_solves"] else "max_iter"
+        extra = " (or loosen 'eps_abs'/'eps_rel')" if o.backend == "osqp" else ""
+        warnings.warn(
+            f"{self.name}: the {o.backend} solver failed on {fell_back} of {planned} planned "
+            f"vehicle-steps ({c['failed_solves']} failed, {c['time_limited_solves']} over the "
+            f"time limit), which fell back to the unconstrained LQ law; raise the solver option "
+            f"{option!r} (now {getattr(o, option)}){extra}; see counters (warned once)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
 
     def achievable(self, force_n: np.ndarray, stroke_m: np.ndarray,
                    rate_m_s: np.ndarray) -> np.ndarray:  # fmt: skip

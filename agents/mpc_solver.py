@@ -32,14 +32,21 @@ Two solvers (the ``mpc`` extra installs both), the same problem:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from capsule_env.agents.mpc_qp import CondensedQP, _edges
 from scipy import sparse
 
-__all__ = ["SolverOptions", "BandQP", "PlanResult", "solver_available"]
+__all__ = [
+    "SolverOptions",
+    "BandQP",
+    "PlanResult",
+    "solver_available",
+    "check_integer",
+    "check_real",
+]
 
 
 BACKENDS = ("daqp", "osqp")
@@ -77,25 +84,53 @@ class SolverOptions:
     constrained_steps: int = 3  # intervals of the horizon under the band (0: all)
     secant_m_s: float = 1e-4  # the band edges' slope: the secant over this rate (1e-4: tangent)
 
-    def check(self) -> None:
-        """Raise ``ValueError`` naming a bad option."""
-        if self.backend not in BACKENDS:
+    def check(self) -> SolverOptions:
+        """These options with plain Python values; raise ``ValueError`` naming a bad option
+        and its accepted type and range (a bool is not a number here)."""
+        if not (isinstance(self.backend, str) and self.backend in BACKENDS):
             raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
-        for name in ("eps_abs", "eps_rel"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0.0 < value <= 1.0):
-                raise ValueError(f"{name} must be in (0, 1], got {value!r}")
-        if not (isinstance(self.max_iter, int) and 1 <= self.max_iter <= 10**6):
-            raise ValueError(f"max_iter must be an integer in [1, 1e6], got {self.max_iter!r}")
-        if not (isinstance(self.time_limit_s, (int, float)) and 0.0 <= self.time_limit_s <= 10):
-            raise ValueError(f"time_limit_s must be in [0, 10] s, got {self.time_limit_s!r}")
-        if not (isinstance(self.secant_m_s, (int, float)) and 1e-6 <= self.secant_m_s <= 1.0):
-            raise ValueError(f"secant_m_s must be in [1e-6, 1] m/s, got {self.secant_m_s!r}")
-        if not (isinstance(self.max_passes, int) and 1 <= self.max_passes <= 20):
-            raise ValueError(f"max_passes must be an integer in [1, 20], got {self.max_passes!r}")
-        if not (isinstance(self.constrained_steps, int) and 0 <= self.constrained_steps <= 200):
-            raise ValueError(f"constrained_steps must be an integer in [0, 200], got "
-                             f"{self.constrained_steps!r}")  # fmt: skip
+        if not isinstance(self.polish, (bool, np.bool_)):
+            raise ValueError(f"polish must be True or False, got {self.polish!r}")
+        return replace(
+            self,
+            eps_abs=check_real("eps_abs", self.eps_abs, 0.0, 1.0, open_low=True),
+            eps_rel=check_real("eps_rel", self.eps_rel, 0.0, 1.0, open_low=True),
+            max_iter=check_integer("max_iter", self.max_iter, 1, 10**6),
+            time_limit_s=check_real("time_limit_s", self.time_limit_s, 0.0, 10.0, unit=" s"),
+            polish=bool(self.polish),
+            max_passes=check_integer("max_passes", self.max_passes, 1, 20),
+            constrained_steps=check_integer("constrained_steps", self.constrained_steps, 0, 200),
+            secant_m_s=check_real("secant_m_s", self.secant_m_s, 1e-6, 1.0, unit=" m/s"),
+        )
+
+
+def check_integer(name: str, value: Any, low: int, high: int) -> int:
+    """``value`` as an int; ``ValueError`` naming ``name`` unless an integer (not a bool) in
+    ``[low, high]``."""
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (int, np.integer))
+        or not (low <= value <= high)
+    ):
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def check_real(
+    name: str, value: Any, low: float, high: float, *, open_low: bool = False, unit: str = ""
+) -> float:
+    """``value`` as a float; ``ValueError`` naming ``name`` unless a real number (not a bool)
+    in ``[low, high]`` (``(low, high]`` with ``open_low``)."""
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not (low < value if open_low else low <= value)
+        or not value <= high
+    ):
+        bracket = "(" if open_low else "["
+        raise ValueError(f"{name} must be a number in {bracket}{low:g}, {high:g}]{unit}, "
+                         f"got {value!r}")  # fmt: skip
+    return float(value)
 
 
 @dataclass
@@ -224,6 +259,8 @@ class BandQP:
         status = res.info.status_val
         if status != self._solved:
             return None, "time_limit" if status == self._time_limit else "failed"
+        if not np.all(np.isfinite(res.x)):
+            return None, "failed"
         return res.x[: self.n_moves], "solved"
 
     def _daqp(
@@ -240,7 +277,8 @@ class BandQP:
         if limit and time.perf_counter() - t0 > limit:
             self._last = None
             return None, "time_limit"
-        if flag < 1:  # 1 optimal, 2 soft optimal; < 0 infeasible, cycling, iteration limit
+        # 1 optimal, 2 soft optimal; < 0 infeasible, cycling, iteration limit
+        if flag < 1 or not np.all(np.isfinite(x)):
             self._last = None
             return None, "failed"
         self._last = np.asarray(x, dtype=float)
@@ -257,7 +295,12 @@ class BandQP:
     ) -> PlanResult:
         """The plan from state ``z0`` with ``rises`` (R,) ahead; the band at interval 0 at the
         measured ``rate_now_m_s`` and ``stroke_now_m``; ``reference_*``: the previous plan's
-        predictions (N,) for the sign pattern and the linearisation of the later intervals."""
+        predictions (N,) for the sign pattern and the linearisation of the later intervals.
+        A non-finite input is not solved (``"failed"``, no solve) and leaves the warm start
+        as it was."""
+        given = (z0, rises, rate_now_m_s, stroke_now_m, reference_rate_m_s, reference_stroke_m)
+        if not all(np.all(np.isfinite(v)) for v in given):
+            return PlanResult(None, None, None, 0, "failed")
         qp = self.qp
         linear = qp.f_z @ z0 + qp.f_d @ rises
         free_rate = qp.rate_z @ z0 + qp.rate_d @ rises
