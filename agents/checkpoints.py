@@ -3,7 +3,8 @@
 A saved policy is a set of files with one stem: ``stem.zip`` (the SB3 model),
 ``stem.vecnormalize.pkl`` (its ``VecNormalize`` statistics), for SAC/TD3 checkpoints
 ``stem.replay_buffer.pkl``, and ``stem.json`` (metadata: name, algorithm, env arguments,
-timesteps, wall time, the run's arguments, and the sizes and SHA-256 of the other files).
+timesteps, wall time, the run's arguments, and the sizes and SHA-256 of the other files by
+role, ``digests``: the set is bound by content, not by its file names).
 :func:`save_policy` replaces a set in one atomic step (:func:`capsule_env.policy_files.save_file_set`:
 the new files are written into a hidden folder, committed by one rename, then published): a full
 disk or a kill at any point leaves the previous complete set or the new one readable, never a
@@ -34,12 +35,13 @@ from typing import Any
 
 from capsule_env.policy_files import (
     commit_dir,
+    member_digests,
     readable_stem,
+    recorded_digests,
     save_file_set,
     set_problem,
     sibling,
 )
-from capsule_env.safe_io import file_digest
 
 
 def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False) -> None:
@@ -47,9 +49,10 @@ def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False)
     ``stem.replay_buffer.pkl`` (SAC/TD3), and ``stem.json`` (metadata), saved together in one
     atomic step (:func:`capsule_env.policy_files.save_file_set`): a failed save (a full disk,
     a kill) leaves the previous set or the new one, complete. The json records the size and
-    SHA-256 of the model and statistics (``files``) and of the replay buffer
-    (``replay_buffer``), which the loaders check (:func:`checkpoint_problem`,
-    ``capsule_env.agents.sb3_policy.SB3Policy.load``): a mixed or truncated set is refused.
+    SHA-256 of the model, the statistics and the replay buffer by role (``digests``,
+    :func:`capsule_env.policy_files.member_digests`), which the loaders check
+    (:func:`checkpoint_problem`, ``capsule_env.agents.sb3_policy.SB3Policy.load``): a mixed or
+    truncated set is refused, a set copied under other names loads.
     """
     stem = Path(stem)
 
@@ -60,9 +63,7 @@ def save_policy(model: Any, stem: Path, meta: dict, replay_buffer: bool = False)
         if replay_buffer:
             model.save_replay_buffer(str(rb_path))
         model.save(str(zip_path))
-        full = {**meta, "files": {p.name: file_digest(p) for p in (zip_path, pkl_path)}}
-        if replay_buffer:
-            full["replay_buffer"] = {rb_path.name: file_digest(rb_path)}
+        full = {**meta, "digests": member_digests(temp)}  # by role, not by file name
         sibling(temp, ".json").write_text(json.dumps(full, indent=2, default=str))
 
     save_file_set(stem, write)
@@ -118,7 +119,7 @@ def checkpoint_problem(zip_path: Path) -> str | None:
     for path in (zip_path, pkl_path):
         if not path.is_file() or path.stat().st_size == 0:
             return f"{path.name} is missing or empty"
-    if isinstance(meta.get("files"), dict):
+    if recorded_digests(meta) is not None:
         return set_problem(stem)
     try:  # a checkpoint from before the digests: check that the files can be read
         import pickle

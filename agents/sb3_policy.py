@@ -14,8 +14,7 @@ from capsule_env.agents.algorithms import algorithm_class
 from capsule_env.agents.base import Controller
 
 import capsule_env
-from capsule_env.policy_files import readable_stem, sibling
-from capsule_env.safe_io import digest_mismatch
+from capsule_env.policy_files import digests_problem, readable_stem, recorded_digests, sibling
 
 PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
 ALGORITHMS = tuple(ALGORITHM_CLASSES)
@@ -156,8 +155,10 @@ def _statistics(vec_normalize: Any) -> tuple[Any, float, float]:
 
 
 def _checked_meta(path: Path, stem: Path, meta_path: Path) -> dict:
-    """The policy's ``.json`` metadata (empty when absent), its recorded digests checked against
-    the files present; ``ValueError`` naming the file otherwise."""
+    """The policy's ``.json`` metadata (empty when absent), its digests by role checked against
+    the set's files present, whatever their names
+    (:func:`capsule_env.policy_files.digests_problem`); ``ValueError`` naming the role and the
+    files otherwise."""
     meta: dict = {}
     if meta_path.is_file():
         try:
@@ -166,10 +167,9 @@ def _checked_meta(path: Path, stem: Path, meta_path: Path) -> dict:
             raise ValueError(f"policy metadata {meta_path} is not readable JSON: {exc}") from None
         if not isinstance(meta, dict):
             raise ValueError(f"policy metadata {meta_path} is not a JSON object")
-    recorded = meta.get("files")
-    if isinstance(recorded, dict):  # a missing .pkl is dealt with by the caller
-        present = {n: d for n, d in recorded.items() if (stem.parent / n).is_file()}
-        problem = digest_mismatch(stem.parent, present)
+    recorded = recorded_digests(meta)
+    if recorded is not None:  # a missing .pkl is dealt with by the caller
+        problem = digests_problem(stem, recorded, optional=("normaliser", "replay_buffer"))
         if problem:
             raise ValueError(f"policy {path} does not match {meta_path.name}: {problem}")
     meta.setdefault("name", stem.name)
@@ -182,7 +182,7 @@ class SB3Policy(Controller):
     Files: ``NAME.zip`` (the SB3 model), and next to it ``NAME.vecnormalize.pkl`` (SB3's
     ``VecNormalize`` statistics; required unless ``load(..., require_normalization=False)``)
     and ``NAME.json`` (metadata written by ``train.py``: algorithm, the env arguments it was
-    trained with and the digests of the other two files; optional): :meth:`load`. During
+    trained with and the digests of the other two files by role; optional): :meth:`load`. During
     training, :meth:`from_model` wraps the model in memory with its ``VecNormalize``, so that
     ``train.py``'s evaluations see the policy as ``evaluate.py`` will.
     """
@@ -212,9 +212,11 @@ class SB3Policy(Controller):
         The files are ``NAME.vecnormalize.pkl`` and ``NAME.json`` for ``NAME.zip``, a dotted
         ``NAME`` included (:func:`capsule_env.policy_files.sibling`); a save cut off after its
         commit is read from its commit folder
-        (:func:`capsule_env.policy_files.readable_stem`). When the ``.json`` lists the sizes and
-        SHA-256 of the ``.zip`` and ``.pkl`` (``train.py`` writes it last, as the mark of a
-        complete save), those present are checked.
+        (:func:`capsule_env.policy_files.readable_stem`). When the ``.json`` records the sizes
+        and SHA-256 of the model and its statistics by role (``digests``; ``train.py`` writes
+        it last, as the mark of a complete save), those present are checked, whatever the
+        files are named now: a set copied or renamed whole loads, one mixed from two saves is
+        refused.
         Raises ``ValueError`` naming the file and the reason for a missing, empty, corrupt,
         inconsistent or mismatched file.
         """

@@ -4,8 +4,8 @@
         --note "best of seeds 0, 1, 2 by the validation bank's Wk"
 
 Copies the model and its normalisation statistics under the new name, and writes the json
-(``train.py``'s metadata) with ``name`` set, the files' sizes and SHA-256 (``files``, checked
-when the policy loads), where it came from (``shipped_from``) and why it was chosen
+(``train.py``'s metadata) with ``name`` set, the files' sizes and SHA-256 by role
+(``digests``: ``model``, ``normaliser``; checked when the policy loads), where it came from (``shipped_from``) and why it was chosen
 (``selection``). All three are saved in one atomic step
 (:func:`capsule_env.policy_files.save_file_set`): a failed copy leaves the shipped files as they
 were.
@@ -21,8 +21,7 @@ from pathlib import Path
 
 from capsule_env.agents.sb3_policy import PRETRAINED_DIR, SB3Policy
 
-from capsule_env.policy_files import readable_stem, save_file_set, sibling
-from capsule_env.safe_io import file_digest
+from capsule_env.policy_files import member_digests, readable_stem, save_file_set, sibling
 
 __all__ = ["ship_policy"]
 
@@ -45,8 +44,9 @@ def ship_policy(source_zip: str | Path, name: str, note: str = "",
     def write(temp: Path) -> None:
         for suffix, blob in data.items():
             sibling(temp, suffix).write_bytes(blob)
-        digests = {sibling(target, s).name: file_digest(sibling(temp, s)) for s in suffixes}
-        meta.update({"name": name, "files": digests,
+        for old_format in ("files", "replay_buffer"):  # digests by file name (earlier versions)
+            meta.pop(old_format, None)
+        meta.update({"name": name, "digests": member_digests(temp),
                      "shipped_from": str(source_zip), "selection": note})  # fmt: skip
         sibling(temp, ".json").write_text(json.dumps(meta, indent=2, default=str))
 

@@ -3,9 +3,17 @@ read (``train.py``'s ``best_model``, ``final_model`` and checkpoints, shipped po
 
 A saved policy is a set of files with one stem: ``STEM.zip`` (the SB3 model),
 ``STEM.vecnormalize.pkl`` (its ``VecNormalize`` statistics), for SAC/TD3 checkpoints
-``STEM.replay_buffer.pkl``, and ``STEM.json`` (metadata, with the size and SHA-256 of the other
-files: ``files`` and ``replay_buffer``). :func:`sibling` names them: the stem is the ``.zip``'s
-name without ``.zip`` only, so ``cur.v1.zip``'s metadata is ``cur.v1.json``.
+``STEM.replay_buffer.pkl``, and ``STEM.json`` (metadata). :func:`sibling` names them: the stem
+is the ``.zip``'s name without ``.zip`` only, so ``cur.v1.zip``'s metadata is ``cur.v1.json``.
+
+The metadata binds its set **by content**: ``digests`` records the size and SHA-256 of each
+other member by its role (:data:`ROLES`: ``model``, ``normaliser``, ``replay_buffer``), not by
+its file name (:func:`member_digests`). The loaders check the files of the set they read
+against it (:func:`digests_problem`), so a set copied or renamed whole (a backup folder,
+``best_model.*`` renamed) loads, and a set mixed from two saves (one run's model with another's
+metadata or statistics, whatever the names) is refused, naming the role and the files.
+Metadata of earlier versions records ``files`` (and ``replay_buffer``) by the save's file names;
+each such entry is checked as the member whose role its name's suffix gives.
 
 :func:`save_file_set` replaces a set in one atomic step:
 
@@ -35,15 +43,20 @@ import os
 import re
 import secrets
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
+from typing import Any
 
-from capsule_env.safe_io import digest_mismatch
+from capsule_env.safe_io import file_digest
 
 __all__ = [
     "shown_path",
     "SET_SUFFIXES",
     "sibling",
+    "ROLES",
+    "member_digests",
+    "recorded_digests",
+    "digests_problem",
     "commit_dir",
     "set_problem",
     "readable_stem",
@@ -57,6 +70,9 @@ SET_SUFFIXES = (".zip", ".vecnormalize.pkl", ".replay_buffer.pkl", ".json")
 #: A temporary file or folder of :mod:`capsule_env.safe_io` or of :func:`save_file_set`.
 _TEMP = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp$")
 _COMMIT = ".commit"
+#: The members of a set that its metadata's ``digests`` bind, by role: the suffix of each one's
+#: file (:func:`sibling`).
+ROLES = {"model": ".zip", "normaliser": ".vecnormalize.pkl", "replay_buffer": ".replay_buffer.pkl"}
 
 
 def shown_path(path: str | Path) -> str:
@@ -88,13 +104,74 @@ def commit_dir(path: str | Path) -> Path:
     return stem.parent / f".{stem.name}{_COMMIT}"
 
 
+def member_digests(stem: str | Path) -> dict[str, dict[str, int | str]]:
+    """``{role: {"bytes": size, "sha256": hex}}`` of the members of the set ``stem`` (its
+    ``.zip`` or stem) that exist (:data:`ROLES`): what a save records as its metadata's
+    ``digests``, whatever names the set is later copied to."""
+    files = {role: sibling(stem, suffix) for role, suffix in ROLES.items()}
+    return {role: file_digest(path) for role, path in files.items() if path.is_file()}
+
+
+def recorded_digests(meta: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The digests a set's metadata ``meta`` records, by role: its ``digests``, or (earlier
+    versions) its ``files`` and ``replay_buffer`` keyed by file name, each under the role of its
+    name's suffix (an unknown suffix under the name itself, which :func:`digests_problem`
+    refuses). None when it records none (hand-made metadata)."""
+    if isinstance(meta.get("digests"), dict):
+        return dict(meta["digests"])
+    if not isinstance(meta.get("files"), dict):
+        return None
+    by_name = {**meta["files"]}
+    if isinstance(meta.get("replay_buffer"), dict):
+        by_name.update(meta["replay_buffer"])
+    roles = {}
+    for name, digest in by_name.items():
+        role = next((r for r, suffix in ROLES.items() if str(name).endswith(suffix)), name)
+        roles[role] = digest
+    return roles
+
+
+def digests_problem(
+    stem: str | Path, recorded: Mapping[str, Any], optional: Collection[str] = ("replay_buffer",)
+) -> str | None:
+    """Why the set ``stem`` (its ``.zip`` or stem) is not the one whose digests its metadata
+    records (``recorded``, by role: :func:`recorded_digests`), or None. Each recorded role's
+    file of this set (:data:`ROLES`) must have the recorded size and SHA-256 (a missing member
+    of a role in ``optional`` is not checked: the caller decides about it), and each member
+    present must be recorded (a replay buffer of another save next to a set saved without one
+    is not that set's)."""
+    meta_name = sibling(stem, ".json").name
+    for role, suffix in ROLES.items():
+        if role not in recorded and sibling(stem, suffix).is_file():
+            return (f"its {role} {sibling(stem, suffix).name} is not a member {meta_name} "
+                    "records (a file of another save?)")  # fmt: skip
+    for role, expected in recorded.items():
+        if role not in ROLES:
+            return (f"{meta_name} records a member {role!r} that a policy set does not have "
+                    f"(accepted: {', '.join(ROLES)})")  # fmt: skip
+        path = sibling(stem, ROLES[role])
+        if not path.is_file():
+            if role in optional:
+                continue
+            return f"its {role} {path.name} is missing"
+        actual = file_digest(path)
+        if not isinstance(expected, Mapping) or any(
+            actual[key] != expected.get(key) for key in ("bytes", "sha256")
+        ):
+            return (f"its {role} {path.name} is not the file {meta_name} records (size or "
+                    "SHA-256 differs: a set mixed from different saves, a save that did not "
+                    "finish, or a file changed afterwards)")  # fmt: skip
+    return None
+
+
 def set_problem(path: str | Path) -> str | None:
     """Why the set of ``path`` (its ``.zip`` or stem) is not one complete save, or None.
 
-    Checked: the ``.json`` is a readable JSON object and every file whose size and SHA-256 it
-    records (``files``; of ``replay_buffer``, those present: old buffers are pruned) is there
-    with that size and digest. A set without recorded digests (older or hand-made) is only
-    checked for its ``.zip``.
+    Checked: the ``.json`` is a readable JSON object and every member whose size and SHA-256 it
+    records by role (:func:`recorded_digests`) is there with that size and digest (a replay
+    buffer only when present: old buffers are pruned), whatever the set's file names are
+    (:func:`digests_problem`). A set without recorded digests (hand-made) is only checked for
+    its ``.zip``.
     """
     meta_path, zip_path = sibling(path, ".json"), sibling(path, ".zip")
     if not meta_path.is_file():
@@ -105,15 +182,10 @@ def set_problem(path: str | Path) -> str | None:
         return f"{meta_path.name} is not readable JSON ({type(exc).__name__}: {exc})"
     if not isinstance(meta, dict):
         return f"{meta_path.name} is not a JSON object"
-    recorded = meta.get("files")
-    if not isinstance(recorded, dict):
+    recorded = recorded_digests(meta)
+    if recorded is None:
         return None if zip_path.is_file() else f"no {zip_path.name}"
-    problem = digest_mismatch(zip_path.parent, recorded)
-    buffer = meta.get("replay_buffer")
-    if problem is None and isinstance(buffer, dict):
-        present = {n: d for n, d in buffer.items() if (zip_path.parent / n).is_file()}
-        problem = digest_mismatch(zip_path.parent, present)
-    return problem
+    return digests_problem(path, recorded)
 
 
 def readable_stem(path: str | Path) -> Path:

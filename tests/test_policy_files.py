@@ -113,7 +113,7 @@ def generation_of(stem: Path) -> str:
     meta = json.loads(sibling(stem, ".json").read_text())
     tag = meta["generation"]
     expected = {".zip": f"model {tag} " * 500, ".vecnormalize.pkl": f"statistics {tag}"}
-    if meta.get("replay_buffer"):
+    if "replay_buffer" in meta["digests"] or sibling(stem, ".replay_buffer.pkl").is_file():
         expected[".replay_buffer.pkl"] = f"buffer {tag} " * 2000
     for suffix, text in expected.items():
         assert sibling(stem, suffix).read_text() == text, (stem, suffix)
@@ -196,14 +196,21 @@ def test_sibling_keeps_every_dot_of_the_stem():
 
 
 # ------------------------------------------------------------------- real SB3 policies
-def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0) -> object:
-    """An untrained PPO saved as train.py saves one, trained with ``env_kwargs``."""
+def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0,
+               env_steps: int = 0) -> object:  # fmt: skip
+    """An untrained PPO saved as train.py saves one, trained with ``env_kwargs``; its
+    normalisation statistics updated by ``env_steps`` steps of random actions (seeded by
+    ``timesteps``)."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
     from capsule_env.agents.training import make_env
     from stable_baselines3 import PPO
 
     venv = make_env(2, 0, env_kwargs, {"norm_obs": True, "norm_reward": True})
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=timesteps, device="cpu")
+    venv.reset()
+    rng = np.random.default_rng(timesteps)
+    for _ in range(env_steps):
+        venv.step(rng.uniform(-1.0, 1.0, size=(2, 1)).astype(np.float32))
     model.num_timesteps = timesteps
     meta = {"algo": "ppo", "name": name, "env_kwargs": env_kwargs, "num_timesteps": timesteps,
             "num_envs": 2, "train_env_kwargs": env_kwargs}  # fmt: skip
@@ -284,3 +291,111 @@ def test_shipped_policies_still_load():
     for path in shipped_policy_paths():  # saved before the commit folders: plain files
         assert set_problem(path) is None and readable_stem(path) == sibling(path, "")
         assert SB3Policy.load(path).obs_rms is not None
+
+
+# ------------------------------------------------------------- sets bound by content
+def _copy_set(sources: dict[str, Path], stem: Path) -> Path:
+    """The files ``sources`` (``{suffix: file}``) copied as the set ``stem``; its ``.zip``."""
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    for suffix, source in sources.items():
+        sibling(stem, suffix).write_bytes(source.read_bytes())
+    return sibling(stem, ".zip")
+
+
+def _two_runs(tmp_path: Path) -> tuple[Path, Path]:
+    """``best_model`` of two tiny runs (other weights, other statistics), as train.py saves."""
+    runs = tmp_path / "run-a" / "best_model", tmp_path / "run-b" / "best_model"
+    for k, stem in enumerate(runs):
+        _save_tiny(stem, POLICY_ENV, f"run-{'ab'[k]}", timesteps=k + 1, env_steps=5 + k)
+    for suffix in (".zip", ".vecnormalize.pkl"):  # the runs' files differ: a mix is a mix
+        assert sibling(runs[0], suffix).read_bytes() != sibling(runs[1], suffix).read_bytes()
+    return runs
+
+
+def _members(run: Path) -> dict[str, Path]:
+    return {s: sibling(run, s) for s in (".zip", ".vecnormalize.pkl", ".json")}
+
+
+@pytest.mark.rl
+def test_a_renamed_intact_set_loads_and_acts_as_the_original(tmp_path):
+    from capsule_env.agents.sb3_policy import SB3Policy
+
+    run_a, _ = _two_runs(tmp_path)
+    original = SB3Policy.load(sibling(run_a, ".zip"))
+    backup = _copy_set(_members(run_a), tmp_path / "backup" / "a.best.2026")
+    renamed = _copy_set(_members(run_a), run_a.parent / "best_model_old")  # next to the set
+    obs = np.random.default_rng(0).normal(size=(16, original.obs_rms.mean.shape[0]))
+    for path in (backup, renamed):
+        assert set_problem(path) is None, path
+        policy = SB3Policy.load(path)
+        assert policy.name == "run-a"
+        np.testing.assert_array_equal(policy.predict(obs)[0], original.predict(obs)[0])
+        np.testing.assert_array_equal(policy.obs_rms.var, original.obs_rms.var)
+        assert find_checkpoint(str(path), tmp_path)[0] == path  # --resume from a copy
+    # a checkpoint copied elsewhere under its own name resumes too
+    ckpt = _copy_set(_members(run_a), tmp_path / "elsewhere" / "ckpt_000000000001")
+    assert checkpoint_problem(ckpt) is None
+    # a member its metadata does not record (another save's replay buffer) is not the set's
+    sibling(backup, ".replay_buffer.pkl").write_bytes(b"another save's buffer")
+    assert "replay_buffer a.best.2026.replay_buffer.pkl" in (set_problem(backup) or "")
+
+
+@pytest.mark.rl
+@pytest.mark.parametrize(
+    ("mix", "role", "wrong"),
+    [({".zip": 0, ".vecnormalize.pkl": 1, ".json": 1}, "model", ".zip"),
+     ({".zip": 0, ".vecnormalize.pkl": 1, ".json": 0}, "normaliser", ".vecnormalize.pkl"),
+     ({".zip": 1, ".vecnormalize.pkl": 1, ".json": 0}, "model", ".zip")],
+    ids=["model-of-a", "statistics-of-b", "metadata-of-a"],
+)  # fmt: skip
+def test_a_set_mixed_from_two_runs_is_refused_naming_the_role(tmp_path, capsys, mix, role, wrong):
+    from capsule_env.agents.sb3_policy import SB3Policy
+
+    from capsule_env import evaluate
+
+    runs = _two_runs(tmp_path)
+    path = _copy_set({s: sibling(runs[k], s) for s, k in mix.items()}, tmp_path / "mix" / "p")
+    json_name, wrong_name = "p.json", sibling(path, wrong).name
+    with pytest.raises(ValueError, match=rf"{role} {wrong_name}\b.*{json_name}") as info:
+        SB3Policy.load(path)
+    assert len(str(info.value).splitlines()) == 1
+    assert f"{role} {wrong_name}" in (set_problem(path) or "")
+    assert f"{role} {wrong_name}" in (checkpoint_problem(path) or "")
+    argv = ["--episodes", "1", "--episode-length", "1", "--setting", "hils", "--controllers",
+            "passive", "--no-shipped-policy", "--policy", str(path)]  # fmt: skip
+    with pytest.raises(SystemExit) as exited:
+        evaluate.main(argv)
+    message = str(exited.value.code)
+    assert message.startswith("evaluate.py: error:") and f"{role} {wrong_name}" in message
+    assert "\n" not in message and "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.rl
+def test_metadata_of_the_earlier_format_is_checked_by_role_too(tmp_path):
+    """Metadata written before the digests by role (``files``: by the file names of the save)
+    still binds its set: each recorded file's role is its name's suffix."""
+    from capsule_env.agents.sb3_policy import SB3Policy
+
+    from capsule_env.safe_io import file_digest
+
+    runs = _two_runs(tmp_path)
+    for run in runs:
+        buffer = sibling(run, ".replay_buffer.pkl")
+        buffer.write_bytes(f"buffer of {run.parent.name}".encode())
+        meta = json.loads(sibling(run, ".json").read_text())
+        meta.pop("digests")
+        meta["files"] = {sibling(run, s).name: file_digest(sibling(run, s))
+                         for s in (".zip", ".vecnormalize.pkl")}  # fmt: skip
+        meta["replay_buffer"] = {buffer.name: file_digest(buffer)}
+        sibling(run, ".json").write_text(json.dumps(meta))
+    members = dict(
+        _members(runs[0]), **{".replay_buffer.pkl": sibling(runs[0], ".replay_buffer.pkl")}
+    )
+    renamed = _copy_set(members, tmp_path / "backup" / "old-format")
+    assert set_problem(renamed) is None and SB3Policy.load(renamed).name == "run-a"
+    sibling(renamed, ".replay_buffer.pkl").write_bytes(b"buffer of run-b")
+    assert "replay_buffer old-format.replay_buffer.pkl" in (set_problem(renamed) or "")
+    mixed = dict(_members(runs[1]), **{".zip": sibling(runs[0], ".zip")})
+    path = _copy_set(mixed, tmp_path / "mix" / "old-format")
+    with pytest.raises(ValueError, match=r"model old-format\.zip"):
+        SB3Policy.load(path)

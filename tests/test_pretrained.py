@@ -43,15 +43,15 @@ def test_shipped_policy_files_exist_and_are_small():
 
 
 @pytest.mark.parametrize("path", SHIPPED)
-def test_shipped_json_records_the_files_sizes_and_sha256(path):
+def test_shipped_json_records_the_sizes_and_sha256_by_role(path):
     zip_path, pkl_path, json_path = files_of(path)
-    recorded = json.loads(json_path.read_text()).get("files")
+    recorded = json.loads(json_path.read_text()).get("digests")
     assert recorded is not None, f"{json_path.name} records no file sizes or SHA-256"
-    assert set(recorded) == {zip_path.name, pkl_path.name}
-    for name, digest in recorded.items():
-        data = (zip_path.parent / name).read_bytes()
-        assert digest["bytes"] == len(data), name
-        assert digest["sha256"] == hashlib.sha256(data).hexdigest(), name
+    assert set(recorded) == {"model", "normaliser"}  # by role: the set binds by content
+    for role, file in (("model", zip_path), ("normaliser", pkl_path)):
+        data = file.read_bytes()
+        assert recorded[role]["bytes"] == len(data), role
+        assert recorded[role]["sha256"] == hashlib.sha256(data).hexdigest(), role
 
 
 @pytest.mark.rl
@@ -131,7 +131,7 @@ def test_ship_policy_copies_the_set_under_a_new_name(tmp_path):
     assert shipped == tmp_path / "copy-of-it.zip"
     meta = json.loads((tmp_path / "copy-of-it.json").read_text())
     assert meta["name"] == "copy-of-it" and meta["selection"] == "a test"
-    assert set(meta["files"]) == {"copy-of-it.zip", "copy-of-it.vecnormalize.pkl"}
+    assert set(meta["digests"]) == {"model", "normaliser"} and "files" not in meta
     assert shipped.read_bytes() == Path(SHIPPED[0]).read_bytes()
     assert SB3Policy.load(shipped).name == "copy-of-it"
     with pytest.raises(ValueError, match="name must be a plain file stem"):
