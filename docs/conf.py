@@ -55,7 +55,9 @@ napoleon_use_ivar = True
 
 html_theme = "furo"
 html_title = f"capsule-env {release}"
-html_static_path: list[str] = []
+# docs/_static/custom.css: wide tables fit (smaller text, wrapping cells) or scroll visibly.
+html_static_path = ["_static"]
+html_css_files = ["custom.css"]
 
 
 # ---- Gymnasium-style env docstrings ---------------------------------------------------------
