@@ -169,22 +169,28 @@ def sync_page(page: Path, results_json: Path) -> bool:
 # ----------------------------------------------------------------------------- figures
 def figures(data: dict, folder: Path) -> list[Path]:
     """``envelope_speed.png`` (when the JSON has the speed sweep) and ``envelope_span_psd.png``
-    (when it has the PSDs at 810 km/h without and with 30 m continuous spans) in ``folder``."""
-    from capsule_env.plots import _pyplot
+    (when it has the PSDs at 810 km/h without and with 30 m continuous spans) in ``folder``,
+    at the docs' width and fonts (:data:`capsule_env.plots.DOC_STYLE`)."""
+    from capsule_env.plots import DOC_STYLE, _pyplot
 
     plt, written = _pyplot(), []
     folder = Path(folder)
-    if _points(data, "speed"):
-        written.append(_speed_figure(plt, data, folder / "envelope_speed.png"))
-    pairs = _psd_pairs(data)
-    if pairs:
-        written.append(_psd_figure(plt, pairs, folder / "envelope_span_psd.png"))
+    with plt.rc_context(DOC_STYLE):
+        if _points(data, "speed"):
+            written.append(_speed_figure(plt, data, folder / "envelope_speed.png"))
+        pairs = _psd_pairs(data)
+        if pairs:
+            written.append(_psd_figure(plt, pairs, folder / "envelope_span_psd.png"))
     return written
 
 
 def _speed_figure(plt: Any, data: dict, path: Path) -> Path:
-    fig, (ax, rel) = plt.subplots(1, 2, figsize=(12, 4.8))
+    from capsule_env.plots import DOC_WIDTH_IN
+
     names = _ran_anywhere(_points(data, "speed"), [])
+    rows = -(-len(names) // 4)
+    fig, (ax, rel) = plt.subplots(1, 2, figsize=(DOC_WIDTH_IN, 3.7 + 0.2 * rows),
+                                  layout="constrained")  # fmt: skip
     colours = plt.get_cmap("tab10")
     for k, name in enumerate(names):
         for lev, style in (("eds", "-"), ("fixed", "--")):
@@ -202,13 +208,13 @@ def _speed_figure(plt: Any, data: dict, path: Path) -> Path:
             ax.plot(xs, ys, label=label, **kw)
             rel.plot(xs, rs, **kw)
     ax.set(xlabel="speed (km/h)", ylabel="Wk-weighted RMS body acceleration (m/s²)",
-           title="Wk vs speed (EDS solid, fixed levitation dashed)")  # fmt: skip
+           title="Wk against speed")  # fmt: skip
     rel.set(xlabel="speed (km/h)", ylabel="Wk / Wk of the passive damper",
-            title="relative to the passive damper at the same point")  # fmt: skip
+            title="relative to the passive damper")  # fmt: skip
     for a in (ax, rel):
         a.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=4)
+    fig.suptitle("The speed sweep: EDS levitation solid, fixed levitation dashed")
     return _save(plt, fig, path)
 
 
@@ -232,12 +238,16 @@ def _psd_pairs(data: dict) -> list[tuple[dict, dict, str]]:
 
 
 def _psd_figure(plt: Any, pairs: list[tuple[dict, dict, str]], path: Path) -> Path:
+    from capsule_env.plots import DOC_WIDTH_IN
+
     names = [n for n in PSD_CONTROLLERS if all(n in p[1]["controllers"] for p in pairs)]
-    fig, axes = plt.subplots(len(pairs), len(names), figsize=(6 * len(names), 4 * len(pairs)),
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(len(pairs), len(names), figsize=(DOC_WIDTH_IN, 0.8 + 3.1 * len(pairs)),
+                             squeeze=False, layout="constrained")  # fmt: skip
+    lines = set()
     for row, (base, spans, title) in zip(axes, pairs):
         span_m = spans["env_kwargs"]["span_params"]["span_m"]
         f_span = spans["env_kwargs"]["speed_kmh"] / 3.6 / span_m
+        lines.add(f"v/L = {f_span:.2f} Hz")
         for ax, name in zip(row, names):
             for p, label, colour in ((base, "no spans", "tab:blue"),
                                      (spans, f"{span_m:g} m spans", "tab:red")):  # fmt: skip
@@ -247,11 +257,13 @@ def _psd_figure(plt: Any, pairs: list[tuple[dict, dict, str]], path: Path) -> Pa
             top = max(base["controllers"][name]["psd_frequency_hz"])
             for k in range(1, int(top // f_span) + 1):
                 ax.axvline(k * f_span, color="grey", ls=":", lw=1)
-            ax.set(xlabel="frequency (Hz)", ylabel="body acceleration PSD ((m/s²)²/Hz)",
-                   title=f"{name}, {title}\nEDS 810 km/h; dotted: k v/L, v/L = {f_span:.2f} Hz")  # fmt: skip
+            ax.set(xlabel="frequency (Hz)", ylabel="body acc. PSD ((m/s²)²/Hz)",
+                   title=f"{name}\n{title}")  # fmt: skip
             ax.grid(alpha=0.3, which="both")
-            ax.legend(fontsize=8)
-    fig.tight_layout()
+            ax.legend()
+    fig.suptitle(
+        f"EDS, 810 km/h; dotted: the span frequency's multiples k v/L, {', '.join(sorted(lines))}"
+    )
     return _save(plt, fig, path)
 
 

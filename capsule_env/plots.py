@@ -18,6 +18,23 @@ from capsule_env.metrics import DEFAULT_BANDS_HZ, amplitude_spectrum
 #: Controllers drawn in the paper's figures (others are drawn if these are absent).
 FIGURE_CONTROLLERS = ("passive", "skyhook-csdc", "skyhook-biexp")
 
+#: The width (inches) of the figures shown in the docs. furo shows an image at most 736 px
+#: wide (its content column in a 1280 px window), so an 8-inch figure is shown at 92 px per
+#: inch and :data:`DOC_STYLE`'s smallest font (8 pt) is 10 px tall there
+#: (``tests/test_figures_legible.py`` checks every figure of the docs).
+DOC_WIDTH_IN = 8.0
+#: Font sizes (pt) of the docs' figures: nothing under 8 pt at :data:`DOC_WIDTH_IN`.
+DOC_STYLE = {
+    "font.size": 9.0,
+    "axes.titlesize": 10.0,
+    "axes.labelsize": 9.0,
+    "xtick.labelsize": 8.5,
+    "ytick.labelsize": 8.5,
+    "legend.fontsize": 8.0,
+    "legend.title_fontsize": 8.5,
+    "figure.titlesize": 10.5,
+}
+
 
 def _pyplot(force: bool = True) -> Any:
     """``matplotlib.pyplot`` on the Agg backend (``force``: as :func:`matplotlib.use`)."""
@@ -30,70 +47,99 @@ def _pyplot(force: bool = True) -> Any:
 
 
 def evaluation_figures(rollouts: dict[tuple[str, str], Any], directory: Path) -> list[Path]:
-    """Write the figures for every setting in ``rollouts`` (keyed ``(setting, controller)``);
-    returns the written paths."""
+    """Write the figures for every setting in ``rollouts`` (keyed ``(setting, controller)``):
+    ``{setting}_time_history.png``, ``{setting}_spectra.png`` and
+    ``{setting}_force_velocity.png``; returns the written paths."""
     plt = _pyplot()
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     written = []
-    settings = sorted({s for s, _ in rollouts})
-    for setting in settings:
+    for setting in sorted({s for s, _ in rollouts}):
         names = [n for (s, n) in rollouts if s == setting]
         shown = [n for n in FIGURE_CONTROLLERS if n in names] or names[:3]
-        extra = [n for n in names if n not in shown and n.startswith("ppo")]
-        shown += extra
-        # Figure 10: time histories (episode 0)
-        fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, constrained_layout=True)
-        for name in shown:
-            r = rollouts[(setting, name)]
-            t = np.arange(r.signals["car_body_displacement_m"].shape[1]) * r.dt_s
-            axes[0].plot(t, 1e3 * r.signals["car_body_displacement_m"][0], label=name, lw=1)
-            axes[1].plot(t, 1e3 * r.signals["bogie_displacement_m"][0], label=name, lw=1)
-        axes[0].set_ylabel("car body displacement (mm)")
-        axes[1].set_ylabel("bogie displacement (mm)")
-        axes[1].set_xlabel("time (s)")
-        axes[0].legend(loc="upper right", fontsize=8)
-        fig.suptitle(f"{setting}: time histories, first guideway seed (paper Fig. 10/14)")
-        written.append(_save(fig, directory / f"{setting}_time_history.png", plt))
-        # Figure 11: amplitude spectra (mean over episodes) with the mode bands
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-        for name in shown:
-            r = rollouts[(setting, name)]
-            for ax, key in zip(
-                axes, ("car_body_displacement_m", "bogie_displacement_m"), strict=True
-            ):
-                f, a = amplitude_spectrum(r.signals[key], r.dt_s)
-                ax.plot(f, 1e3 * a.mean(axis=0), label=name, lw=1)
-        for ax, title in zip(axes, ("car body", "bogie"), strict=True):
-            for lo, hi in DEFAULT_BANDS_HZ.values():
-                ax.axvspan(lo, hi, color="0.9", zorder=0)
-            ax.set_xlim(0, 10)
-            ax.set_xlabel("frequency (Hz)")
-            ax.set_ylabel("amplitude (mm)")
-            ax.set_title(f"{title} displacement spectrum (shaded: mode bands)")
-        axes[0].legend(fontsize=8)
-        fig.suptitle(f"{setting}: frequency domain (paper Fig. 11/15)")
-        written.append(_save(fig, directory / f"{setting}_spectra.png", plt))
-        # Damper force-velocity loops under control
-        controlled = [n for n in shown if n != "passive"]
-        fig, axes = plt.subplots(
-            1, max(len(controlled), 1), figsize=(4.5 * max(len(controlled), 1), 4),
-            constrained_layout=True, squeeze=False,
-        )  # fmt: skip
-        for ax, name in zip(axes[0], controlled, strict=False):
-            r = rollouts[(setting, name)]
-            ax.plot(r.signals["stroke_rate_m_s"][0], 1e-3 * r.signals["damper_force_n"][0],
-                    ".", ms=1.5, label="delivered")  # fmt: skip
-            if r.action_mode == "force":
-                ax.plot(r.signals["stroke_rate_m_s"][0], 1e-3 * r.signals["desired_force_n"][0],
-                        ".", ms=1.0, alpha=0.5, label="requested")  # fmt: skip
-            ax.set_title(name)
-            ax.set_xlabel("stroke rate (m/s)")
-            ax.set_ylabel("damper force (kN)")
-            ax.legend(fontsize=8, markerscale=6)
-        fig.suptitle(f"{setting}: damper force vs stroke rate under control")
-        written.append(_save(fig, directory / f"{setting}_force_velocity.png", plt))
+        shown += [n for n in names if n not in shown and n.startswith("ppo")]
+        runs = {name: rollouts[(setting, name)] for name in shown}
+        with plt.rc_context(DOC_STYLE):
+            figures = {
+                "time_history": _time_history_figure(plt, setting, runs),
+                "spectra": _spectra_figure(plt, setting, runs),
+                "force_velocity": _force_velocity_figure(plt, setting, runs),
+            }
+        for kind, fig in figures.items():
+            written.append(_save(fig, directory / f"{setting}_{kind}.png", plt))
     return written
+
+
+def _time_history_figure(plt: Any, setting: str, runs: dict[str, Any]) -> Any:
+    """The paper's Figure 10: body and bogie displacements of the first episode."""
+    fig, axes = plt.subplots(2, 1, figsize=(DOC_WIDTH_IN, 5.6), sharex=True,
+                             layout="constrained")  # fmt: skip
+    for name, r in runs.items():
+        t = np.arange(r.signals["car_body_displacement_m"].shape[1]) * r.dt_s
+        axes[0].plot(t, 1e3 * r.signals["car_body_displacement_m"][0], label=name, lw=1)
+        axes[1].plot(t, 1e3 * r.signals["bogie_displacement_m"][0], label=name, lw=1)
+    axes[0].set_ylabel("car body displacement (mm)")
+    axes[1].set_ylabel("bogie displacement (mm)")
+    axes[1].set_xlabel("time (s)")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center",
+               ncols=min(len(runs), 3))  # fmt: skip
+    fig.suptitle(f"{setting}: time histories, first guideway seed (paper Fig. 10/14)")
+    return fig
+
+
+def _spectra_figure(plt: Any, setting: str, runs: dict[str, Any]) -> Any:
+    """The paper's Figure 11: amplitude spectra (mean over episodes) with the mode bands."""
+    fig, axes = plt.subplots(1, 2, figsize=(DOC_WIDTH_IN, 3.6), layout="constrained")
+    for name, r in runs.items():
+        for ax, key in zip(axes, ("car_body_displacement_m", "bogie_displacement_m"), strict=True):
+            f, a = amplitude_spectrum(r.signals[key], r.dt_s)
+            ax.plot(f, 1e3 * a.mean(axis=0), label=name, lw=1)
+    for ax, title in zip(axes, ("car body", "bogie"), strict=True):
+        for lo, hi in DEFAULT_BANDS_HZ.values():
+            ax.axvspan(lo, hi, color="0.9", zorder=0)
+        ax.set_xlim(0, 10)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("amplitude (mm)")
+        ax.set_title(f"{title} displacement spectrum")
+    axes[0].legend()
+    fig.suptitle(f"{setting}: frequency domain, shaded: mode bands (paper Fig. 11/15)")
+    return fig
+
+
+def _force_velocity_figure(plt: Any, setting: str, runs: dict[str, Any]) -> Any:
+    """Damper force against stroke rate (first episode) of each controller but the passive
+    one, three panels a row; one legend, in the last row's spare panel or below."""
+    from matplotlib.ticker import MaxNLocator
+
+    controlled = [n for n in runs if n != "passive"] or list(runs)
+    cols = min(len(controlled), 3)
+    rows = -(-len(controlled) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(DOC_WIDTH_IN, 0.6 + 2.6 * rows),
+                             layout="constrained", squeeze=False)  # fmt: skip
+    spare = list(axes.flat[len(controlled) :])  # the first holds the legend, if any
+    for ax in spare[1:]:
+        ax.remove()
+    legend: dict[str, Any] = {}
+    for ax, name in zip(axes.flat, controlled):
+        sig = runs[name].signals
+        (dot,) = ax.plot(sig["stroke_rate_m_s"][0], 1e-3 * sig["damper_force_n"][0], ".", ms=1.5)
+        legend.setdefault("delivered", dot)
+        if runs[name].action_mode == "force":
+            (dot,) = ax.plot(sig["stroke_rate_m_s"][0], 1e-3 * sig["desired_force_n"][0], ".",
+                             ms=1.0, alpha=0.5)  # fmt: skip
+            legend.setdefault("requested", dot)
+        ax.set_title(name)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
+        ax.set_xlabel("stroke rate (m/s)")
+        ax.set_ylabel("damper force (kN)")
+    if spare:
+        spare[0].set_axis_off()
+        spare[0].legend(legend.values(), legend.keys(), loc="center", markerscale=8)
+    else:
+        fig.legend(legend.values(), legend.keys(), loc="outside lower center", ncols=2,
+                   markerscale=8)  # fmt: skip
+    fig.suptitle(f"{setting}: damper force vs stroke rate under control (first episode)")
+    return fig
 
 
 def _save(fig: Any, path: Path, plt: Any) -> Path:
@@ -309,75 +355,90 @@ def _family(name: str) -> str:
     return base
 
 
-def _sweep_label(name: str, law: dict[str, Any]) -> str:
-    """A sweep's legend entry: the law and its signals in words, the gain swept and its range."""
-    words, _ = _FAMILIES.get(_family(name), (name, "tab:gray"))
-    signals = "measured" if law["observation"] == "measured" else "ideal sensors"
-    gain, unit = _GAIN_WORDS.get(law["swept_gain"], (law["swept_gain"], ""))
-    lo, hi = min(law["values"]), max(law["values"])
-    return f"{words}, {signals} ({name}):\n  {gain} {lo:.3g} to {hi:.3g} {unit}".rstrip()
+def _family_labels(laws: dict[str, dict]) -> dict[str, str]:
+    """Each law family's legend entry (family key -> text): the family in words and its laws
+    (``name(-meas)``: with ideal sensors and measured), then the gain swept and its range."""
+    members: dict[str, list[str]] = {}
+    for name in laws:
+        members.setdefault(_family(name), []).append(name)
+    labels = {}
+    for family, names in members.items():
+        words, _ = _FAMILIES.get(family, (family, "tab:gray"))
+        shown = [n for n in names if not (n.endswith("-meas") and n[:-5] in names)]
+        shown = [f"{n}(-meas)" if f"{n}-meas" in names else n for n in shown]
+        gains = sorted({laws[n]["swept_gain"] for n in names})
+        gain, unit = (
+            _GAIN_WORDS.get(gains[0], (gains[0], "")) if len(gains) == 1 else (", ".join(gains), "")
+        )
+        values = [v for n in names for v in laws[n]["values"]]
+        swept = f"{gain} {min(values):.3g} to {max(values):.3g} {unit}".rstrip()
+        labels[family] = f"{words}: {', '.join(shown)}\n  {swept}"
+    return labels
 
 
 def pareto_figure(data: dict[str, Any], path: Path) -> Path:
     """The comfort trade-offs of ``experiments/pareto.py``'s ``data``: Wk-weighted RMS body
-    acceleration against the body's first-mode VRE (left, with a zoom on the tuned laws and
-    the policies) and against the worst ``max |stroke|`` (right). Each law's gain sweep is a
-    curve (measured: solid, ideal sensors: dashed; a circle at the swept gain's lowest value)
-    with its tuned gains starred; open-loop references and learned policies are points, each
-    with its own marker in the legend (no text on the axes, so nothing overlaps)."""
+    acceleration against the body's first-mode VRE (top left; top right: a zoom on the tuned
+    laws and the policies) and against the worst ``max |stroke|`` (bottom left). Each law's
+    gain sweep is a curve (measured: solid, ideal sensors: dashed; a circle at the swept
+    gain's lowest value) with its tuned gains starred; open-loop references and learned
+    policies are points, each with its own marker. The points' legend is beside the stroke
+    panel, the laws' legend (one entry per family, by colour) below the panels: no text on the
+    axes, so nothing overlaps. :data:`DOC_WIDTH_IN` wide, in :data:`DOC_STYLE`."""
+    import textwrap
+
     plt = _pyplot()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(1, 2, figsize=(15, 6.4), constrained_layout=True)
-    panels = (("vre_body_mode1_pct", 1.0, "body first-mode VRE (%)   (higher: smaller peak)"),
-              ("max_stroke_m", 1e3, "worst max |stroke| over the episodes (mm)"))  # fmt: skip
-    top = 1.03 * max(max(law["wk_rms_body_acc_m_s2"]) for law in data["laws"].values())
-    handles: dict[str, Any] = {}
-    for ax, (key, scale, label) in zip(axes, panels, strict=True):
-        _draw_sweeps(ax, data["laws"], key, scale, handles)
-        _draw_points(ax, data["points"], key, scale, top, handles)
-        ax.set_ylim(top=top)
-        ax.set_xlabel(label)
-        ax.set_ylabel("ISO 2631-1 Wk-weighted RMS body acceleration (m/s²)   (lower: better)")
-        ax.grid(alpha=0.3)
-    if data.get("stroke_limit_m"):
-        x_mm = 1e3 * data["stroke_limit_m"]
-        axes[1].axvline(x_mm, color="0.3", ls=":", lw=1)
-        axes[1].text(x_mm, axes[1].get_ylim()[0], "tuning's stroke limit (training bank) ",
-                     rotation=90, va="bottom", ha="right", fontsize=8, color="0.3")  # fmt: skip
-    _zoom(axes[0], data, handles)
-    _pareto_legend(axes[1], handles)
-    seeds = data["seeds"]
-    fig.suptitle(
-        f"{data['setting']}: each tuned law with one gain swept over its search range, the others "
-        f"at their tuned values; EVALUATION bank (guideway_seed {data['guideway_seed']}, seeds "
-        f"{seeds[0]}..{seeds[-1]}), for this figure only.\nStars: the gains tuned on the TRAINING "
-        "bank (guideway_seed 0). Solid: measured signals; dashed: ideal sensors; open circle: "
-        "the swept gain's lowest value.",
-        fontsize=10,
-    )
+    with plt.rc_context(DOC_STYLE):
+        fig, axes = plt.subplot_mosaic([["vre", "zoom"], ["stroke", "points"]],
+                                       figsize=(DOC_WIDTH_IN, 9.6), layout="constrained")  # fmt: skip
+        top = 1.03 * max(max(law["wk_rms_body_acc_m_s2"]) for law in data["laws"].values())
+        handles: dict[str, Any] = {}
+        panels = (("vre", "vre_body_mode1_pct", 1.0, "body first-mode VRE (%), higher: smaller peak"),
+                  ("stroke", "max_stroke_m", 1e3, "worst max |stroke| over the episodes (mm)"))  # fmt: skip
+        for name, key, scale, label in panels:
+            ax = axes[name]
+            _draw_sweeps(ax, data["laws"], key, scale)
+            _draw_points(ax, data["points"], key, scale, top, handles)
+            ax.set_ylim(top=top)
+            ax.set_xlabel(label)
+            ax.set_ylabel("ISO 2631-1 Wk-weighted RMS body\nacceleration (m/s²), lower: better")
+            ax.grid(alpha=0.3)
+        if data.get("stroke_limit_m"):
+            x_mm = 1e3 * data["stroke_limit_m"]
+            axes["stroke"].axvline(x_mm, color="0.3", ls=":", lw=1)
+            axes["stroke"].text(x_mm, top, "tuning's stroke limit ", rotation=90, va="top",
+                                ha="right", color="0.3")  # fmt: skip
+        _zoom(axes["vre"], axes["zoom"], data)
+        _pareto_legends(fig, axes["points"], data["laws"], handles)
+        seeds = data["seeds"]
+        fig.suptitle(textwrap.fill(
+            f"{data['setting']}: each tuned law with one gain swept over its search range, the "
+            f"others at their tuned values; EVALUATION bank (guideway_seed "
+            f"{data['guideway_seed']}, seeds {seeds[0]}..{seeds[-1]}), for this figure only. "
+            "Stars: the gains tuned on the TRAINING bank (guideway_seed 0); the stroke limit of "
+            "that tuning dotted.", 100))  # fmt: skip
     return _save(fig, path, plt)
 
 
-def _draw_sweeps(ax: Any, laws: dict[str, dict], key: str, scale: float,
-                 handles: dict[str, Any]) -> None:  # fmt: skip
+def _draw_sweeps(ax: Any, laws: dict[str, dict], key: str, scale: float) -> None:
     """Each law's sweep (its tuned point starred, its lowest gain circled) against ``key``."""
     for name, law in laws.items():
         _, colour = _FAMILIES.get(_family(name), (name, "tab:gray"))
         x = scale * np.asarray(law[key], dtype=float)
         y = np.asarray(law["wk_rms_body_acc_m_s2"])
         style = "-" if law["observation"] == "measured" else "--"
-        (line,) = ax.plot(x, y, style, color=colour, lw=1.5, marker=".", ms=4)
-        handles.setdefault(_sweep_label(name, law), line)
+        ax.plot(x, y, style, color=colour, lw=1.5, marker=".", ms=4)
         low = int(np.argmin(law["values"]))
         ax.plot(x[low], y[low], "o", color=colour, mfc="white", ms=6)
         k = law["tuned_index"]
-        ax.plot(x[k], y[k], "*", color=colour, ms=15, mec="black", mew=0.8)
+        ax.plot(x[k], y[k], "*", color=colour, ms=13, mec="black", mew=0.8)
 
 
-def _zoom(ax: Any, data: dict[str, Any], handles: dict[str, Any]) -> None:
-    """An inset (upper left of the VRE panel, where no curve runs) magnifying the tuned gains
-    and the learned policies: every star and policy below the passive damper's Wk."""
+def _zoom(ax: Any, zoom: Any, data: dict[str, Any]) -> None:
+    """``zoom`` magnifies the tuned gains and the learned policies of the VRE panel ``ax``
+    (every star and policy below the passive damper's Wk), its box drawn on ``ax``."""
     wk_passive = data["points"].get("passive", {}).get("wk_rms_body_acc_m_s2", np.inf)
     xy = [
         (
@@ -390,17 +451,18 @@ def _zoom(ax: Any, data: dict[str, Any], handles: dict[str, Any]) -> None:
            for p in data["points"].values() if p["kind"] == "policy"]  # fmt: skip
     xy = np.array([(x, y) for x, y in xy if x is not None and y < wk_passive - 0.005])
     if len(xy) < 2:
+        zoom.remove()
         return
-    inset = ax.inset_axes([0.13, 0.53, 0.44, 0.42])
-    _draw_sweeps(inset, data["laws"], "vre_body_mode1_pct", 1.0, {})
-    _draw_points(inset, data["points"], "vre_body_mode1_pct", 1.0, np.inf, {})
+    _draw_sweeps(zoom, data["laws"], "vre_body_mode1_pct", 1.0)
+    _draw_points(zoom, data["points"], "vre_body_mode1_pct", 1.0, np.inf, {})
     (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
-    inset.set_xlim(x0 - 0.08 * (x1 - x0), x1 + 0.08 * (x1 - x0))
-    inset.set_ylim(y0 - 0.1 * (y1 - y0), y1 + 0.1 * (y1 - y0))
-    inset.tick_params(labelsize=7)
-    inset.grid(alpha=0.3)
-    inset.set_title("zoom: tuned gains and learned policies", fontsize=8)
-    ax.indicate_inset_zoom(inset, edgecolor="0.4")
+    zoom.set_xlim(x0 - 0.08 * (x1 - x0), x1 + 0.08 * (x1 - x0))
+    zoom.set_ylim(y0 - 0.1 * (y1 - y0), y1 + 0.1 * (y1 - y0))
+    zoom.grid(alpha=0.3)
+    zoom.set_title("zoom (grey box): tuned gains, policies")
+    zoom.set_xlabel("body first-mode VRE (%)")
+    (lo_x, hi_x), (lo_y, hi_y) = zoom.get_xlim(), zoom.get_ylim()
+    ax.indicate_inset((lo_x, lo_y, hi_x - lo_x, hi_y - lo_y), edgecolor="0.4")
 
 
 def _draw_points(ax: Any, points: dict[str, dict], key: str, scale: float, top: float,
@@ -416,18 +478,36 @@ def _draw_points(ax: Any, points: dict[str, dict], key: str, scale: float, top: 
         x = scale * (point.get(key) or 0.0)  # passive: no VRE against itself
         colour = "black" if kind == "policy" else "0.45"
         (dot,) = ax.plot(x if y <= top else [], y if y <= top else [], marker, color=colour,
-                         mfc="none" if kind == "policy" else colour, mew=1.6, ms=10, ls="none")  # fmt: skip
+                         mfc="none" if kind == "policy" else colour, mew=1.6, ms=9, ls="none")  # fmt: skip
         reads = point["observation"].replace("full_state", "ideal sensors").replace("+", " + ")
-        label = f"{name}: {'learned policy' if kind == 'policy' else 'open loop'}, reads {reads}"
-        handles.setdefault(label + (f" (off scale: Wk {y:.3f})" if y > top else ""), dot)
+        label = (
+            f"{name}: learned policy,\n  reads {reads}"
+            if kind == "policy"
+            else f"{name}: open loop"
+        )
+        handles.setdefault(label + (f" (off scale:\n  Wk {y:.3f})" if y > top else ""), dot)
 
 
-def _pareto_legend(ax: Any, handles: dict[str, Any]) -> None:
-    """One legend right of the panels: the sweeps, then the points, then the markers' key."""
+def _pareto_legends(fig: Any, ax: Any, laws: dict[str, dict], handles: dict[str, Any]) -> None:
+    """The points and the markers' key in ``ax`` (its axes hidden); the law families by
+    colour below the panels."""
     from matplotlib.lines import Line2D
 
-    star = Line2D([], [], ls="none", marker="*", color="0.5", mec="black", ms=14)
-    low = Line2D([], [], ls="none", marker="o", color="0.5", mfc="white", ms=6)
-    entries = {**handles, "tuned gains (training bank)": star, "swept gain's lowest value": low}
-    ax.legend(entries.values(), entries.keys(), fontsize=8, loc="upper left",
-              bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, labelspacing=0.6)  # fmt: skip
+    key = {
+        "tuned gains (training bank)": Line2D(
+            [], [], ls="none", marker="*", color="0.5", mec="black", ms=12
+        ),  # fmt: skip
+        "swept gain's lowest value": Line2D(
+            [], [], ls="none", marker="o", color="0.5", mfc="white", ms=6
+        ),  # fmt: skip
+        "solid: measured signals": Line2D([], [], color="0.3", lw=1.5),
+        "dashed: ideal sensors": Line2D([], [], color="0.3", lw=1.5, ls="--"),
+    }
+    ax.set_axis_off()
+    entries = {**handles, **key}
+    ax.legend(entries.values(), entries.keys(), loc="center left", borderaxespad=0.0,
+              title="points and key", alignment="left")  # fmt: skip
+    families = _family_labels(laws)
+    lines = [Line2D([], [], color=_FAMILIES.get(f, (f, "tab:gray"))[1], lw=2.5) for f in families]
+    fig.legend(lines, families.values(), loc="outside lower center", ncols=2,
+               title="gain sweeps of the tuned laws (colour: the law)", alignment="left")  # fmt: skip

@@ -5,6 +5,8 @@
         --json docs/figures/learned_baselines.json --plot docs/figures/learned_baselines.png
     python experiments/learned_baselines.py --task CapsuleTrip-v0 \
         --group ppo='runs/tasks30/trip-ppo-seed*' --json trip.json
+    python experiments/learned_baselines.py --from-json docs/figures/learned_baselines.json \
+        --plot docs/figures/learned_baselines.png      # redraw the figure only (runs nothing)
 
 ``--task ID`` (default ``CapsuleRide-v0``) names the registered task the runs were trained on:
 its env options are the evaluation's (a run's own training options over them, as evaluate.py
@@ -46,6 +48,7 @@ import json
 import platform
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -263,38 +266,59 @@ def _plot(curves: dict, path: Path, law: str = LAW, law_level: float | None = No
     """The curves against env steps and wall-clock seconds (log axes: the groups' budgets span
     200k to 4M steps); ``law_level``: the law's normalised score on the validation bank
     (normalised curves), None for ``Wk(law)/Wk``. The y axis spans the IQMs (intervals below
-    them are cut at 0.1 under the lowest IQM: early evaluations of some runs are far below)."""
-    import matplotlib.pyplot as plt
+    them are cut at 0.1 under the lowest IQM: early evaluations of some runs are far below).
+    Groups past the tenth colour are dash-dotted; one legend below the panels (the docs' width
+    and fonts, :data:`capsule_env.plots.DOC_STYLE`)."""
     from matplotlib.ticker import NullFormatter
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
-    for group, c in curves.items():
-        for ax, x in zip(axes, (np.array(c["env_steps"]) / 1e6, c["mean_wall_s"]), strict=True):
-            ax.plot(x, c["iqm"], label=group)
-            ax.fill_between(x, c["low"], c["high"], alpha=0.25)
-    for ax, label in zip(axes, ("env steps (millions)", "wall-clock s (mean of the runs)"),
-                         strict=True):  # fmt: skip
-        ax.axhline(
-            1.0 if law_level is None else law_level,
-            color="k",
-            lw=0.8,
-            ls="--",
-            label=law if ax is axes[0] else None,
-        )
-        ax.set_xlabel(label)
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())  # decades labelled, not every minor tick
-        ax.grid(alpha=0.3, which="both")
-    values = [v for c in curves.values() for v in c["iqm"]]
-    if values:
-        reference = 1.0 if law_level is None else law_level
-        top = max([reference, *(v for c in curves.values() for v in c["high"])])
-        axes[0].set_ylim(min([reference, *values]) - 0.1, top + 0.05)
-    axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank" if law_level is None
-                       else "normalised score, validation bank")  # fmt: skip
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
+    from capsule_env.plots import DOC_STYLE, DOC_WIDTH_IN, _pyplot
+
+    plt = _pyplot()
+    with plt.rc_context(DOC_STYLE):
+        rows = -(-(len(curves) + 1) // 3)
+        fig, axes = plt.subplots(1, 2, figsize=(DOC_WIDTH_IN, 3.6 + 0.22 * rows), sharey=True,
+                                 layout="constrained")  # fmt: skip
+        for k, (group, c) in enumerate(curves.items()):
+            style = {"color": f"C{k % 10}", "ls": "-" if k < 10 else "-."}
+            for ax, x in zip(axes, (np.array(c["env_steps"]) / 1e6, c["mean_wall_s"]), strict=True):
+                ax.plot(x, c["iqm"], label=group, **style)
+                ax.fill_between(x, c["low"], c["high"], alpha=0.25, color=style["color"])
+        for ax, label in zip(axes, ("env steps (millions)", "wall-clock s (mean of the runs)"),
+                             strict=True):  # fmt: skip
+            ax.axhline(1.0 if law_level is None else law_level, color="k", lw=0.8, ls="--",
+                       label=law if ax is axes[0] else None)  # fmt: skip
+            ax.set_xlabel(label)
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())  # decades labelled, not every minor tick
+            ax.grid(alpha=0.3, which="both")
+        values = [v for c in curves.values() for v in c["iqm"]]
+        if values:
+            reference = 1.0 if law_level is None else law_level
+            top = max([reference, *(v for c in curves.values() for v in c["high"])])
+            axes[0].set_ylim(min([reference, *values]) - 0.1, top + 0.05)
+        axes[0].set_ylabel(f"Wk({law}) / Wk, validation bank" if law_level is None
+                           else "normalised score, validation bank")  # fmt: skip
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _redraw(source: Path, plot: Path | None) -> int:
+    """``--from-json``: the figure of a JSON this script wrote, to ``plot``; nothing is run."""
+    if plot is None:
+        print("learned_baselines.py: error: --from-json needs --plot PNG", file=sys.stderr)
+        return 2
+    try:
+        result = json.loads(source.read_text())
+        refs = result.get("validation_passive_oracle_wk_m_s2")
+        level = None if refs is None else float(normalised(result["law_validation_wk_m_s2"], refs))
+        curves, law = result["curves"], result["laws"][0]
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
+        print(f"learned_baselines.py: error: --from-json {source}: not a JSON this script "
+              f"wrote ({type(exc).__name__}: {exc})", file=sys.stderr)  # fmt: skip
+        return 2
+    _plot(curves, plot, law, level)
+    return 0
 
 
 def _summary(result: dict, laws: list[str]) -> list[str]:
@@ -333,22 +357,28 @@ def _groups(items: list[str]) -> dict[str, list[Path]] | None:
     return groups
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parse(argv: list[str] | None) -> tuple[Any, Any]:
+    """The command line's arguments, and the parser (for usage errors in one line)."""
     from capsule_env._cli import ArgumentParser  # usage errors in one line
 
     p = ArgumentParser(prog="learned_baselines.py", description=__doc__.split("\n\n")[0])
-    p.add_argument(
-        "--group",
-        action="append",
-        required=True,
-        metavar="NAME=GLOB",
-        help="an algorithm's run folders (repeatable)",
-    )
+    p.add_argument("--group", action="append", metavar="NAME=GLOB",
+                   help="an algorithm's run folders (repeatable; required unless --from-json)")  # fmt: skip
     p.add_argument("--task", default="CapsuleRide-v0", metavar="ID",
                    help=f"the runs' task, one of {', '.join(TASK_LAWS)} (default CapsuleRide-v0)")  # fmt: skip
-    p.add_argument("--json", type=Path, required=True)
+    p.add_argument("--json", type=Path, help="the result (required unless --from-json)")
     p.add_argument("--plot", type=Path)
-    args = p.parse_args(argv)
+    p.add_argument("--from-json", type=Path, metavar="PATH",
+                   help="redraw --plot from a --json this script wrote (runs nothing)")  # fmt: skip
+    return p.parse_args(argv), p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, p = _parse(argv)
+    if args.from_json is not None:
+        return _redraw(args.from_json, args.plot)
+    if not args.group or args.json is None:
+        p.error("--group and --json are required (or --from-json PATH --plot PNG)")
     if args.task not in TASK_LAWS:
         print(f"learned_baselines.py: error: --task must be one of {', '.join(TASK_LAWS)}, got "
               f"{args.task!r}", file=sys.stderr)  # fmt: skip

@@ -86,32 +86,35 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def draw(data: dict, out: Path) -> None:
-    """The two panels of ``data`` (:func:`collect`) with the reference lines, to ``out``."""
-    import matplotlib
+    """The two panels of ``data`` (:func:`collect`) with the reference lines, to ``out``; one
+    legend below them (the docs' width and fonts: :data:`capsule_env.plots.DOC_STYLE`)."""
+    import textwrap
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from capsule_env.plots import DOC_STYLE, DOC_WIDTH_IN, _pyplot
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
-    for name, rows in data["runs"].items():
-        steps = [r["num_timesteps"] / 1e6 for r in rows]
-        for ax, (key, _, _) in zip(axes, METRICS):
-            ax.plot(steps, [r[key] for r in rows], label=name)
-    evaluation = data["eval"]
-    draw_references(axes, evaluation.get("references", {}))
-    axes[0].set_ylabel("ISO 2631-1 Wk-weighted RMS body acceleration (m/s²)")
-    axes[1].set_ylabel("car-body first-mode VRE (%)")
-    for ax in axes:
-        ax.set_xlabel("environment steps (millions)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    seeds = evaluation.get("seeds", ["?", "?"])
-    fig.suptitle(
-        f"PPO in hils: evaluation during training, guideway bank "
-        f"{evaluation.get('guideway_seed', '?')}, seeds {seeds[0]}..{seeds[-1]} "
-        "(the validation bank: not the evaluation bank the results tables use)",
-        fontsize=10,
-    )
+    plt = _pyplot()
+    with plt.rc_context(DOC_STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(DOC_WIDTH_IN, 5.2), layout="constrained")
+        for name, rows in data["runs"].items():
+            steps = [r["num_timesteps"] / 1e6 for r in rows]
+            for ax, (key, _, _) in zip(axes, METRICS):
+                ax.plot(steps, [r[key] for r in rows], label=name)
+        evaluation = data["eval"]
+        draw_references(axes, evaluation.get("references", {}))
+        axes[0].set_ylabel("ISO 2631-1 Wk-weighted RMS\nbody acceleration (m/s²)")
+        axes[1].set_ylabel("car-body first-mode VRE (%)")
+        entries: dict[str, Any] = {}
+        for ax in axes:
+            ax.set_xlabel("environment steps (millions)")
+            ax.grid(alpha=0.3)
+            for handle, label in zip(*ax.get_legend_handles_labels()):
+                entries.setdefault(label, handle)
+        fig.legend(entries.values(), entries.keys(), loc="outside lower center", ncols=3)
+        seeds = evaluation.get("seeds", ["?", "?"])
+        fig.suptitle(textwrap.fill(
+            f"PPO in hils: evaluation during training, guideway bank "
+            f"{evaluation.get('guideway_seed', '?')}, seeds {seeds[0]}..{seeds[-1]} "
+            "(the validation bank: not the evaluation bank the results tables use)", 90))  # fmt: skip
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)

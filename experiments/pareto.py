@@ -171,15 +171,33 @@ def other_points(
     return points
 
 
+def redraw(source: Path, out: Path) -> int:
+    """``--from-json``: the figure of a JSON this script wrote, to ``out``; nothing is run (a
+    JSON that cannot be read or drawn: one line, nothing written)."""
+    from capsule_env.plots import pareto_figure
+
+    try:
+        data = json.loads(source.read_text())
+        missing = [k for k in ("laws", "points", "seeds", "setting", "guideway_seed")
+                   if not isinstance(data, dict) or k not in data]  # fmt: skip
+        if missing:
+            raise ValueError(f"not a JSON this script wrote (no {', '.join(missing)})")
+    except (OSError, ValueError) as exc:
+        sys.exit(f"pareto.py: error: --from-json {source}: {exc}")
+    try:
+        check_writable_file(out, "--out")
+    except ValueError as exc:
+        sys.exit(f"pareto.py: error: {exc}")
+    pareto_figure(data, out)
+    print(f"wrote {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (bad arguments: one line and status 1)."""
     args = parse_args(argv)
     if args.from_json is not None:
-        from capsule_env.plots import pareto_figure
-
-        pareto_figure(json.loads(args.from_json.read_text()), args.out)
-        print(f"wrote {args.out}")
-        return 0
+        return redraw(args.from_json, args.out)
     try:
         laws, policies = checked_inputs(args)
     except (ValueError, OSError) as exc:

@@ -142,41 +142,59 @@ def format_table(results: Sequence[dict[str, Any]], setting: str) -> str:
 
 def plot_tornado(results: Sequence[dict[str, Any]], path: Path) -> None:
     """The figure: per setting, each point's body first-mode VRE of both pairs (dots) and
-    the gap Bi-exponential - CSDC (bar from the baseline's gap), with the paper's values."""
-    import matplotlib.pyplot as plt
+    the gap Bi-exponential - CSDC (bar from the baseline's gap), with the paper's values; at
+    the docs' width and fonts (:data:`capsule_env.plots.DOC_STYLE`), long point names on two
+    lines."""
+    import textwrap
 
+    from capsule_env.plots import DOC_STYLE, DOC_WIDTH_IN, _pyplot
+
+    plt = _pyplot()
     settings = [s for s in ("sim", "hils") if any(r["setting"] == s for r in results)]
     rows = {s: [r for r in results if r["setting"] == s] for s in settings}
-    height = max(len(v) for v in rows.values()) * 0.28 + 1.5
-    fig, axes = plt.subplots(len(settings), 2, figsize=(13, height * len(settings)),
-                             squeeze=False, gridspec_kw={"width_ratios": [1.2, 1]})  # fmt: skip
-    for row_axes, s in zip(axes, settings):
-        rs = rows[s]
-        y = np.arange(len(rs))[::-1]
-        base = next((r for r in rs if r["factor"] == "baseline"), rs[0])
-        ax = row_axes[0]
-        ax.scatter(
-            [r["csdc"]["vre_body_mode1_pct"] for r in rs], y, marker="s", label="Bouc-Wen + CSDC"
-        )
-        ax.scatter(
-            [r["biexp"]["vre_body_mode1_pct"] for r in rs], y, marker="o", label="Bi-exponential"
-        )
-        for side, ls in (("csdc", "--"), ("biexp", ":")):
-            if side in PAPER_VRE[s]:
-                ax.axvline(PAPER_VRE[s][side], ls=ls, color="k", lw=0.8)
-        ax.set_yticks(y, [f"{r['factor']}: {r['label']}" for r in rs], fontsize=7)
-        ax.set_xlabel(f"{s}: body first-mode VRE (%) (paper: dashed CSDC, dotted Bi-exp)")
-        ax.legend(fontsize=7, loc="lower left")
-        ax.grid(alpha=0.3)
-        ax = row_axes[1]
-        gaps = np.array([r["gap_body_mode1_pct"] for r in rs])
-        g0 = base["gap_body_mode1_pct"]
-        ax.barh(y, gaps - g0, left=g0, color=np.where(gaps >= g0, "tab:blue", "tab:red"))
-        ax.axvline(g0, color="grey", lw=0.8)
-        ax.axvline(PAPER_GAP[s], color="k", ls="--", lw=0.8)
-        ax.set_yticks(y, [""] * len(rs))
-        ax.set_xlabel(f"{s}: gap Bi-exp - CSDC (points; dashed: the paper's {PAPER_GAP[s]:.1f})")
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
+    heights = [0.34 * len(rows[s]) + 0.9 for s in settings]
+    with plt.rc_context(DOC_STYLE):
+        fig, axes = plt.subplots(len(settings), 2, figsize=(DOC_WIDTH_IN, sum(heights)),
+                                 squeeze=False, layout="constrained",
+                                 gridspec_kw={"width_ratios": [1.2, 1], "height_ratios": heights})  # fmt: skip
+        for row_axes, s in zip(axes, settings):
+            _tornado_row(row_axes, s, rows[s], textwrap)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _point_name(r: dict[str, Any], textwrap: Any) -> str:
+    """A point's tick label: ``factor: label``, on two lines (at the colon) when long."""
+    name = f"{r['factor']}: {r['label']}"
+    return name if len(name) <= 44 else f"{r['factor']}:\n" + textwrap.fill(r["label"], 44)
+
+
+def _tornado_row(row_axes: Any, s: str, rs: list[dict[str, Any]], textwrap: Any) -> None:
+    """One setting's two panels of :func:`plot_tornado`."""
+    y = np.arange(len(rs))[::-1]
+    base = next((r for r in rs if r["factor"] == "baseline"), rs[0])
+    ax = row_axes[0]
+    ax.scatter(
+        [r["csdc"]["vre_body_mode1_pct"] for r in rs], y, marker="s", label="Bouc-Wen + CSDC"
+    )
+    ax.scatter(
+        [r["biexp"]["vre_body_mode1_pct"] for r in rs], y, marker="o", label="Bi-exponential"
+    )
+    for side, ls in (("csdc", "--"), ("biexp", ":")):
+        if side in PAPER_VRE[s]:
+            ax.axvline(PAPER_VRE[s][side], ls=ls, color="k", lw=0.8)
+    ax.set_yticks(y, [_point_name(r, textwrap) for r in rs], fontsize=8)
+    ax.set_ylim(-0.7, len(rs) - 0.3)
+    ax.set_xlabel(f"{s}: body first-mode VRE (%)\npaper: dashed CSDC, dotted Bi-exp")
+    ax.legend(loc="lower left")
+    ax.grid(alpha=0.3)
+    ax = row_axes[1]
+    gaps = np.array([r["gap_body_mode1_pct"] for r in rs])
+    g0 = base["gap_body_mode1_pct"]
+    ax.barh(y, gaps - g0, left=g0, color=np.where(gaps >= g0, "tab:blue", "tab:red"))
+    ax.axvline(g0, color="grey", lw=0.8)
+    ax.axvline(PAPER_GAP[s], color="k", ls="--", lw=0.8)
+    ax.set_yticks(y, [""] * len(rs))
+    ax.set_ylim(-0.7, len(rs) - 0.3)
+    ax.set_xlabel(f"{s}: gap Bi-exp - CSDC (points)\ndashed: the paper's {PAPER_GAP[s]:.1f}")
+    ax.grid(alpha=0.3)
