@@ -37,19 +37,68 @@ def wheel(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def site(wheel, tmp_path_factory) -> Path:
-    """The wheel unpacked into a folder of its own (what pip installs into site-packages)."""
-    folder = tmp_path_factory.mktemp("site")
-    with zipfile.ZipFile(wheel) as zf:
-        zf.extractall(folder)
-    return folder
+    """The wheel installed by pip into a venv of its own; returns its site-packages.
+
+    The venv sees this interpreter's installed dependencies (numpy, numba, torch, ...) through
+    a ``.pth`` line naming their site-packages: a path line does not run the ``.pth`` files of
+    the folder it names, so the checkout's editable install (its ``__editable__`` finder) stays
+    off, and only what the wheel holds can be imported as ``capsule_env`` (issue 40: the
+    unpacked wheel lacked ``capsule_env.dampers`` and the editable finder hid it)."""
+    venv = tmp_path_factory.mktemp("venv") / "env"
+    done = subprocess.run([sys.executable, "-m", "venv", str(venv)], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    python = venv / "bin" / "python"
+    code = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+    packages = Path(subprocess.run([str(python), "-c", code], capture_output=True, text=True,
+                                   check=True).stdout.strip())  # fmt: skip
+    outer = [p for p in sys.path if p.endswith("site-packages") and Path(p).is_dir()]
+    (packages / "outer_dependencies.pth").write_text("\n".join(outer) + "\n")
+    install = [str(python), "-m", "pip", "install", "--no-deps", "--no-index", "-q", str(wheel)]
+    done = subprocess.run(install, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return packages
+
+
+def _python(site: Path) -> Path:
+    """The venv interpreter whose site-packages ``site`` is (venv/lib/pythonX.Y/site-packages)."""
+    return site.parents[2] / "bin" / "python"
 
 
 def run_installed(site: Path, code: str, tmp_path: Path, **env: str):
-    """``python -c code`` with only the installed copy importable (run outside the checkout,
-    ``PYTHONPATH`` the unpacked wheel, which comes before the editable install's finder)."""
-    environ = {**os.environ, "PYTHONPATH": str(site), "MPLBACKEND": "Agg", **env}
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=tmp_path,
+    """``python -c code`` in the wheel's venv, outside the checkout, nothing on PYTHONPATH."""
+    environ = {**os.environ, "MPLBACKEND": "Agg", **env}
+    environ.pop("PYTHONPATH", None)
+    return subprocess.run([str(_python(site)), "-c", textwrap.dedent(code)], cwd=tmp_path,
                           env=environ, capture_output=True, text=True, timeout=600)  # fmt: skip
+
+
+def test_the_venv_imports_the_wheel_not_the_checkout(site, tmp_path):
+    done = run_installed(site, "import capsule_env; print(capsule_env.__file__)", tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert Path(done.stdout.strip()).is_relative_to(site), done.stdout
+
+
+def test_every_package_of_the_checkout_is_in_the_wheel(wheel):
+    with zipfile.ZipFile(wheel) as zf:
+        names = set(zf.namelist())
+    for init in (ROOT / "capsule_env").rglob("__init__.py"):
+        rel = init.relative_to(ROOT).as_posix()
+        assert rel in names, f"{rel} is not in the wheel"
+    assert "capsule_env/agents/__init__.py" in names
+    assert not any(n.startswith(("tests/", "benchmarks/", "experiments/", "docs/")) for n in names)
+
+
+def test_the_installed_evaluate_command_evaluates(site, tmp_path):
+    command = site.parents[2] / "bin" / "capsule-evaluate"
+    environ = {**os.environ, "MPLBACKEND": "Agg"}
+    environ.pop("PYTHONPATH", None)
+    done = subprocess.run([str(command), "--setting", "sim", "--episodes", "1",
+                           "--episode-length", "0.5", "--controllers", "skyhook-biexp",
+                           "--no-shipped-policy"], cwd=tmp_path, env=environ,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "skyhook-biexp" in done.stdout
 
 
 def test_the_wheel_installs_one_top_level_name_with_its_data_and_commands(wheel):
