@@ -33,8 +33,9 @@ import numpy as np
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from capsule_env.dampers import DamperParams, damper_eval
-from capsule_env.dampers import hysteresis_params as _hysteresis_params
+from capsule_env.dampers import DamperParams
+from capsule_env.dampers.dispatch import damper_eval
+from capsule_env.dampers.dispatch import hysteresis_params as _hysteresis_params
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_rate, saturation_level
 from capsule_env.layout import (
