@@ -194,6 +194,16 @@ def build_condition(
         settings = (setting,)
     else:
         settings = BOTH_SETTINGS if task is None else (defaults["setting"],)
+    task_setting = task_kwargs.get("setting", defaults["setting"])
+    if (
+        task is not None
+        and setting is not None
+        and "setting" not in overrides
+        and setting != task_setting
+    ):
+        # --setting over a task's own: a change of the task, named as one (issue 40: the
+        # header and the --plots folder named the bare task)
+        overrides = {**overrides, "setting": setting}
     length = _pick("episode_length_s", overrides, episode_length_s, "--episode-length",
                    task_kwargs)  # fmt: skip
     length = defaults["episode_length_s"] if length is None else length
@@ -389,7 +399,7 @@ def headline(results: dict[str, Any]) -> str | None:
     if described["task_env_kwargs"]:
         task += f" [{format_options(described['task_env_kwargs'])}]"
     env = format_options(described["env_overrides"]) if described["env_overrides"] else "none"
-    return (f"evaluated env: task {task}; --env overrides: {env}; episode "
+    return (f"evaluated env: task {task}; overrides (--env, --setting): {env}; episode "
             f"{described['episode_length_s']:g} s. Each controller keeps the options it "
             "declares itself (JSON: env_kwargs, own_options_kept).")  # fmt: skip
 

@@ -54,7 +54,7 @@ from capsule_env.evaluation import check_episode_length, episode_metrics, run_ep
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.policy_files import shown_path
 from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
-from capsule_env.tasks import TASKS
+from capsule_env.tasks import TASKS, task_named
 from capsule_env.vehicle import natural_frequencies_hz
 
 PAPER_CONTROLLERS = ["passive", "skyhook-csdc", "skyhook-biexp"]
@@ -118,8 +118,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "episode_length_s, else 10; at least 0.335 s at the default 200 Hz "
                    "control rate: the spectra need a line in each mode band)")  # fmt: skip
     p.add_argument("--oracle", action="store_true",
-                   help="also search the clairvoyant bound (capsule_env.oracle) on the same "
-                   "episodes: an 'oracle' row per setting and each controller's share of the "
+                   help="also run the clairvoyant search (capsule_env.oracle: a multi-start "
+                   "local search knowing the guideway; a reference, not a proven limit) on the "
+                   "same episodes: an 'oracle' row per setting and each controller's share of the "
                    "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
@@ -138,8 +139,13 @@ def check_args(args: argparse.Namespace) -> None:
     anything runs; raises ``ValueError`` naming the option."""
     if args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0 (episode k uses seed + k), got {args.seed}")
+    last = 2**63 - args.episodes  # episode k uses seed + k, an int64 of the kernels
+    if not 0 <= args.seed <= last:
+        raise ValueError(f"--seed must be in 0..{last} (2**63 - --episodes: episode k uses "
+                         f"seed + k, a 64-bit seed), got {args.seed}")  # fmt: skip
+    if not [n for n in args.controllers.split(",") if n.strip()]:
+        raise ValueError(f"--controllers names no controller (got {args.controllers!r}): give "
+                         "comma-separated names, or 'all'")  # fmt: skip
     if args.json is not None:
         check_writable_file(args.json, "--json")
     if args.plots is not None:
@@ -186,7 +192,8 @@ def build_controllers(
     :func:`capsule_env.agents.sb3_policy.fits_condition`), each under a unique name
     (:func:`unique_name`). Raises ``ValueError`` for an unknown name or a bad policy file."""
     available = classical_controllers()
-    implicit = names in (["all"], DEFAULT_CONTROLLERS)  # not named one by one
+    # not named one by one: 'all', or the default run (with a task's own laws after it)
+    implicit = names == ["all"] or names[: len(DEFAULT_CONTROLLERS)] == DEFAULT_CONTROLLERS
     if names == ["all"]:
         names = list(available)
     unknown = [n for n in names if n not in available]
@@ -281,6 +288,8 @@ def prepare(args: argparse.Namespace) -> dict:
     check_args(args)
     names = [n.strip() for n in args.controllers.split(",") if n.strip()]
     condition = _condition(args)
+    if names == DEFAULT_CONTROLLERS and condition.task is not None:  # the task's own laws too
+        names += [n for n in task_named(condition.task).own_laws if n not in names]
     ctrls = build_controllers(
         names, args.policy, shipped=not args.no_shipped_policy,
         allow_unnormalized=args.allow_unnormalized, env_kwargs=condition.env_kwargs,
@@ -306,6 +315,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
         "settings": {},
     }
     rollouts: dict = {}
+    if not kernels_cached():
+        print("evaluate.py: compiling the numba kernels (the first run on this machine: about "
+              "30 s before the first row; cached afterwards)", file=sys.stderr)  # fmt: skip
     done, t0 = 0, time.perf_counter()
     total = len(condition.settings) * len(ctrls)
     for setting in condition.settings:
@@ -344,12 +356,13 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
 
 def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any,
                ctrls: dict) -> None:  # fmt: skip
-    """Add the clairvoyant bound's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
+    """Add the clairvoyant search's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
     on the same episodes) to a setting's results, and to every controller on the same plant
     (the same physics: :func:`~capsule_env.eval_condition.physics_changes`, e.g. not a law
     whose own options run it on trips where the oracle's episodes keep one speed) its share
     of the headroom, ``oracle_headroom_captured_rel = (Wk_passive - Wk) /
-    (Wk_passive - Wk_oracle)`` (0: passive, 1: the clairvoyant optimum). In ``sim`` the plant
+    (Wk_passive - Wk_oracle)`` (0: passive, 1: the oracle, a local search's best, not a proven
+    optimum). In ``sim`` the plant
     is the damper model a controller inverts: the oracle's is the Bi-exponential model, and
     controllers on another plant get no share (passive, the reference, has 0 by definition)."""
     from capsule_env.oracle import clairvoyant_bound
@@ -394,6 +407,20 @@ def describe(ctrl: Any) -> dict[str, Any]:
         "gains": ctrl.gains(),
         "gains_tuned": bool(getattr(ctrl, "gains_tuned", False)),
     }
+
+
+def kernels_cached() -> bool:
+    """Whether numba's cache holds the env's compiled step (an index file of
+    ``capsule_env.kernels`` where numba writes it: ``NUMBA_CACHE_DIR``, else the package's
+    ``__pycache__``): False on a first run, which compiles for about half a minute."""
+    from numba.core import config
+
+    import capsule_env
+
+    package = Path(capsule_env.__file__).parent
+    cache_dir = getattr(config, "CACHE_DIR", "")
+    folder = Path(cache_dir) if cache_dir else package / "__pycache__"
+    return folder.is_dir() and any(folder.rglob("kernels.*.nbi"))
 
 
 def _progress(done: int, total: int, label: str, elapsed: float) -> None:

@@ -43,7 +43,8 @@ class Task:
     """One registered task: its id, what it models, what the agent reads, its env options,
     the evaluation's names of its reference controllers, the evaluation file (under
     docs/figures/) its card's scores come from, and which law to compare against and why
-    (``use``), and the README's one-line description of it (``headline``)."""
+    (``use``), the README's one-line description of it (``headline``), and the laws designed
+    for it that ``evaluate.py --task`` adds to its default controllers (``own_laws``)."""
 
     env_id: str
     summary: str
@@ -55,6 +56,7 @@ class Task:
     results: str = "evaluation.json"
     use: str = ""
     headline: str = ""
+    own_laws: tuple[str, ...] = ()
 
 
 # Which law to compare against on each task, and why (printed on the task cards).
@@ -117,7 +119,7 @@ TASKS: tuple[Task, ...] = (
          {"setting": "hils", "observation": "measured", "levitation": "eds",
           "speed_profile": "trip", "spans": "continuous", "payload_range": (-0.3, 0.4)},
          "hils", "mpc-biexp-meas", "residual-ppo-mpc-trip", "evaluation-CapsuleTrip-v0.json",
-         use=_USE_TRIP,
+         use=_USE_TRIP, own_laws=("lqr-sched-biexp-meas",),
          headline="the ride task across a trip: EDS levitation against speed, spans, payload"),
 )  # fmt: skip
 

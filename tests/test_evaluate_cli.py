@@ -74,7 +74,9 @@ def test_env_override_changes_the_env_of_every_controller(tmp_path, capsys):
     assert fast["condition"]["env_overrides"] == {"speed_kmh": 400, "episode_length_s": 1}
     assert fast["condition"]["task"] is None and fast["condition"]["episode_length_s"] == 1.0
     assert base["condition"]["env_overrides"] == {}
-    assert "--env overrides: speed_kmh=400, episode_length_s=1" in printed.replace("\n  ", " ")
+    assert "overrides (--env, --setting): speed_kmh=400, episode_length_s=1" in printed.replace(
+        "\n  ", " "
+    )
 
 
 def test_task_equals_its_options_given_as_env_items(tmp_path, capsys):
@@ -172,6 +174,16 @@ def test_settings_and_episode_length_resolution():
     assert condition("--task", "CapsuleRide-v0").settings == ("hils",)
     ride_sim = condition("--task", "CapsuleRide-v0", "--setting", "sim")
     assert ride_sim.settings == ("sim",) and ride_sim.env_kwargs == {"observation": "measured"}
+    # --setting over a task's own is a change of the task, named as one (it was labelled as
+    # the bare task in the header and the --plots folder)
+    assert ride_sim.env_overrides == {"setting": "sim"} and not ride_sim.is_default
+    assert ride_sim.label() == "CapsuleRide-v0+setting=sim"
+    assert condition("--task", "CapsuleRide-v0", "--setting", "hils").env_overrides == {}
+    both = condition("--task", "CapsuleSuspension-v0", "--setting", "both")
+    assert both.settings == ("sim", "hils") and both.env_overrides == {"setting": "both"}
+    assert "overrides (--env, --setting): setting='both'" in eval_condition.headline(
+        {"condition": both.describe()}
+    )
     assert condition("--env", "setting=hils", "--setting", "hils").settings == ("hils",)
     assert condition().episode_length_s == 10.0
     assert condition("--env", "episode_length_s=2.5").episode_length_s == 2.5
@@ -245,3 +257,56 @@ def test_a_controllers_own_physics_is_stated_where_the_condition_left_the_defaul
     assert controller_env(task, own, "hils")[1] == {}
     # an option given at the env's default changes nothing
     assert controller_env({}, {"speed_kmh": 810.0, "levitation": "fixed"}, "hils")[1] == {}
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [  # issue 40: each was caught after the run had started, or not at all
+        (["--seed", str(2**63)], "--seed must be in 0..9223372036854775798 (2**63 - --episodes"),
+        (["--seed", str(2**63 - 5), "--episodes", "10"], "--seed must be in 0.."),
+        (["--seed", "-1"], "--seed must be in 0.."),
+        (["--controllers", ""], "--controllers names no controller (got '')"),
+        (["--controllers", " , "], "--controllers names no controller"),
+    ],
+)
+def test_bad_seed_or_empty_controllers_stop_before_the_run(argv, needle, capsys, tmp_path):
+    out = tmp_path / "out.json"
+    with pytest.raises(SystemExit) as stop:
+        evaluate.main([*argv, "--no-shipped-policy", "--json", str(out)])
+    err = stop.value.code  # sys.exit(message): the interpreter prints it, exit status 1
+    assert isinstance(err, str) and err.startswith("evaluate.py: error: "), err
+    assert "\n" not in err and needle in err and not out.exists()
+
+
+def test_the_last_seed_the_kernels_take_runs():
+    args = evaluate.parse_args(["--seed", str(2**63 - 2), "--episodes", "2"])
+    evaluate.check_args(args)  # episode seeds 2**63 - 2 and 2**63 - 1: both in range
+
+
+def test_a_task_s_own_laws_join_its_default_run():
+    # the trip task's law, the gain-scheduled LQR, was left out of --task CapsuleTrip-v0
+    trip = evaluate.parse_args(["--task", "CapsuleTrip-v0", "--no-shipped-policy"])
+    assert "lqr-sched-biexp-meas" in evaluate.prepare(trip)
+    ride = evaluate.parse_args(["--task", "CapsuleRide-v0", "--no-shipped-policy"])
+    assert "lqr-sched-biexp-meas" not in evaluate.prepare(ride)
+    named = evaluate.parse_args(["--task", "CapsuleTrip-v0", "--no-shipped-policy",
+                                 "--controllers", "passive,mpc-biexp-meas"])  # fmt: skip
+    assert list(evaluate.prepare(named)) == ["passive", "mpc-biexp-meas"]
+
+
+def test_a_cold_cache_is_announced_on_stderr(tmp_path, capsys, monkeypatch):
+    from numba.core import config
+
+    assert evaluate.kernels_cached()  # this suite has stepped the env before
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path / "empty"))
+    assert not evaluate.kernels_cached()
+    monkeypatch.setattr(evaluate, "kernels_cached", lambda: False)
+    run(tmp_path, "cold", "--setting", "sim", "--episode-length", "1", "--controllers",
+        "passive")  # fmt: skip
+    captured = capsys.readouterr()
+    assert "compiling the numba kernels" in captured.err
+    assert "compiling" not in captured.out
+    monkeypatch.setattr(evaluate, "kernels_cached", lambda: True)
+    run(tmp_path, "warm", "--setting", "sim", "--episode-length", "1", "--controllers",
+        "passive")  # fmt: skip
+    assert "compiling" not in capsys.readouterr().err
