@@ -136,6 +136,37 @@ def checkpoint_problem(zip_path: Path) -> str | None:
     return None
 
 
+#: What a run writes in its folder besides ``checkpoints/`` (and what its killed saves leave,
+#: the same names behind a dot): another file there (a hyperparameter file, notes) is no run's.
+RUN_FILES = ("best_model", "final_model", "evaluations.jsonl")
+
+
+def check_fresh_run_dir(output_dir: Path) -> None:
+    """A new run starts only in a folder that holds no other run's files: ``ValueError``
+    naming what is there and the two ways on (``--resume auto`` when a checkpoint exists; a
+    folder of its own, or removing this one), so that no run's ``best_model``, checkpoints or
+    ``evaluations.jsonl`` are replaced by or mixed with another's. A folder without them (and
+    with an empty ``checkpoints/``) is fine."""
+    if not output_dir.is_dir():
+        return
+    ckpt_dir = output_dir / "checkpoints"
+    found = sorted(p.name for p in output_dir.iterdir()
+                   if p.name.lstrip(".").startswith(RUN_FILES))  # fmt: skip
+    if ckpt_dir.is_dir():
+        found += sorted(f"checkpoints/{p.name}" for p in ckpt_dir.iterdir())
+    if not found:
+        return
+    shown = ", ".join(found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
+    if any(ckpt_dir.glob("ckpt_*.zip")):
+        way = "continue that run with --resume auto, or start afresh"
+    else:
+        way = "it has no checkpoint to continue from (stopped before its first); start afresh"
+    raise ValueError(
+        f"--output-dir {output_dir} holds another run's files ({shown}): {way} with another "
+        "--output-dir, or remove that folder first; a new run never writes over a run's files"
+    )
+
+
 def latest_checkpoint(output_dir: Path) -> Path:
     """The ``.zip`` of the newest intact checkpoint in ``output_dir/checkpoints``
     (:func:`checkpoint_problem`; in its commit folder when a save was cut off after its

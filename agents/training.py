@@ -46,6 +46,7 @@ from capsule_env.agents import PassiveController, classical_controllers
 from capsule_env.agents.algorithms import ON_POLICY, algorithm_class
 from capsule_env.agents.checkpoints import (
     best_so_far,
+    check_fresh_run_dir,
     find_checkpoint,
     save_checkpoint,
     save_policy,
@@ -244,7 +245,11 @@ def prepare(args: Any) -> Plan:
     the newest intact one) with the run's own arguments, the hyperparameters, the env
     arguments, the evaluation episode length and the TensorBoard folder. Raises
     ``ValueError``/``OSError``/``TypeError`` with a one-line message."""
+    if not 0 <= args.seed < 2**32:  # numpy's and SB3's global seeding take 32 bits
+        raise ValueError(f"--seed must be in 0..{2**32 - 1}, got {args.seed}")
     output_dir = output_dir_for(args)
+    if not args.resume:  # never over another run's files (issue 40)
+        check_fresh_run_dir(output_dir)
     check_writable_dir(output_dir, "--output-dir")
     check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
     for folder in (output_dir, output_dir / "checkpoints"):  # what killed saves left

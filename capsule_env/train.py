@@ -28,6 +28,7 @@ from __future__ import annotations
 import signal
 import sys
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numba
@@ -161,17 +162,25 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
             run.checkpoint(model)
         run.report(model)  # throughput and the best evaluation
     except OSError as exc:  # a full disk, a folder gone: the saves left the files consistent
-        where = f" ({exc.filename})" if exc.filename else ""
-        raise SystemExit(
-            f"train.py: error: {exc.strerror or exc}{where}; the run's files are "
-            "as its last complete save left them; once fixed, continue with: "
-            f"{continue_command(args, plan.output_dir)}"
-        ) from None
+        raise SystemExit(_write_failed(exc, args, plan.output_dir)) from None
     finally:
         env.close()
     return {"output_dir": str(plan.output_dir), "num_timesteps": int(model.num_timesteps),
             "interrupted": interrupted, "best": run.best, "wall_time_s": run.wall_time(),
             "model": model}  # fmt: skip
+
+
+def _write_failed(exc: OSError, args: Args, output_dir: Path) -> str:
+    """The one line for a failed write: the command that continues the run when a checkpoint
+    was saved, else that nothing can be continued (issue 40: it offered ``--resume auto``
+    when no checkpoint existed, which could not work)."""
+    where = f" ({exc.filename})" if exc.filename else ""
+    head = f"train.py: error: {exc.strerror or exc}{where}; "
+    if any((output_dir / "checkpoints").glob("ckpt_*.zip")):
+        return (f"{head}the run's files are as its last complete save left them; once fixed, "
+                f"continue with: {continue_command(args, output_dir)}")  # fmt: skip
+    return (f"{head}no checkpoint was saved, so there is nothing to continue: once fixed, "
+            f"remove {output_dir} and start the run again")  # fmt: skip
 
 
 def _model(args: Args, plan: Any, env: Any, run_seed: int) -> Any:

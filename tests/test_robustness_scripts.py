@@ -608,12 +608,12 @@ case, argv = sys.argv[1], sys.argv[2:]
 def enospc():
     raise OSError(errno.ENOSPC, "No space left on device")
 
-if case == "save":
+if case in ("save", "first"):  # "first": the disk is full from the first save on
     import stable_baselines3 as sb3
     real_save, calls = sb3.PPO.save, []
     def save(self, path, *args, **kwargs):
         calls.append(path)
-        if len(calls) > 2:
+        if len(calls) > (2 if case == "save" else 0):
             Path(path).write_bytes(b"PK\x03\x04 half a file")
             enospc()
         return real_save(self, path, *args, **kwargs)
@@ -666,6 +666,20 @@ def test_train_on_a_full_disk_is_one_line_and_the_files_stay_intact(train, ppo_y
     assert resumed["num_timesteps"] == 2048
     logged = [json.loads(x)["num_timesteps"] for x in (out / "evaluations.jsonl").open()]
     assert logged[-1] == 2048 and saved_at(out / "final_model", 2048)
+
+
+@pytest.mark.rl
+def test_a_full_disk_before_any_checkpoint_offers_no_resume(train, ppo_yml, tmp_path):
+    # issue 40: the message offered a --resume auto that cannot work when nothing was saved
+    out = tmp_path / "run"
+    argv = ppo_argv(ppo_yml, out, "--total-timesteps", "2048", "--eval-freq", "1024",
+                    "--checkpoint-freq", "1024")  # fmt: skip
+    result = subprocess.run([sys.executable, "-c", FULL_DISK_DRIVER, "first", *argv],
+                            capture_output=True, text=True, cwd=ROOT, timeout=300)  # fmt: skip
+    assert_one_line_error(result.returncode, result.stderr, "train.py: error",
+                          "No space left on device", "no checkpoint was saved")  # fmt: skip
+    assert "--resume" not in result.stderr and f"remove {out}" in result.stderr
+    assert not any((out / "checkpoints").glob("ckpt_*.zip"))
 
 
 # ---------------------------------------------------------------- python -m identify (16)

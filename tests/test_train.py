@@ -500,3 +500,43 @@ def test_resume_after_a_kill_before_the_final_save_saves_it_once(ppo_run, tmp_pa
     assert (out / "evaluations.jsonl").read_text() == lines
     final = SB3Policy.load(out / "final_model.zip")
     assert final.meta["num_timesteps"] == 2048 and final.name == "tiny-ppo-final"
+
+
+def test_a_fresh_run_into_another_run_s_folder_is_refused(ppo_run, tiny_ppo_yml, tmp_path):
+    # issue 40: the default runs/<algo>-seed<seed> run twice overwrote best_model with a worse
+    # one and mixed both runs' checkpoints and evaluations.jsonl
+    out = _copy_run(ppo_run[0], tmp_path)
+    before = _folder_bytes(out)
+    done = _run_cli(*fast_args(tiny_ppo_yml, out, "--total-timesteps", "256"))
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert done.returncode != 0 and len(lines) == 1 and "Traceback" not in done.stderr
+    assert f"--output-dir {out} holds another run's files" in lines[0]
+    assert "--resume auto" in lines[0] and "another --output-dir" in lines[0]
+    assert _folder_bytes(out) == before
+
+
+def test_a_folder_killed_before_its_first_checkpoint_is_not_reused(tiny_ppo_yml, tmp_path):
+    # a run stopped before its first checkpoint left its first evaluation and best model
+    out = tmp_path / "killed"
+    (out / "checkpoints").mkdir(parents=True)
+    (out / "evaluations.jsonl").write_text('{"num_timesteps": 1024}\n')
+    before = _folder_bytes(out)
+    with pytest.raises(SystemExit) as stop:
+        train.train(train.parse_args(fast_args(tiny_ppo_yml, out, "--total-timesteps", "256")))
+    assert "no checkpoint to continue from" in str(stop.value.code)
+    assert "--resume auto" not in str(stop.value.code)
+    assert _folder_bytes(out) == before
+    empty = tmp_path / "empty"
+    (empty / "checkpoints").mkdir(parents=True)  # a folder of no run's files is fine
+    (empty / "ppo.yml").write_text(tiny_ppo_yml.read_text())
+    assert train.train(train.parse_args(fast_args(tiny_ppo_yml, empty, "--total-timesteps",
+                                                  "256")))["num_timesteps"] == 1024  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", [str(2**32), "-1"])
+def test_a_seed_out_of_range_stops_before_any_folder(tiny_ppo_yml, tmp_path, seed):
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as stop:
+        train.train(train.parse_args(fast_args(tiny_ppo_yml, out, "--seed", seed)))
+    assert str(stop.value.code) == f"train.py: error: --seed must be in 0..4294967295, got {seed}"
+    assert not out.exists()

@@ -45,6 +45,7 @@ import importlib
 import importlib.util
 import inspect
 import json
+import shutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -274,6 +275,8 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     atomic_write_text(yml, yaml.safe_dump({ENV_ID: hp}, sort_keys=False))
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
+    if resume is None and out.exists():  # this trial's own start, stopped before a checkpoint:
+        shutil.rmtree(out)  # nothing to continue, and train.py starts only in an empty folder
     plain["hyperparams"] = str(yml)
     return train_module().Args(**plain, seed=int(trial.seed or 0),
                                env_kwargs=groups.get("env", {}), output_dir=str(out),
