@@ -16,8 +16,9 @@ env, and the state shared by the callbacks and the main loop (evaluation, checkp
   ``best_model.*`` by the ISO 2631 Wk-weighted RMS car-body acceleration (an evaluation with a
   bump-stop hit ranks below every one without); checkpoints every ``checkpoint_freq`` env
   steps and every ``checkpoint_minutes`` of wall time (:mod:`capsule_env.agents.checkpoints`);
-  throughput. The passive damper and ``skyhook-cont-biexp`` run on the same evaluation seeds
-  once, as references (printed, and kept in ``best_model.json``).
+  throughput. The passive damper and the task's best law on the same signals
+  (:func:`reference_law`) run on the same evaluation seeds once, as references (printed, and
+  kept in ``best_model.json``).
 
 Output folder: ``best_model.{zip,vecnormalize.pkl,json}`` (the json: ``name``, ``algo``,
 ``env_kwargs`` (what ``evaluate.py`` merges into its env), ``train_env_kwargs``,
@@ -86,6 +87,7 @@ from capsule_env.evaluation import (
 )
 from capsule_env.policy_files import clean_leftovers
 from capsule_env.safe_io import append_line, check_writable_dir
+from capsule_env.tasks import reference_law_for
 
 if typing.TYPE_CHECKING:
     from stable_baselines3.common.vec_env import VecNormalize
@@ -96,9 +98,22 @@ HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
 #: Env arguments chosen by the evaluation, not by the policy (kept out of the saved metadata
 #: that ``evaluate.py`` merges into its env; ``episode_length_s`` is its ``--episode-length``).
 EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
+
+
 #: Printed beside the evaluations: a classical reference in ``hils`` (continuous Skyhook, the
 #: paper's law family; not the best law: see docs/fair-comparison.md).
-REFERENCE_CONTROLLER = "skyhook-cont-biexp"
+def reference_law(env_kwargs: dict, task: str | None) -> str:
+    """The law a run is compared with: the task's best on the same signals
+    (:func:`capsule_env.tasks.reference_law_for`), its LQ counterpart when the MPC's solver (the
+    ``mpc`` extra) is missing."""
+    from capsule_env.agents.mpc_solver import solver_available
+
+    name = reference_law_for(env_kwargs, task)
+    if "mpc" in name.split("-") and not solver_available():
+        name = name.replace("preview-mpc", "preview-lq").replace("mpc", "lqr-clipped")
+    return name
+
+
 #: The metric ``best_model`` is chosen by (lower is better), after the bump-stop hits.
 BEST_METRIC = "wk_rms_body_acc_m_s2"
 
@@ -488,11 +503,12 @@ class Run:
         values)."""
         a = self.args
         refs = {"passive": {BEST_METRIC: episode_metrics(passive, None)[BEST_METRIC]}}
-        sky = classical_controllers().get(REFERENCE_CONTROLLER)
-        if sky is not None:
-            m = episode_metrics(self._episodes(sky, {**self.eval_kwargs, **sky.env_kwargs}),
+        name = reference_law(self.plan.env_kwargs, getattr(a, "task", None))
+        law = classical_controllers().get(name)
+        if law is not None:
+            m = episode_metrics(self._episodes(law, {**self.eval_kwargs, **law.env_kwargs}),
                                 passive)  # fmt: skip
-            refs[REFERENCE_CONTROLLER] = {
+            refs[name] = {
                 BEST_METRIC: m[BEST_METRIC],
                 "vre_body_mode1_pct": m["vre_pct"]["body_mode1"],
             }

@@ -32,10 +32,18 @@ physics under it gets a new version; the old id keeps its meaning.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Task", "TASKS", "register_tasks", "task_named", "normalised_score"]
+__all__ = [
+    "Task",
+    "TASKS",
+    "register_tasks",
+    "task_named",
+    "normalised_score",
+    "reference_law_for",
+]
 
 
 @dataclass(frozen=True)
@@ -153,3 +161,23 @@ def normalised_score(wk_m_s2: float, passive_m_s2: float, oracle_m_s2: float) ->
         raise ValueError(f"passive_m_s2 must exceed oracle_m_s2, got {passive_m_s2} and "
                          f"{oracle_m_s2}")  # fmt: skip
     return (passive_m_s2 - wk_m_s2) / (passive_m_s2 - oracle_m_s2)
+
+
+def reference_law_for(env_kwargs: dict[str, Any], task: str | None = None) -> str:
+    """The classical law to compare a policy trained on ``env_kwargs`` with: the card's best
+    law of ``task``, else of the task whose options ``env_kwargs`` has (the most specific), else
+    the clipped LQR on the same signals (``-meas`` on ``measured``, the preview LQ when the env
+    gives a preview). It reads what the policy reads, never ideal sensors for a policy on
+    measured signals (issue 40: train.py compared every run with an ideal-sensor Skyhook)."""
+    if task is not None:
+        return task_named(task).best_classical
+    defaults = {"setting": "sim", "observation": "sensors", "preview_points": 0}
+    given = {**defaults, **env_kwargs}
+    same = lambda a, b: json.dumps(a) == json.dumps(b)  # noqa: E731 (a tuple is a JSON list)
+    matching = [t for t in TASKS if t.kwargs and all(same(given.get(k), v)
+                                                     for k, v in t.kwargs.items())]  # fmt: skip
+    if matching:
+        return max(matching, key=lambda t: len(t.kwargs)).best_classical
+    preview = int(given.get("preview_points") or 0) > 0
+    law = "preview-lq-biexp" if preview else "lqr-clipped-biexp"
+    return f"{law}-meas" if given.get("observation") == "measured" else law

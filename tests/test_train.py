@@ -540,3 +540,37 @@ def test_a_seed_out_of_range_stops_before_any_folder(tiny_ppo_yml, tmp_path, see
         train.train(train.parse_args(fast_args(tiny_ppo_yml, out, "--seed", seed)))
     assert str(stop.value.code) == f"train.py: error: --seed must be in 0..4294967295, got {seed}"
     assert not out.exists()
+
+
+def test_a_run_is_compared_with_its_task_s_best_law_on_the_same_signals(
+    tiny_ppo_yml, tmp_path, capsys
+):
+    # issue 40: every run printed the ideal-sensor skyhook-cont-biexp as its reference, also on
+    # the measured-signal ride task, whose card names mpc-biexp-meas
+    from capsule_env.tasks import task_named
+
+    out = tmp_path / "run"
+    train.train(train.parse_args(fast_args(tiny_ppo_yml, out, "--total-timesteps", "256",
+                                           "--eval-freq", "0")))  # fmt: skip
+    printed = capsys.readouterr().out
+    best = task_named("CapsuleRide-v0").best_classical
+    assert "references: passive Wk " in printed and f"; {best} Wk " in printed
+    assert "skyhook-cont-biexp" not in printed
+    refs = json.loads((out / "best_model.json").read_text())["eval"]["references"]
+    assert set(refs) == {"passive", best}
+    assert refs[best]["wk_rms_body_acc_m_s2"] < refs["passive"]["wk_rms_body_acc_m_s2"]
+
+
+def test_the_reference_law_reads_what_the_policy_reads():
+    from capsule_env.tasks import TASKS
+
+    for task in TASKS:  # a task's own: its card's law, by id or by its options
+        assert training.reference_law(dict(task.kwargs), task.env_id) == task.best_classical
+        if task.kwargs:
+            assert training.reference_law(dict(task.kwargs), None) == task.best_classical
+    measured = {"setting": "sim", "observation": "measured", "speed_kmh": 400}
+    assert training.reference_law(measured, None) == "lqr-clipped-biexp-meas"
+    assert training.reference_law({"setting": "hils", "observation": "full_state"},
+                                  None) == "lqr-clipped-biexp"  # fmt: skip
+    preview = {"setting": "sim", "observation": "measured", "preview_points": 8}
+    assert training.reference_law(preview, None) == "preview-lq-biexp-meas"
