@@ -110,6 +110,13 @@ REFUSED = [
      "gain.c_sky: expected a number >= 0, got -3000.0"),
     ({"trials": [{"kind": "gains", "params": {**SKY, "controller": "preview-lq-biexp", "gain.delay_steps": 1.5}}]},
      "gain.delay_steps: expected an integer >= 0, got 1.5"),
+    # seeds beyond what numpy and SB3 take, and replicates without a bound (issue 40)
+    ({"trials": [{"kind": "train", "params": {}, "seeds": [2**32]}]},
+     "seeds: expected an integer in 0..4294967295, got 4294967296"),
+    ({"trials": [{"kind": "train", "params": {}, "seeds": [-1]}]},
+     "seeds: expected an integer in 0..4294967295, got -1"),
+    ({"trials": [{"kind": "train", "params": {}, "replicates": 1000000}]},
+     "replicates: expected an integer in 1..1000, got 1000000"),
     # a key given twice: JSON and YAML keep the last one silently
     ('{"trials": [{"kind": "gains", "params": {"controller": "skyhook-cont-biexp", "episodes": 1, "episodes": 2}}]}',
      "study.json: duplicate key 'episodes': each key may appear once in a mapping"),
@@ -310,6 +317,14 @@ def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
     assert main([str(study), "--out", str(out), "--no-ray"]) == 0
     assert "finished before, not run again" in capsys.readouterr().out
     assert attempts(out, "gains0-000") == 1
+    # a result.json that is not the trial's whole result ('{}', another trial's) is not a
+    # finished trial: it runs again (issue 40: '{}' counted as finished)
+    for fake in ({}, {"trial": "gains0-001", "metrics": {}, "attempts": 1}):
+        (out / "trials" / "gains0-000" / "result.json").write_text(json.dumps(fake))
+        assert main([str(study), "--out", str(out), "--no-ray"]) == 0
+        stored = json.loads((out / "trials" / "gains0-000" / "result.json").read_text())
+        assert stored["trial"] == "gains0-000" and stored["metrics"]
+    assert attempts(out, "gains0-000") == 3
     changed = write_study(tmp_path, {"name": "gains", "trials": [{**GAINS, "grid": {
         "gain.c_sky": [1000.0]}}]})  # fmt: skip
     assert main([str(changed), "--out", str(out), "--no-ray"]) == 2
@@ -319,7 +334,7 @@ def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
         "gain.c_sky": [1000.0]}}]}, name="grown.json")  # fmt: skip
     assert main([str(grown), "--out", str(out), "--no-ray"]) == 0
     assert [r["trial"] for r in rows(out)] == ["gains0-000", "gains0-001", "gains1-000"]
-    assert attempts(out, "gains0-000") == attempts(out, "gains1-000") == 1
+    assert attempts(out, "gains0-000") == 3 and attempts(out, "gains1-000") == 1
     first = write_study(tmp_path, {"name": "gains", "trials": [GAINS]}, name="first.json")
     assert main([str(first), "--out", str(out), "--no-ray"]) == 2  # shrinking it: refused
 

@@ -101,12 +101,19 @@ def run_trial(trial: Trial | dict[str, Any]) -> dict[str, Any]:
 
 
 def finished_on_disk(trial: Trial) -> Outcome | None:
-    """The trial's outcome from its ``result.json``, if it finished."""
+    """The trial's outcome from its ``result.json``, if it finished: the file :func:`run_trial`
+    writes, of this trial, with its metrics and attempts. Anything else there (``{}``, another
+    trial's file, a hand-edited one) is not a finished trial, which then runs (again)."""
     try:
         result = json.loads((Path(trial.dir) / "result.json").read_text())
     except (OSError, json.JSONDecodeError):
         return None
-    return Outcome(trial, "finished", result.get("metrics", {}), None, result.get("attempts"))
+    whole = (isinstance(result, dict) and result.get("trial") == trial.name
+             and isinstance(result.get("metrics"), dict)
+             and "attempts" in result)  # fmt: skip
+    if not whole:
+        return None
+    return Outcome(trial, "finished", result["metrics"], None, result["attempts"])
 
 
 def failed_on_disk(trial: Trial) -> Outcome | None:

@@ -43,6 +43,13 @@ import numpy as np
 
 from capsule_env.sweep.kinds import KINDS, Kind, json_ready
 
+#: The most trials one grid point's ``replicates`` may ask for (issue 40: 1e6 made ``--check``
+#: run for minutes); a study that needs more says so with several blocks.
+MAX_REPLICATES = 1000
+#: Seeds are numpy's and SB3's global seeds: 32 bits (train.py's ``--seed`` range).
+MAX_SEED = 2**32 - 1
+
+
 #: The top-level keys of a study file, with their meaning.
 STUDY_KEYS = {
     "name": "the study's name (letters, digits, '-', '_', '.')",
@@ -56,8 +63,8 @@ BLOCK_KEYS = {
     "name": "the block's label",
     "params": "a mapping of fixed parameters",
     "grid": "a mapping of parameter -> list of values",
-    "replicates": "independent seeds per grid point (an integer >= 1)",
-    "seeds": "the seeds themselves (a list of distinct integers >= 0)",
+    "replicates": f"independent seeds per grid point (an integer in 1..{MAX_REPLICATES})",
+    "seeds": f"the seeds themselves (a list of distinct integers in 0..{MAX_SEED})",
 }
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -189,9 +196,11 @@ def _read_yaml(text: str, path: Path) -> Any:
         raise StudyError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
 
 
-def _int(value: Any, where: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise StudyError(f"{where}: expected an integer >= {minimum}, got {value!r}")
+def _int(value: Any, where: str, minimum: int, maximum: int | None = None) -> int:
+    bad = isinstance(value, bool) or not isinstance(value, int) or value < minimum
+    if bad or (maximum is not None and value > maximum):
+        accepted = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
+        raise StudyError(f"{where}: expected an integer {accepted}, got {value!r}")
     return value
 
 
@@ -244,10 +253,10 @@ def _seeds(block: Mapping[str, Any], kind: Kind, root: int, b: int, p: int, wher
     if "seeds" in block:
         seeds = block["seeds"]
         if not isinstance(seeds, list) or not seeds:
-            raise StudyError(f"{where}.seeds: expected a non-empty list of integers >= 0, "
+            raise StudyError(f"{where}.seeds: expected a non-empty list of integers in 0..{MAX_SEED}, "
                              f"got {seeds!r}")  # fmt: skip
-        return [_int(s, f"{where}.seeds", 0) for s in seeds]
-    replicates = _int(block.get("replicates", 1), f"{where}.replicates", 1)
+        return [_int(s, f"{where}.seeds", 0, MAX_SEED) for s in seeds]
+    replicates = _int(block.get("replicates", 1), f"{where}.replicates", 1, MAX_REPLICATES)
     return [derived_seed(root, b, p, r) for r in range(replicates)]
 
 
