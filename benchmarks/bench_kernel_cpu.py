@@ -24,8 +24,7 @@ from numba import njit
 import capsule_env.env_kernel as env_kernel
 from capsule_env.batch import CapsuleBatch
 from capsule_env.config import EnvConfig
-from capsule_env.env_kernel import EnvOutputs, command_path, env_sense
-from capsule_env.kernels import ENV, kernels
+from capsule_env.env_kernel import EnvOutputs, env_sense
 
 N = 1024
 #: env_sense's scratch (its name before issue 26 is NOISE_SCRATCH_SHAPE).
@@ -62,8 +61,8 @@ def main(argv: list[str]) -> int:
     scratch = np.empty(SHAPE)
     sense_args = (batch.params, batch.plant_params, batch.env_state, out, scratch)
     _sense_loop(1, N, *sense_args)
-    cmd = command_path(batch.params.current_mode, batch.params.inverse_code)
-    serial, parallel = kernels(ENV, batch.plant.code, batch.kernel_mode, cmd, False)
+    # the batch's own kernels (those of its configuration: its sensing flags since issue 40)
+    serial, parallel = batch._kernel.serial, batch._kernel.parallel
     args = (batch._action_buf, batch._signals_buf, batch._env_args)
     serial(0, N, *args)
     parallel(N, *args)

@@ -30,7 +30,7 @@ from capsule_env.config import (
     check_num_envs,
     check_seed,
 )
-from capsule_env.env_kernel import command_path
+from capsule_env.env_kernel import command_path, sense_flags
 from capsule_env.env_params import EnvParams, EnvState
 from capsule_env.envelope_kernel import ENV_LIMIT, ENV_SPEED, ENV_START, ENV_T0
 from capsule_env.guideway import make_profile, random_profile
@@ -187,6 +187,7 @@ class CapsuleBatch:
             ENV, self.plant.code, self.kernel_mode, n,
             command_path(self.params.current_mode, self.params.inverse_code),
             preview=config.preview_points > 0, envelope=self.envelope.flags,
+            sense=sense_flags(self.params),
         )  # fmt: skip
 
     def _build_plant(self) -> None:

@@ -98,6 +98,11 @@ from capsule_env.plant.block import BLOCK, guideway_elevation, route_elevation, 
 __all__ = [
     "env_commands",
     "env_sense",
+    "env_sense_variant",
+    "sense_flags",
+    "SENSE_NOISE",
+    "SENSE_FILTER",
+    "SENSE_ALL",
     "env_preview",
     "SENSE_SCRATCH_SHAPE",
     "COMMAND_CURRENT",
@@ -138,16 +143,29 @@ def _kernel_sources(quantities: np.ndarray) -> np.ndarray:
     return np.array(rows, dtype=np.int64)
 
 
-#: The column maps, compile-time constants of the kernel (``observations.COLUMN_SOURCES``,
-#: ``COLUMN_NOISE``, ``COLUMN_MEASUREMENTS``): where each column of a set reads its quantity
-#: (:func:`_kernel_sources`), its noise channel (-1: none) and the measurement it equals (-1:
-#: none).
-_SENSORS = (COLUMN_MEASUREMENTS["sensors"], _kernel_sources(COLUMN_SOURCES["sensors"]),
-            COLUMN_NOISE["sensors"])  # fmt: skip
-_FULL = (COLUMN_MEASUREMENTS["full_state"], _kernel_sources(COLUMN_SOURCES["full_state"]),
-         COLUMN_NOISE["full_state"])  # fmt: skip
-_MEASURED = (COLUMN_MEASUREMENTS["measured"], _kernel_sources(COLUMN_SOURCES["measured"]),
-             COLUMN_NOISE["measured"])  # fmt: skip
+#: The column maps of the observation sets (``observations.COLUMN_SOURCES``, ``COLUMN_NOISE``,
+#: ``COLUMN_MEASUREMENTS``), one ``(3, width)`` int64 block per set, by observation code
+#: (``OBSERVATION_CODES``): row ``_MAP_MEASUREMENT`` the measurement each column equals (-1:
+#: none), ``_MAP_SOURCE`` where it reads its quantity (:func:`_kernel_sources`),
+#: ``_MAP_CHANNEL`` its noise channel (-1: none); ``_COLUMN_COUNTS`` the set's number of
+#: columns (the rest of its block is padding, -1).
+_MAP_MEASUREMENT, _MAP_SOURCE, _MAP_CHANNEL = range(3)
+
+
+def _column_maps() -> tuple[np.ndarray, np.ndarray]:
+    """:data:`_COLUMN_MAPS` and :data:`_COLUMN_COUNTS` from the observation table."""
+    names = sorted(OBSERVATION_CODES, key=OBSERVATION_CODES.get)
+    counts = np.array([len(COLUMN_SOURCES[name]) for name in names], dtype=np.int64)
+    maps = np.full((len(names), 3, int(counts.max())), -1, dtype=np.int64)
+    for code, name in enumerate(names):
+        rows = (COLUMN_MEASUREMENTS[name], _kernel_sources(COLUMN_SOURCES[name]),
+                COLUMN_NOISE[name])  # fmt: skip
+        for row, values in zip((_MAP_MEASUREMENT, _MAP_SOURCE, _MAP_CHANNEL), rows):
+            maps[code, row, : counts[code]] = values
+    return maps, counts
+
+
+_COLUMN_MAPS, _COLUMN_COUNTS = _column_maps()
 #: ... and of the measurements (``observations.MEASUREMENT_SOURCES``, ``MEASUREMENT_NOISE``).
 _MEAS_SOURCE, _MEAS_NOISE = _kernel_sources(MEASUREMENT_SOURCES), MEASUREMENT_NOISE
 #: Coefficients of ``EnvParams.estimator``: ``(b0, b1, b2, a1, a2)`` of a biquad.
@@ -302,6 +320,20 @@ def _delay(lo, hi, command, state):
 
 
 # ----------------------------------------------------------------------------- sensing
+#: Flags of :func:`env_sense_variant`: the parts of sensing a kernel compiles, for the
+#: configurations that use them (:func:`sense_flags`): the sensor noise, the reward's
+#: acceleration filter. ``SENSE_ALL``: both, each decided at run time (:func:`env_sense`).
+SENSE_NOISE, SENSE_FILTER = 1, 2
+SENSE_ALL = SENSE_NOISE | SENSE_FILTER
+
+
+def sense_flags(params: EnvParams) -> int:
+    """The :func:`env_sense_variant` flags of a configuration's ``EnvParams``: the sensor noise
+    where any channel is noisy, the reward filter where it has sections."""
+    noise = SENSE_NOISE if params.noisy else 0
+    return noise | (SENSE_FILTER if params.reward_filter.shape[0] > 0 else 0)
+
+
 @njit(**FAST, **BORROWED)
 def env_sense(lo, hi, params, plant, state, out, scratch):
     """Vehicles ``lo .. hi-1`` (at most ``BLOCK``) after the plant step: sensor noise,
@@ -309,15 +341,38 @@ def env_sense(lo, hi, params, plant, state, out, scratch):
     bump stop, signals and observations (clipped to where the sensors saturate; the guideway
     preview columns are :func:`env_preview`'s). ``scratch`` of :data:`SENSE_SCRATCH_SHAPE`
     comes from the caller (this function allocates nothing): its noise rows, then its
-    quantity rows."""
-    noise, q = scratch[:_NOISE_ROWS], scratch[_NOISE_ROWS:]
-    _draw_noise(lo, hi, params, state, noise)
-    _quantities(lo, hi, state.plant, out, q)
-    _measure(lo, hi, params.noise_std, out.signals, q, noise, state.measured)
-    _estimate_velocities(lo, hi, params.estimator, state, out)
-    _filter_reward_acceleration(lo, hi, params.reward_filter, reward_filter(state), out)
-    _reward(lo, hi, params, state, out)
-    _observe(lo, hi, params, out.signals, q, noise, state.measured, out.obs)
+    quantity rows. Any configuration (:func:`env_sense_variant` with ``SENSE_ALL``); the
+    kernels compile the variant of their configuration."""
+    env_sense_variant(SENSE_ALL, lo, hi, params, plant, state, out, scratch)
+
+
+@specialised("flags", plain=("lo",))
+def env_sense_variant(flags, lo, hi, params, plant, state, out, scratch):
+    """:func:`env_sense` compiled with the parts of ``flags`` (a compile-time constant,
+    :func:`sense_flags` of the configuration it runs): without ``SENSE_NOISE`` the noise is
+    zero (``params.noisy`` false), without ``SENSE_FILTER`` the reward reads the acceleration
+    itself (no filter sections): the same numbers as :func:`env_sense` for such a
+    configuration, without compiling the noise generator or the filter (about a tenth of a
+    noise-free first step's compile time)."""
+    noisy, filtered = (flags & SENSE_NOISE) != 0, (flags & SENSE_FILTER) != 0
+
+    def impl(flags, lo, hi, params, plant, state, out, scratch):
+        noise, q = scratch[:_NOISE_ROWS], scratch[_NOISE_ROWS:]
+        if noisy:
+            _draw_noise(lo, hi, params, state, noise)
+        else:
+            noise[:] = 0.0
+        _quantities(lo, hi, state.plant, out, q)
+        _measure(lo, hi, params.noise_std, out.signals, q, noise, state.measured)
+        _estimate_velocities(lo, hi, params.estimator, state, out)
+        if filtered:
+            _filter_reward_acceleration(lo, hi, params.reward_filter, reward_filter(state), out)
+        else:
+            _reward_acceleration(lo, hi, out)
+        _reward(lo, hi, params, state, out)
+        _observe(lo, hi, params, out.signals, q, noise, state.measured, out.obs)
+
+    return impl
 
 
 @njit(**FAST, **BORROWED)
@@ -391,13 +446,21 @@ def _estimate_velocities(lo, hi, est, state, out):
 
 
 @njit(**FAST, **BORROWED)
-def _filter_reward_acceleration(lo, hi, sos, states, out):
+def _reward_acceleration(lo, hi, out):
     """The car-body acceleration the reward reads (signal ``reward_acceleration_m_s2``): the
-    plant's through the reward filter's second-order sections (transposed direct form II;
-    none: the acceleration itself)."""
+    plant's, unfiltered."""
     acc = out.signals[SIG_REWARD_ACC]
     for n in range(lo, hi):
         acc[n] = out.plant[n, OUT_BODY_ACC]
+
+
+@njit(**FAST, **BORROWED)
+def _filter_reward_acceleration(lo, hi, sos, states, out):
+    """The car-body acceleration the reward reads (signal ``reward_acceleration_m_s2``): the
+    plant's (:func:`_reward_acceleration`) through the reward filter's second-order sections
+    (transposed direct form II; none: the acceleration itself)."""
+    _reward_acceleration(lo, hi, out)
+    acc = out.signals[SIG_REWARD_ACC]
     for k in range(sos.shape[0]):
         f_b0, f_b1, f_b2, f_a1, f_a2 = sos[k, 0], sos[k, 1], sos[k, 2], sos[k, 4], sos[k, 5]
         s1, s2 = states[2 * k], states[2 * k + 1]
@@ -441,36 +504,45 @@ def _reward(lo, hi, params, state, out):
 @njit(**FAST, **BORROWED)
 def _observe(lo, hi, params, sig, q, noise, meas, obs):
     """The observation set's columns (float32; the sensors saturate at the observation-space
-    bounds): each column its measurement, or its quantity plus its channel's noise, by the
-    set's column map (compile-time constants: the branch picks them, :func:`_columns` is
-    inlined with them)."""
-    if params.observation == OBS_FULL_STATE:
-        _columns(lo, hi, _FULL, params, sig, q, noise, meas, obs)
-    elif params.observation == OBS_MEASURED:
-        _columns(lo, hi, _MEASURED, params, sig, q, noise, meas, obs)
-    else:
-        _columns(lo, hi, _SENSORS, params, sig, q, noise, meas, obs)
+    bounds), column by column, by the set's column map (:data:`_COLUMN_MAPS`, read at run
+    time: one loop compiled for every set, where a copy per set was a tenth of a first step's
+    compile time): each column its measurement (the same bits as its quantity plus its
+    noise), or its quantity plus its channel's noise, clipped."""
+    code, std, bounds = params.observation, params.noise_std, params.obs_bounds
+    for j in range(_COLUMN_COUNTS[code]):
+        k, c = _COLUMN_MAPS[code, _MAP_MEASUREMENT, j], _COLUMN_MAPS[code, _MAP_CHANNEL, j]
+        source = _COLUMN_MAPS[code, _MAP_SOURCE, j]
+        # the block's values of the column's measurement or quantity (:func:`_kernel_sources`)
+        if k >= 0:
+            values = meas[k, lo:hi]
+        elif source < N_SIGNALS:
+            values = sig[source, lo:hi]
+        else:
+            values = q[source - N_SIGNALS, : hi - lo]
+        if k < 0 and c >= 0:
+            _noisy_column(obs, j, values, std[c], noise[c], lo, bounds)
+        else:
+            _clip_column(obs, j, values, lo, bounds)
 
 
-@njit(**FAST, **BORROWED, inline="always")
-def _columns(lo, hi, column_map, params, sig, q, noise, meas, obs):
-    """The columns of one set's ``column_map`` ``(measurement, source, channel)`` (constant
-    arrays: once inlined, each column's branches are decided at compile time), clipped; the
-    clip in float64 before the float32 store gives the bits of a clip after it (rounding is
-    monotonic and the bounds are float32 values)."""
-    measurement, source, channel = column_map
-    std, bounds = params.noise_std, params.obs_bounds
-    for n in range(lo, hi):
-        m = n - lo
-        for j in range(source.shape[0]):
-            if measurement[j] >= 0:  # the same bits as the quantity plus its noise
-                v = meas[measurement[j], n]
-            else:
-                v = _quantity(source[j], n, m, sig, q)
-                c = channel[j]
-                if c >= 0:
-                    v += std[c] * noise[c, m]
-            obs[n, j] = min(max(v, bounds[LOW, j]), bounds[HIGH, j])
+# The column loops are inlined by LLVM (forceinline) into _observe's loop over the columns.
+@njit(**FAST, **BORROWED, forceinline=True)
+def _clip_column(obs, j, values, lo, bounds):
+    """Column ``j`` of vehicles ``lo ..``: ``values`` (one per vehicle) clipped to the column's
+    bounds (the clip in float64 before the float32 store gives the bits of a clip after it:
+    rounding is monotonic and the bounds are float32 values)."""
+    low, high = bounds[LOW, j], bounds[HIGH, j]
+    for m in range(values.shape[0]):
+        obs[lo + m, j] = min(max(values[m], low), high)
+
+
+@njit(**FAST, **BORROWED, forceinline=True)
+def _noisy_column(obs, j, values, std, noise, lo, bounds):
+    """Column ``j`` of vehicles ``lo ..``: ``values`` (one per vehicle) plus ``std`` times the
+    channel's ``noise``, clipped to the column's bounds."""
+    low, high = bounds[LOW, j], bounds[HIGH, j]
+    for m in range(values.shape[0]):
+        obs[lo + m, j] = min(max(values[m] + std * noise[m], low), high)
 
 
 @njit(**FAST, **BORROWED)

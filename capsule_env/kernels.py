@@ -3,8 +3,9 @@
 Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
 (:func:`capsule_env.plant.step_batch`) and the whole env step
 (:class:`capsule_env.batch.CapsuleBatch`: commands, plant, sensors, reward). For each (kind,
-damper model, kernel mode, and for the env its command path and whether it previews the
-guideway), :func:`kernels` makes a pair:
+damper model, kernel mode, and for the env its command path, whether it previews the guideway,
+the envelope's flags and the sensing's: sensor noise, the reward's filter), :func:`kernels`
+makes a pair:
 
 - ``serial(lo, hi, *args)`` steps vehicles ``lo .. hi-1``, a block of up to 64 at a time;
 - ``parallel(n, *args)`` steps ``[0, n)`` in chunks on all cores (numba ``prange``);
@@ -14,9 +15,11 @@ the batch's ``EnvParams``, ``PlantParams``, ``EnvState`` and the other outputs (
 batch by :func:`env_args`); for a ``PLANT`` kernel ``(PlantParams, state, current_command_a,
 Route, dt_s, plant_outputs)``.
 
-The kind, model, mode, command path and preview flag are closure constants, so numba compiles
+The kind, model, mode, command path and the flags are closure constants, so numba compiles
 each pair only for what it uses (the model-specific code is chosen at typing: see
-:mod:`capsule_env.plant.block` and :mod:`capsule_env.plant.rk4`) and caches it on disk. The
+:mod:`capsule_env.plant.block` and :mod:`capsule_env.plant.rk4`; a noise-free env without a
+reward filter compiles neither: :func:`capsule_env.env_kernel.env_sense_variant`) and caches
+it on disk. The
 parallel kernel's chunks call the serial one: one function between the Python call and the
 block kernels (each nesting level of numba functions re-optimises and re-emits the machine code
 of everything below it). A vehicle's numbers do not depend on its chunk or thread: both kernels
@@ -53,11 +56,12 @@ from numba.extending import overload
 
 from capsule_env._jit import FORK_GUARD, Bundle, BundleType, compiled_entry, unique_symbol
 from capsule_env.env_kernel import (
+    SENSE_ALL,
     SENSE_SCRATCH_SHAPE,
     EnvOutputs,
     env_commands,
     env_preview,
-    env_sense,
+    env_sense_variant,
 )
 from capsule_env.env_params import applied_current
 from capsule_env.envelope import ENVELOPE_EDS_PER_STEP, ENVELOPE_TRIP
@@ -130,7 +134,7 @@ def env_args(params, plant, state, obs, reward, terminated, plant_out):  # noqa:
 
 
 def _make_kernels(
-    kind: int, model: int, mode: int, command: int, preview: bool, envelope: int
+    kind: int, model: int, mode: int, command: int, preview: bool, envelope: int, sense: int
 ) -> tuple[Any, Any]:
     # numba's parallel loops cannot capture tuples (the named structures): the parallel
     # plant kernel takes them apart into arrays and scalars before the loop and puts them
@@ -140,13 +144,15 @@ def _make_kernels(
     variant = f"k{kind}_m{model}_d{mode}_c{command}_p{int(preview)}".replace("-", "n")
     if envelope:  # the paper's kernels keep their names (and numba's cache files)
         variant += f"_e{envelope}"
+    if sense != SENSE_ALL:
+        variant += f"_s{sense}"
     if kind == ENV:
-        return _env_kernels(variant, model, mode, command, preview, envelope)
+        return _env_kernels(variant, model, mode, command, preview, envelope, sense)
     return _plant_kernels(variant, model, mode)
 
 
 def _env_kernels(
-    variant: str, model: int, mode: int, command: int, preview: bool, envelope: int
+    variant: str, model: int, mode: int, command: int, preview: bool, envelope: int, sense: int
 ) -> tuple[Any, Any]:
     """The env kernels ``(serial, parallel)``: commands -> (envelope) -> plant -> sense ->
     observe."""
@@ -159,8 +165,8 @@ def _env_kernels(
     def serial(lo, hi, actions, signals, args):
         params, plant, state = args.params, args.plant, args.state
         out = EnvOutputs(args.obs, args.reward, args.terminated, signals, args.plant_out)
-        # scratch of env_sense and block_step, one per call (they allocate nothing)
-        sense = np.empty(SENSE_SCRATCH_SHAPE)
+        # scratch of the sensing and block_step, one per call (they allocate nothing)
+        scratch = np.empty(SENSE_SCRATCH_SHAPE)
         lanes, counts = block_scratch()
         for b in range(lo, hi, BLOCK):
             e = min(hi, b + BLOCK)
@@ -175,7 +181,7 @@ def _env_kernels(
                     model, mode, b, e, plant, x, i_cmd, route, params.dt_s, out.plant,
                     lanes, counts,
                 )  # fmt: skip
-            env_sense(b, e, params, plant, state, out, sense)
+            env_sense_variant(sense, b, e, params, plant, state, out, scratch)
             if trip:
                 envelope_observe(b, e, params, state, out.obs)
             if preview:
@@ -220,20 +226,22 @@ def _plant_kernels(variant: str, model: int, mode: int) -> tuple[Any, Any]:
     return serial, parallel
 
 
-_KERNELS: dict[tuple[int, int, int, int, bool, int], tuple[Any, Any]] = {}
+_KERNELS: dict[tuple[int, int, int, int, bool, int, int], tuple[Any, Any]] = {}
 
 
 def kernels(
-    kind: int, model: int, mode: int, command: int = 0, preview: bool = False, envelope: int = 0
-) -> tuple[Any, Any]:
+    kind: int, model: int, mode: int, command: int = 0, preview: bool = False, envelope: int = 0,
+    sense: int = SENSE_ALL,
+) -> tuple[Any, Any]:  # fmt: skip
     """``(serial, parallel)`` compiled kernels of a kind for a damper model and kernel mode,
     and for ``ENV`` kernels a command path (``env_kernel.command_path``), whether the
-    observations carry guideway preview and the envelope's flags (``Envelope.flags``: trips,
-    EDS levitation per step) (memoised; compiled when first called, then loaded from numba's
-    disk cache)."""
+    observations carry guideway preview, the envelope's flags (``Envelope.flags``: trips,
+    EDS levitation per step) and the sensing's (``env_kernel.sense_flags``: sensor noise, the
+    reward's filter; ``SENSE_ALL``: both, decided at run time) (memoised; compiled when first
+    called, then loaded from numba's disk cache)."""
     env = kind == ENV
     key = (int(kind), int(model), int(mode), int(command) if env else 0, bool(preview) and env,
-           int(envelope) if env else 0)  # fmt: skip
+           int(envelope) if env else 0, int(sense) if env else SENSE_ALL)  # fmt: skip
     if key not in _KERNELS:
         _KERNELS[key] = _make_kernels(*key)
     return _KERNELS[key]
@@ -246,10 +254,10 @@ class BatchedKernel:
 
     def __init__(
         self, kind: int, model: int, mode: int, num_envs: int, command: int = 0,
-        preview: bool = False, envelope: int = 0,
+        preview: bool = False, envelope: int = 0, sense: int = SENSE_ALL,
     ) -> None:  # fmt: skip
-        self._key = (kind, model, mode, num_envs, command, preview, envelope)
-        self.serial, self.parallel = kernels(kind, model, mode, command, preview, envelope)
+        self._key = (kind, model, mode, num_envs, command, preview, envelope, sense)
+        self.serial, self.parallel = kernels(kind, model, mode, command, preview, envelope, sense)
         self.num_envs = num_envs
         self._threaded = num_envs >= PARALLEL_THRESHOLD
         # compiled entry points with their leading arguments bound, by "threaded"; _entry is

@@ -9,7 +9,7 @@ value makes it one with ``numba.literally(model)``.
 
 from __future__ import annotations
 
-from capsule_env._jit import specialised
+from capsule_env._jit import KERNEL_OPTIONS, specialised
 from capsule_env.dampers.registry import model_of_code
 
 __all__ = ["model_prepare", "model_force", "model_affine", "hysteresis_params", "damper_eval"]
@@ -39,7 +39,10 @@ def model_force(model, p, x, v, y, z, i, pre):
     return impl
 
 
-@specialised("model", inline="always", cache=True, error_model="numpy")
+# Inlined by LLVM (forceinline) into the SIMD loops that invert it, not by numba: numba's
+# inlining of an overload types its implementation again at every call site, besides compiling
+# it for itself (a first step typed the Bi-exponential's four times).
+@specialised("model", forceinline=True, **KERNEL_OPTIONS)
 def model_affine(model, p, x, v, z):
     """``(F0, slope)`` with ``F(i) = F0 + slope * i`` for the model at ``(x, v, z)``: its
     ``affine`` form (a model without one has none: a typing error names it)."""

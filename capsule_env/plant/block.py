@@ -175,7 +175,10 @@ def block_constants(
     return np.ascontiguousarray(out)
 
 
-@njit(**FAST, inline="always")
+# The elevation lookups are inlined by LLVM (forceinline), not by numba: numba's inlining
+# copies their IR into every call site (route_elevation's two lookups at each of its own)
+# before typing and lowering each copy.
+@njit(**FAST, **BORROWED, forceinline=True)
 def guideway_elevation(profiles, k, spacing, last, position):
     """Profile ``k`` at ``position`` (m), linear between samples, held beyond both ends
     (``last = profiles.shape[1] - 1.0``); clamps instead of branches."""
@@ -185,7 +188,7 @@ def guideway_elevation(profiles, k, spacing, last, position):
     return profiles[k, j] * (1.0 - f) + profiles[k, j + 1] * f
 
 
-@njit(**FAST, inline="always")
+@njit(**FAST, **BORROWED, forceinline=True)
 def route_elevation(profiles, offsets, k, gain, spacing, last, position):
     """The guideway under a vehicle: ``gain`` times profile ``k`` at ``position`` (m), plus the
     offsets' row ``k`` there when the plant has offsets (the tube's spans)."""
