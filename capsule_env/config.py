@@ -234,6 +234,8 @@ class EnvConfig:
                              "sets the speed)")  # fmt: skip
         # Build everything once so that bad overrides fail here, with the parameter named.
         _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+        if self.damper_params:  # a plant damper of the user's: it must dissipate (issue 40)
+            _check_dissipative_plant(self.plant_damper, self.plant_damper_name)
         _ = self.envelope
         self._check_substeps()
         self.check_memory(1)
@@ -512,6 +514,22 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
     high += [1.0] * config.preview_points
     low += [-1.0] * config.preview_points
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
+_DISSIPATIVE: set[tuple[int, tuple[float, ...]]] = set()  # plant dampers checked already
+
+
+def _check_dissipative_plant(damper: Any, model: str) -> None:
+    """``ValueError`` naming ``damper_params`` when the plant damper they give feeds energy in
+    (:func:`capsule_env.damper_rig.check_dissipative`: a sign-flipped or negative-damping
+    identification would drive the capsule into its bump stops); each damper checked once."""
+    from capsule_env.damper_rig import check_dissipative
+
+    key = (int(damper.code), tuple(float(p) for p in damper.as_array()))
+    if key in _DISSIPATIVE:
+        return
+    check_dissipative(damper, f"damper_params: the {model} plant damper")
+    _DISSIPATIVE.add(key)
 
 
 def _check_payload_range(value: Any) -> None:

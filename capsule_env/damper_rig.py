@@ -20,7 +20,23 @@ from capsule_env.dampers.dispatch import damper_eval, hysteresis_params
 from capsule_env.hysteresis import hysteresis_update
 from capsule_env.layout import COIL_TAU
 
-__all__ = ["simulate_damper", "sinusoidal_stroke"]
+__all__ = [
+    "simulate_damper",
+    "sinusoidal_stroke",
+    "dissipation_ratio",
+    "check_dissipative",
+    "DISSIPATION_TESTS",
+    "MIN_DISSIPATION_RATIO",
+]
+
+#: The strokes a damper must dissipate on (amplitude m, frequency Hz): the capsule's strokes
+#: (a few mm to 2.5 cm) at its body and bogie modes' rates.
+DISSIPATION_TESTS = ((0.001, 1.0), (0.005, 1.0), (0.025, 1.0), (0.005, 8.0))
+#: The least share of a loop's force that must act against the stroke rate (the work per cycle
+#: over ``rms(F) rms(v) T``: 1 for a pure viscous damper, 0 for a spring, negative for a
+#: force that feeds energy in). Measured: the Labcontrol loops 0.85-0.96, the reference
+#: damper's 0.96; pure noise within +-0.06, a sign-flipped loop -0.96 (docs/howto-identify.md).
+MIN_DISSIPATION_RATIO = 0.3
 
 
 @njit(cache=True)
@@ -114,3 +130,41 @@ def sinusoidal_stroke(
     t = np.linspace(0.0, cycles / frequency_hz, n)
     w = 2.0 * np.pi * frequency_hz
     return t, amplitude_m * np.sin(w * t), amplitude_m * w * np.cos(w * t)
+
+
+def dissipation_ratio(
+    time_s: np.ndarray, force_n: np.ndarray, stroke_rate_m_s: np.ndarray
+) -> float:
+    """The work the force takes from the stroke over the record, ``integral F v dt``, over
+    ``rms(F) rms(v) T``: 1 for a viscous damper, about 0.9 to 0.96 for an MR damper's loop, 0
+    for a spring or noise, below 0 for a force that feeds energy into the motion."""
+    t = np.asarray(time_s, float)
+    power_w = np.asarray(force_n, float) * np.asarray(stroke_rate_m_s, float)
+    work_j = float(np.sum(0.5 * (power_w[1:] + power_w[:-1]) * np.diff(t)))
+    scale = float(
+        np.sqrt(np.mean(np.square(force_n))) * np.sqrt(np.mean(np.square(stroke_rate_m_s)))
+    )
+    duration_s = float(t[-1] - t[0])
+    return work_j / (scale * duration_s) if scale > 0.0 and duration_s > 0.0 else 0.0
+
+
+def check_dissipative(damper: DamperParams, name: str = "damper") -> None:
+    """``ValueError`` unless ``damper`` dissipates on every stroke of :data:`DISSIPATION_TESTS`
+    at 0 A and at its largest current: each steady cycle's :func:`dissipation_ratio` at least
+    :data:`MIN_DISSIPATION_RATIO`. A damper that feeds energy in (negative damping, a
+    sign-flipped fit) is no damper: as a plant it drives the capsule into its bump stops."""
+    currents = (0.0, float(getattr(damper, "max_current_a", 0.0)))
+    for amplitude_m, frequency_hz in DISSIPATION_TESTS:
+        t, x, v = sinusoidal_stroke(frequency_hz, amplitude_m, cycles=2.0, samples_per_cycle=400)
+        last = t >= 1.0 / frequency_hz  # the second cycle: internal states settled
+        for current_a in sorted(set(currents)):
+            force = simulate_damper(damper, t, x, v, current_a)["force_n"]
+            ratio = dissipation_ratio(t[last], force[last], v[last])
+            if not ratio >= MIN_DISSIPATION_RATIO:
+                raise ValueError(
+                    f"{name} does not dissipate: on a {1000 * amplitude_m:g} mm, "
+                    f"{frequency_hz:g} Hz stroke at {current_a:g} A its work per cycle is "
+                    f"{ratio:.2f} of rms(F) rms(v) T (a damper's is >= {MIN_DISSIPATION_RATIO}; "
+                    "below 0 it feeds energy in): are signs flipped or a damping coefficient "
+                    "negative?"
+                )

@@ -152,6 +152,13 @@ def _add_source_and_output_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", metavar="PATH", type=Path, help="write a JSON summary here")
     parser.add_argument(
+        "--allow-poor-fit",
+        action="store_true",
+        help="keep a fit whose best model is off by more than 25 %% of the peak force (refused "
+        "by default: such loops are noise or the wrong columns); a loop or model that does "
+        "not dissipate is refused regardless",
+    )
+    parser.add_argument(
         "--plots", metavar="DIR", type=Path, help="write PNG figures (loops, parameter trends) here"
     )
     parser.add_argument(
@@ -342,13 +349,16 @@ def _identify_data(args: argparse.Namespace) -> tuple[list[IdentificationResult]
         remove_force_offset=args.remove_force_offset,
     )
     if args.together:
-        result = identify_files(files, d_rule=args.d_rule, **options)
+        result = identify_files(
+            files, d_rule=args.d_rule, allow_poor_fit=args.allow_poor_fit, **options
+        )
         print(_report(result))
         return [result], result.to_json_dict()
     results = []
     for file in files:
         try:
-            results.append(identify_measured(file, d_rule=args.d_rule, **options))
+            results.append(identify_measured(file, d_rule=args.d_rule,
+                                             allow_poor_fit=args.allow_poor_fit, **options))  # fmt: skip
         except ValueError as exc:
             if str(file) in str(exc):
                 raise

@@ -48,7 +48,13 @@ class TripParams:
 
     def __post_init__(self) -> None:
         check_in_range("cruise_speed_kmh", self.cruise_speed_kmh, 1.0, 2000.0)
-        check_in_range("lift_off_speed_kmh", self.lift_off_speed_kmh, 0.0, self.cruise_speed_kmh)
+        check_in_range("lift_off_speed_kmh", self.lift_off_speed_kmh, 0.0, 2000.0)
+        if self.lift_off_speed_kmh > self.cruise_speed_kmh:  # both named: either may be the slip
+            raise ValueError(
+                f"cruise_speed_kmh must be >= lift_off_speed_kmh (a trip rises from lift-off to "
+                f"cruise), got cruise_speed_kmh={self.cruise_speed_kmh!r} and "
+                f"lift_off_speed_kmh={self.lift_off_speed_kmh!r}"
+            )
         check_in_range("acceleration_m_s2", self.acceleration_m_s2, 1e-3, 20.0)
         check_in_range("braking_m_s2", self.braking_m_s2, 1e-3, 20.0)
         check_in_range("cruise_duration_s", self.cruise_duration_s, 0.0, 1e6)

@@ -240,7 +240,7 @@ def test_trip_task_runs_with_gymnasium_make_and_make_vec():
          "levitation_damping_n_s_per_m"),
         ({"vehicle_params": {"levitation_damping_n_s_per_m": 1e6}}, "levitation_damping_n_s_per_m"),
         ({"speed_profile": "trip", "trip_params": {"cruise_speed_kmh": 100.0}},
-         "trip_params: lift_off_speed_kmh"),
+         "trip_params: cruise_speed_kmh must be >= lift_off_speed_kmh"),
         ({"levitation": "eds", "levitation_params": {"lift_off_speed_kmh": 900.0}},
          "levitation_params: lift_off_speed_kmh"),
         ({"levitation": "eds", "speed_range_kmh": (100.0, 800.0)}, r"speed_range_kmh\[0\]"),

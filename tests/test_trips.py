@@ -50,3 +50,16 @@ def test_windows_are_drawn_inside_the_trip():
         draw_window_start_s(rng, trip.duration_s + 1.0, trip)
     with pytest.raises(ValueError, match="acceleration_m_s2"):
         TripParams(acceleration_m_s2=0.0)
+
+
+def test_a_cruise_below_the_lift_off_names_the_cruise_speed():
+    # issue 40: trip_params={"cruise_speed_kmh": 100} blamed lift_off_speed_kmh alone
+    import gymnasium as gym
+
+    import capsule_env  # noqa: F401  (registers the tasks)
+
+    with pytest.raises(ValueError, match=r"^trip_params: cruise_speed_kmh must be >= "
+                                         r"lift_off_speed_kmh .*cruise_speed_kmh=100"):  # fmt: skip
+        gym.make("CapsuleTrip-v0", trip_params={"cruise_speed_kmh": 100})
+    with pytest.raises(ValueError, match=r"lift_off_speed_kmh must be in \[0.0, 2000.0\]"):
+        gym.make("CapsuleTrip-v0", trip_params={"lift_off_speed_kmh": -5})

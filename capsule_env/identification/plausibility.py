@@ -18,6 +18,16 @@ Errors:
 - the force swings by less than 1 N or more than 1 MN about its mean;
 - a current (a column, ``current_a`` or a file name) is above :data:`MAX_CURRENT_A` (10 A).
 
+Errors about the physics (issue 40: a sign-flipped loop fitted a negative damping, pure noise
+fitted with an RMSE of 56 % of its peak, and the env took such parameters as its plant):
+
+- a loop whose force does not dissipate: its work per cycle below
+  :data:`~capsule_env.damper_rig.MIN_DISSIPATION_RATIO` of ``rms(F) rms(v) T`` (measured loops
+  0.85-0.96, noise about 0, a sign-flipped loop -0.96);
+- a fitted model whose predicted force on the loops does not dissipate;
+- no model fitting within :data:`MAX_FIT_RMSE_FRACTION` of the peak force (the measured loops'
+  best fits: at most 0.14), unless ``allow_poor_fit``.
+
 Warnings: the force swings by less than 10 N; a current column peaks above 0 but below half
 the current resolution (every sample rounds to 0 A); after the fit (:func:`check_fit`), the
 best model's RMSE is below 0.1 % of the peak force, or, with the force kept as recorded, the
@@ -32,10 +42,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from capsule_env.identification.loops import Loop
     from capsule_env.identification.results import IdentificationResult
 
 __all__ = [
     "MAX_CURRENT_A",
+    "MAX_FIT_RMSE_FRACTION",
+    "check_dissipation",
+    "check_fit_quality",
     "PlausibilityWarning",
     "check_column",
     "check_current",
@@ -175,6 +191,57 @@ def check_run(
             f"{name}, column {labels['velocity']!r}{where} is {ratio:.3g} times the derivative "
             f"of column {labels['displacement']!r} (accepted: {low:.3g} to {high:g}): their "
             "units disagree (mm/s against m?) or a column holds another quantity"
+        )
+
+
+#: The largest RMSE, as a share of the peak force, of the best-fitting model: the Labcontrol
+#: loops' best fits reach 0.14 of their peak, the reference damper's 0.03; pure noise 0.26 or
+#: more (Gaussian; uniform noise about 0.58).
+MAX_FIT_RMSE_FRACTION = 0.25
+
+
+def check_dissipation(loops: Sequence[Loop], name: str) -> None:
+    """``ValueError`` when a loop's force does not dissipate: no damper's force feeds energy
+    into the stroke (a sign flipped when recorded) or is uncorrelated with it (noise)."""
+    from capsule_env.damper_rig import MIN_DISSIPATION_RATIO, dissipation_ratio
+
+    for loop in loops:
+        ratio = dissipation_ratio(loop.time_s, loop.force_n, loop.stroke_rate_m_s)
+        if not ratio >= MIN_DISSIPATION_RATIO:
+            cause = ("is the force's sign flipped?" if ratio < 0 else
+                     "is the force column noise, or another quantity?")  # fmt: skip
+            raise ValueError(
+                f"{name}: the loop at {loop.current_a:g} A does not dissipate: its work per "
+                f"cycle is {ratio:.2f} of rms(F) rms(v) T (a damper's loop: >= "
+                f"{MIN_DISSIPATION_RATIO}; measured loops 0.85-0.96): {cause}"
+            )
+
+
+def check_fit_quality(result: IdentificationResult, name: str, allow_poor_fit: bool) -> None:
+    """``ValueError`` when a fitted model's force on the loops does not dissipate, or when no
+    model fits within :data:`MAX_FIT_RMSE_FRACTION` of the peak force (unless
+    ``allow_poor_fit``: a research escape hatch, the figure still reported)."""
+    from capsule_env.damper_rig import MIN_DISSIPATION_RATIO, dissipation_ratio
+    from capsule_env.identification.predict import predict_force
+
+    for fit in result.models.values():
+        for loop in result.loops:
+            force = predict_force(fit.damper, loop)
+            ratio = dissipation_ratio(loop.time_s, force, loop.stroke_rate_m_s)
+            if not ratio >= MIN_DISSIPATION_RATIO:
+                raise ValueError(
+                    f"{name}: the fitted {fit.name} model does not dissipate on the loop at "
+                    f"{loop.current_a:g} A (work per cycle {ratio:.2f} of rms(F) rms(v) T, a "
+                    f"damper's >= {MIN_DISSIPATION_RATIO}): its parameters would feed energy in"
+                )
+    best = min(result.models.values(), key=lambda fit: fit.rmse_n)
+    share = best.rmse_n / result.peak_force_n
+    if share > MAX_FIT_RMSE_FRACTION and not allow_poor_fit:
+        raise ValueError(
+            f"{name}: no model fits: the best, {best.name}, is off by RMSE {best.rmse_n:.4g} N, "
+            f"{100 * share:.0f} % of the peak force (accepted: <= "
+            f"{100 * MAX_FIT_RMSE_FRACTION:.0f} %; measured loops' best fits <= 14 %); "
+            "allow_poor_fit=True (--allow-poor-fit) keeps it"
         )
 
 

@@ -30,7 +30,11 @@ from capsule_env.identification.loops import (
     group_by_current,
     reference_loops,
 )
-from capsule_env.identification.plausibility import check_fit
+from capsule_env.identification.plausibility import (
+    check_dissipation,
+    check_fit,
+    check_fit_quality,
+)
 from capsule_env.identification.predict import predict_force
 from capsule_env.identification.tabular import load_loops
 from capsule_env.identification.tanh import fit_tanh
@@ -160,17 +164,25 @@ def _rmse_per_current(damper: DamperParams, loops: Sequence[Loop]) -> dict[float
 
 
 def identify_loops(
-    loops: Sequence[Loop], source: str | None = None, d_rule: str = "mean"
+    loops: Sequence[Loop],
+    source: str | None = None,
+    d_rule: str = "mean",
+    allow_poor_fit: bool = False,
 ) -> IdentificationResult:
     """Fit the Bi-exponential, Bouc-Wen and tanh models to a set of loops (docs/model.md 6).
 
     Each model's RMSE is evaluated with the package's own forward model
     (:func:`predict_force`) on every loop; ``rmse_n`` is the RMSE at the largest current.
-    ``d_rule`` picks the Bi-exponential ``d`` rule (:func:`fit_bi_exponential`).
+    ``d_rule`` picks the Bi-exponential ``d`` rule (:func:`fit_bi_exponential`). A loop that
+    does not dissipate, a fitted model that does not, and (unless ``allow_poor_fit``) a best
+    fit off by more than a quarter of the peak force are ``ValueError``
+    (:func:`~capsule_env.identification.plausibility.check_fit_quality`).
     """
     loops = check_loops(loops)
     if max(lp.peak_force_n for lp in loops) == 0.0:
         raise ValueError("the loops' force is zero everywhere: nothing to identify")
+    name = source if source is not None else (loops[0].source or "the loops")
+    check_dissipation(loops, name)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     bi_exp, trends = fit_bi_exponential(loops, d_rule=d_rule)
@@ -186,7 +198,7 @@ def identify_loops(
     for name, damper in zip(MODEL_NAMES, (bi_exp, bouc_wen, tanh)):
         per = _rmse_per_current(damper, loops)
         models[name] = ModelFit(name, damper, per, per[i_top])
-    return IdentificationResult(
+    result = IdentificationResult(
         source=source if source is not None else loops[0].source,
         loops=tuple(loops),
         models=models,
@@ -197,6 +209,8 @@ def identify_loops(
         timings_s=timings,
         d_rule=d_rule,
     )
+    check_fit_quality(result, name, allow_poor_fit)
+    return result
 
 
 def identify_reference(
@@ -220,7 +234,7 @@ def identify_reference(
 
 
 def identify_measured(
-    path: str | Path, d_rule: str = "mean", **load_options: Any
+    path: str | Path, d_rule: str = "mean", allow_poor_fit: bool = False, **load_options: Any
 ) -> IdentificationResult:
     """Identify all models from one measured file: a Labcontrol ``.mat``, a CSV or a NumPy
     file (:func:`~capsule_env.identification.tabular.load_loops`, which takes
@@ -239,14 +253,18 @@ def identify_measured(
     good for a measurement and about a kept force offset that the Bouc-Wen model cannot carry.
     """
     loops = load_loops(path, **load_options)
-    result = identify_loops(loops, source=Path(path).name, d_rule=d_rule)
+    result = identify_loops(loops, source=Path(path).name, d_rule=d_rule,
+                            allow_poor_fit=allow_poor_fit)  # fmt: skip
     kept = Path(path).suffix.lower() != ".mat" and not load_options.get("remove_force_offset")
     check_fit(result, f"measured data file {str(path)!r}", force_kept=kept)
     return result
 
 
 def identify_files(
-    paths: Sequence[str | Path], d_rule: str = "mean", **load_options: Any
+    paths: Sequence[str | Path],
+    d_rule: str = "mean",
+    allow_poor_fit: bool = False,
+    **load_options: Any,
 ) -> IdentificationResult:
     """Identify all models from the loops of several files at once, e.g. one file per current
     (``loop_0A.csv``, ``loop_0.5A.csv``, ...: the current laws across files). Each file is read
@@ -260,7 +278,7 @@ def identify_files(
     source = (
         ", ".join(names) if len(names) <= 3 else f"{len(names)} files ({names[0]} to {names[-1]})"
     )
-    result = identify_loops(loops, source=source, d_rule=d_rule)
+    result = identify_loops(loops, source=source, d_rule=d_rule, allow_poor_fit=allow_poor_fit)
     kept = not load_options.get("remove_force_offset") and any(
         p.suffix.lower() != ".mat" for p in paths
     )
