@@ -1,5 +1,6 @@
-"""A training run's own arguments: saved with every policy ``train.py`` writes, restored by
-``--resume``, and the command that continues a run.
+"""A training run's arguments: ``train.py``'s command line (:func:`parse_args`, the values
+checked by :func:`check_args`), the run's own arguments saved with every policy it writes and
+restored by ``--resume``, and the command that continues a run.
 
 Every save's ``.json`` holds ``args`` (:func:`run_arguments`): the arguments that make the run
 what it is. ``--resume auto`` (or ``--resume DIR``, or a checkpoint's ``.zip``) restores them
@@ -23,12 +24,23 @@ arguments and the hyperparameters.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
+import math
 import shlex
 import sys
 from pathlib import Path
 from typing import Any
+
+from capsule_env._cli import (
+    ArgumentParser,
+    add_dataclass_options,
+    dataclass_values,
+    parse_env_item,
+    parse_env_kwargs,
+)
+from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, VALIDATION_GUIDEWAY_SEED
 
 #: Define the run: restored by ``--resume``; given again with another value, refused.
 FIXED = ("algo", "seed", "num_envs", "name", "eval_episodes", "eval_seed", "eval_episode_length",
@@ -40,6 +52,77 @@ ADJUSTABLE = ("total_timesteps", "eval_freq", "checkpoint_freq", "checkpoint_min
 PROCESS = ("tensorboard", "threads", "env_threads", "compile", "device", "verbose", "progress")
 
 
+# ----------------------------------------------------------------------------- command line
+def parse_args(cls: type, argv: list[str] | None, description: str | None) -> Any:
+    """The command line as an instance of the argument dataclass ``cls`` (``train.Args``).
+
+    Each field is an option ``--field-name``; its help is the string literal under the field.
+    ``env_kwargs`` (a JSON object or Python dict literal) and the ``env`` items (``KEY=VALUE``,
+    VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
+    items last. A field ``explicit`` (when ``cls`` has one) gets the names of the options the
+    command line gave. A bad value exits with one line on stderr and status 2.
+    """
+    parser = ArgumentParser(prog="train.py", description=description,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    add_dataclass_options(parser, cls)
+    values = dataclass_values(parser.parse_args(argv), cls)
+    if "explicit" in {f.name for f in dataclasses.fields(cls)}:  # what --resume checks
+        given = ArgumentParser(prog="train.py")
+        add_dataclass_options(given, cls, suppress=True)
+        values["explicit"] = frozenset(vars(given.parse_args(argv)))
+    try:
+        env_kwargs = parse_env_kwargs(values["env_kwargs"])
+        env_kwargs.update(parse_env_item(item) for item in values["env"])
+        values["env_kwargs"] = env_kwargs
+        args = cls(**values)
+        check_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
+
+
+def check_args(args: Any) -> None:
+    """The values' ranges; ``ValueError`` naming the option."""
+    for name in ("num_envs", "total_timesteps", "eval_episodes", "threads", "env_threads"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    for name in ("eval_freq", "checkpoint_freq", "keep_replay_buffers"):
+        if getattr(args, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    last_seed = 2**63 - max(args.eval_episodes, 1)  # episode seeds: numpy's, below 2**63
+    if not 0 <= args.eval_seed <= last_seed:
+        raise ValueError(f"--eval-seed must be in 0..{last_seed} (--eval-episodes "
+                         f"{args.eval_episodes} seeds from it, each below 2**63), got "
+                         f"{args.eval_seed}")  # fmt: skip
+    check_residual_args(args)
+    if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
+        raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
+    if args.env_kwargs.get("guideway_seed", None) in (
+        EVALUATION_GUIDEWAY_SEED,
+        VALIDATION_GUIDEWAY_SEED,
+    ):
+        raise ValueError(
+            f"guideway_seed={args.env_kwargs['guideway_seed']} is a held-out bank (evaluation "
+            f"{EVALUATION_GUIDEWAY_SEED}, validation {VALIDATION_GUIDEWAY_SEED})"
+        )
+
+
+def check_residual_args(args: Any) -> None:
+    """``--residual`` names a classical law and ``--residual-scale`` is in (0, 2];
+    ``ValueError`` naming the option and what it accepts."""
+    from capsule_env.agents.classical import FACTORIES
+
+    law = getattr(args, "residual", None)
+    if law is not None and law not in FACTORIES:
+        raise ValueError(f"--residual must name a classical controller ({', '.join(FACTORIES)}), "
+                         f"got {law!r}")  # fmt: skip
+    scale = getattr(args, "residual_scale", 0.5)
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and 0.0 < scale <= 2.0):
+        raise ValueError(f"--residual-scale must be in (0, 2], got {scale}")
+
+
+# ----------------------------------------------------------------------------- --resume
 def given_arguments(args: Any) -> set[str]:
     """The fields of ``args`` the user gave: ``args.explicit`` (the command line's options),
     or, for arguments built in code, every field that is not None."""

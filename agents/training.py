@@ -1,12 +1,13 @@
 """What ``train.py``'s run is made of: its command line, the checks made before training, the
 env, and the state shared by the callbacks and the main loop (evaluation, checkpoints, clock).
 
-- :func:`parse_args`: the command line of a CleanRL-style argument dataclass (each field's
-  help is the string literal under it), with ``--env KEY=VALUE`` items merged into
-  ``env_kwargs`` and the values checked; errors are one line on stderr, exit status 2.
+- ``parse_args``, ``check_args``: the command line and its values
+  (:mod:`capsule_env.agents.run_args`, re-exported here).
 - :func:`prepare`: everything checked before any training time is spent (the hyperparameter
-  file, the env arguments, the evaluation episode length, the checkpoint to resume from, the
-  output and TensorBoard folders), as a :class:`Plan`.
+  file, the env arguments, the evaluation episode length, the checkpoint to resume from, a
+  new run's folder free of another run's files), as a :class:`Plan`; it makes no folder.
+  :func:`make_run_folders` makes them (and ``--tensorboard``'s), checked writable, once the
+  model is built: a run refused before training leaves nothing on disk.
 - :func:`make_env`: the batched numba kernel as an SB3 ``VecEnv`` + ``VecMonitor`` +
   ``VecNormalize`` (new, or with a checkpoint's statistics).
 - :class:`Run` and :class:`TrainingMonitor`: held-out evaluation through
@@ -32,13 +33,12 @@ Output folder: ``best_model.{zip,vecnormalize.pkl,json}`` (the json: ``name``, `
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 import time
 import typing
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,10 @@ from capsule_env.agents.hyperparams import (
     normalize_kwargs_from,
     resolve_env_kwargs,
 )
-from capsule_env.agents.run_args import (
+from capsule_env.agents.run_args import (  # parse_args, check_args: re-exported (the sweep's)
+    check_args,  # noqa: F401
+    check_residual_args,  # noqa: F401
+    parse_args,  # noqa: F401
     restore_arguments,
     restore_env_kwargs,
     restore_hyperparams,
@@ -69,16 +72,8 @@ from capsule_env.agents.run_args import (
 from capsule_env.agents.sb3_policy import SB3Policy
 from stable_baselines3.common.callbacks import BaseCallback
 
-from capsule_env._cli import (
-    ArgumentParser,
-    add_dataclass_options,
-    dataclass_values,
-    parse_env_item,
-    parse_env_kwargs,
-)
 from capsule_env.config import EnvConfig
 from capsule_env.evaluation import (
-    EVALUATION_GUIDEWAY_SEED,
     VALIDATION_GUIDEWAY_SEED,
     Rollout,
     check_episode_length,
@@ -86,7 +81,7 @@ from capsule_env.evaluation import (
     run_episodes,
 )
 from capsule_env.policy_files import clean_leftovers
-from capsule_env.safe_io import append_line, check_writable_dir
+from capsule_env.safe_io import append_line, check_creatable_dir, check_writable_dir
 from capsule_env.tasks import reference_law_for
 
 if typing.TYPE_CHECKING:
@@ -100,8 +95,6 @@ HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
 EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
 
 
-#: Printed beside the evaluations: a classical reference in ``hils`` (continuous Skyhook, the
-#: paper's law family; not the best law: see docs/fair-comparison.md).
 def reference_law(env_kwargs: dict, task: str | None) -> str:
     """The law a run is compared with: the task's best on the same signals
     (:func:`capsule_env.tasks.reference_law_for`), its LQ counterpart when the MPC's solver (the
@@ -116,71 +109,6 @@ def reference_law(env_kwargs: dict, task: str | None) -> str:
 
 #: The metric ``best_model`` is chosen by (lower is better), after the bump-stop hits.
 BEST_METRIC = "wk_rms_body_acc_m_s2"
-
-
-# ----------------------------------------------------------------------------- command line
-def parse_args(cls: type, argv: list[str] | None, description: str | None) -> Any:
-    """The command line as an instance of the argument dataclass ``cls`` (``train.Args``).
-
-    Each field is an option ``--field-name``; its help is the string literal under the field.
-    ``env_kwargs`` (a JSON object or Python dict literal) and the ``env`` items (``KEY=VALUE``,
-    VALUE JSON or a Python literal, a bare word a string) are merged into ``env_kwargs``, the
-    items last. A field ``explicit`` (when ``cls`` has one) gets the names of the options the
-    command line gave. A bad value exits with one line on stderr and status 2.
-    """
-    parser = ArgumentParser(prog="train.py", description=description,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    add_dataclass_options(parser, cls)
-    values = dataclass_values(parser.parse_args(argv), cls)
-    if "explicit" in {f.name for f in fields(cls)}:  # what --resume checks (agents/run_args.py)
-        given = ArgumentParser(prog="train.py")
-        add_dataclass_options(given, cls, suppress=True)
-        values["explicit"] = frozenset(vars(given.parse_args(argv)))
-    try:
-        env_kwargs = parse_env_kwargs(values["env_kwargs"])
-        env_kwargs.update(parse_env_item(item) for item in values["env"])
-        values["env_kwargs"] = env_kwargs
-        args = cls(**values)
-        check_args(args)
-    except ValueError as exc:
-        parser.error(str(exc))
-    return args
-
-
-def check_args(args: Any) -> None:
-    """The values' ranges; ``ValueError`` naming the option."""
-    for name in ("num_envs", "total_timesteps", "eval_episodes", "threads", "env_threads"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
-    for name in ("eval_freq", "checkpoint_freq", "keep_replay_buffers"):
-        if getattr(args, name) < 0:
-            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
-    check_residual_args(args)
-    if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
-        raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
-    if args.env_kwargs.get("guideway_seed", None) in (
-        EVALUATION_GUIDEWAY_SEED,
-        VALIDATION_GUIDEWAY_SEED,
-    ):
-        raise ValueError(
-            f"guideway_seed={args.env_kwargs['guideway_seed']} is a held-out bank (evaluation "
-            f"{EVALUATION_GUIDEWAY_SEED}, validation {VALIDATION_GUIDEWAY_SEED})"
-        )
-
-
-def check_residual_args(args: Any) -> None:
-    """``--residual`` names a classical law and ``--residual-scale`` is in (0, 2];
-    ``ValueError`` naming the option and what it accepts."""
-    from capsule_env.agents.classical import FACTORIES
-
-    law = getattr(args, "residual", None)
-    if law is not None and law not in FACTORIES:
-        raise ValueError(f"--residual must name a classical controller ({', '.join(FACTORIES)}), "
-                         f"got {law!r}")  # fmt: skip
-    scale = getattr(args, "residual_scale", 0.5)
-    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and 0.0 < scale <= 2.0):
-        raise ValueError(f"--residual-scale must be in (0, 2], got {scale}")
 
 
 def residual_of(args: Any) -> tuple[Any, float] | None:
@@ -255,22 +183,23 @@ def _resumed(args: Any, output_dir: Path) -> tuple[Any, Path, dict, dict, dict]:
 
 
 def prepare(args: Any) -> Plan:
-    """Check everything the run needs before it starts: the run folder (writable; what
-    killed saves left there finished or removed), the checkpoint to resume from (``auto``:
-    the newest intact one) with the run's own arguments, the hyperparameters, the env
-    arguments, the evaluation episode length and the TensorBoard folder. Raises
+    """Check everything the run needs before it starts, making no folder: the run folder (a
+    new run's, or one a checkpoint of another folder continues in, holds no run's files; it is
+    writable or can be made; what killed saves left there is finished or removed), the
+    checkpoint to resume from (``auto``: the newest intact one) with the run's own arguments,
+    the hyperparameters, the env arguments, the evaluation episode length and the TensorBoard
+    folder (writable or can be made). Raises
     ``ValueError``/``OSError``/``TypeError`` with a one-line message."""
     if not 0 <= args.seed < 2**32:  # numpy's and SB3's global seeding take 32 bits
         raise ValueError(f"--seed must be in 0..{2**32 - 1}, got {args.seed}")
     output_dir = output_dir_for(args)
-    if not args.resume:  # never over another run's files (issue 40)
+    if not continues_own_run(args, output_dir):  # never over another run's files (issue 40)
         check_fresh_run_dir(output_dir)
-    check_writable_dir(output_dir, "--output-dir")
-    check_writable_dir(output_dir / "checkpoints", "checkpoint folder")
-    for folder in (output_dir, output_dir / "checkpoints"):  # what killed saves left
-        clean_leftovers(folder)
+    for folder, what in RUN_FOLDERS:  # writable, or can be made; what killed saves left
+        if check_creatable_dir(output_dir / folder, what).is_dir():
+            clean_leftovers(output_dir / folder)
     if args.tensorboard:
-        check_writable_dir(args.tensorboard, "--tensorboard")
+        check_creatable_dir(args.tensorboard, "--tensorboard")
 
     ckpt: Path | None = None
     ckpt_meta: dict[str, Any] = {}
@@ -299,6 +228,33 @@ def prepare(args: Any) -> Plan:
     algo_cls = algorithm_class(args.algo)
     return Plan(args, output_dir, hp, env_kwargs, norm_kwargs, algo_kwargs, algo_cls, num_envs,
                 total, ckpt, ckpt_meta, _tensorboard_log(args.tensorboard))  # fmt: skip
+
+
+#: A run's folders (under ``--output-dir``) and their names in the messages.
+RUN_FOLDERS = (("", "--output-dir"), ("checkpoints", "checkpoint folder"))
+
+
+def continues_own_run(args: Any, output_dir: Path) -> bool:
+    """Whether ``--resume`` continues the run whose folder ``output_dir`` is (``auto``, the
+    folder, or a checkpoint under its ``checkpoints/``), not a checkpoint of another folder
+    continued in ``output_dir``, which must then hold no run's files, as for a new run."""
+    if not args.resume:
+        return False
+    if args.resume == "auto" or Path(args.resume).is_dir():
+        return True  # output_dir_for: the folder itself
+    homes = [p.parent for p in Path(args.resume).resolve().parents if p.name == "checkpoints"]
+    return bool(homes) and homes[0] == output_dir.resolve()
+
+
+def make_run_folders(plan: Plan) -> None:
+    """Make the run's folders and ``--tensorboard``'s (:func:`prepare` checked that they can
+    be), each checked writable (``ValueError`` naming it otherwise): the last step before
+    training, after the model's construction, so that a run refused before training leaves
+    nothing on disk."""
+    for folder, what in RUN_FOLDERS:
+        check_writable_dir(plan.output_dir / folder, what)
+    if plan.args.tensorboard:
+        check_writable_dir(plan.args.tensorboard, "--tensorboard")
 
 
 def task_env_kwargs(task: str | None) -> dict[str, Any]:
@@ -498,8 +454,8 @@ class Run:
         return result
 
     def _references(self, passive: Rollout) -> dict:
-        """Passive (its rollout ``passive``) and the best Skyhook variant on the evaluation
-        seeds (numbers to compare with: the seeds differ from evaluate.py's, so do the absolute
+        """Passive (its rollout ``passive``) and :func:`reference_law` on the evaluation seeds
+        (numbers to compare with: the seeds differ from evaluate.py's, so do the absolute
         values)."""
         a = self.args
         refs = {"passive": {BEST_METRIC: episode_metrics(passive, None)[BEST_METRIC]}}

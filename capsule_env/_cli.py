@@ -46,7 +46,12 @@ class ArgumentParser(argparse.ArgumentParser):
 
 
 def integer(text: str) -> int:
-    """An integer option's value, also written like ``2e6``; ``ArgumentTypeError`` otherwise."""
+    """An integer option's value, also written like ``2e6``; ``ArgumentTypeError`` otherwise.
+    Digits are read exactly (a seed near 2**63 is not rounded through a float)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
     try:
         value = float(text)
     except ValueError:

@@ -10,7 +10,7 @@
   the loaders, which so detect a group mixed from two saves or truncated afterwards.
 - :func:`append_line`: one line added to a log, or none (a failed write is cut off again).
 - :func:`check_writable_dir` / :func:`check_writable_file`: an output path is checked before a
-  long run starts, not after it.
+  long run starts, not after it; :func:`check_creatable_dir` checks a folder without making it.
 
 Temporary files are named ``.<target name>.<random>.tmp`` in the target's folder (hidden, and
 matching none of the scripts' own file patterns); they are removed when a write fails.
@@ -32,6 +32,7 @@ __all__ = [
     "file_digest",
     "digest_mismatch",
     "check_writable_dir",
+    "check_creatable_dir",
     "check_writable_file",
 ]
 
@@ -232,6 +233,26 @@ def check_writable_dir(path: str | Path, what: str) -> Path:
         raise ValueError(
             f"{what} {str(path)!r} is not a writable folder ({_reason(exc)})"
         ) from None
+    return path
+
+
+def check_creatable_dir(path: str | Path, what: str) -> Path:
+    """Check, making nothing, that the folder ``path`` is writable (:func:`check_writable_dir`,
+    whose probe file is removed again) or, when it does not exist, can be made: its nearest
+    existing ancestor is a writable folder. Raises ``ValueError`` naming ``what`` and the path
+    otherwise. For the checks before a run, which then makes it (:func:`check_writable_dir`)
+    once nothing can refuse it any more: a refused run leaves no empty folder behind."""
+    path = Path(path)
+    if path.exists():
+        return check_writable_dir(path, what)
+    ancestor = path.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"{what} {str(path)!r} is not a writable folder ({ancestor} is a file)")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} {str(path)!r} is not a writable folder ({ancestor} is not "
+                         "writable)")  # fmt: skip
     return path
 
 

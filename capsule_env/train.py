@@ -42,9 +42,11 @@ from capsule_env.agents.compiled import check_compile, compile_update
 from capsule_env.agents.residual import zero_last_layer
 from capsule_env.agents.run_args import continue_command
 from capsule_env.agents.training import (
+    HYPERPARAMS_DIR,
     Run,
     TrainingMonitor,
     make_env,
+    make_run_folders,
     prepare,
     residual_of,
     run_seed_for,
@@ -154,6 +156,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
                    residual_of(args))  # fmt: skip
     try:
         model = _model(args, plan, env, run_seed)
+        _make_folders(plan)  # only now: a run refused before training leaves nothing on disk
         run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
         interrupted = _learn(run, model, extra_callbacks)
         if not interrupted:
@@ -183,11 +186,26 @@ def _write_failed(exc: OSError, args: Args, output_dir: Path) -> str:
             f"remove {output_dir} and start the run again")  # fmt: skip
 
 
+def _make_folders(plan: Any) -> None:
+    try:
+        make_run_folders(plan)
+    except ValueError as exc:
+        raise SystemExit(f"train.py: error: {exc}") from None
+
+
 def _model(args: Args, plan: Any, env: Any, run_seed: int) -> Any:
-    """A new model on ``env``, or the checkpoint's when resuming."""
+    """A new model on ``env``, or the checkpoint's when resuming; hyperparameters the
+    algorithm refuses (an unknown key, a value its checks reject) stop the run with one line."""
     if plan.ckpt is None:
-        model = plan.algo_cls(env=env, seed=run_seed, device=args.device, verbose=args.verbose,
-                              tensorboard_log=plan.tensorboard_log, **plan.algo_kwargs)  # fmt: skip
+        try:
+            model = plan.algo_cls(env=env, seed=run_seed, device=args.device,
+                                  verbose=args.verbose, tensorboard_log=plan.tensorboard_log,
+                                  **plan.algo_kwargs)  # fmt: skip
+        except (TypeError, ValueError, AssertionError) as exc:  # SB3 checks some by assert
+            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            source = args.hyperparams or HYPERPARAMS_DIR / f"{args.algo}.yml"
+            raise SystemExit(f"train.py: error: the hyperparameters ({source}) do not make a "
+                             f"{args.algo.upper()}: {reason}") from None  # fmt: skip
         if args.residual:  # start from the law's behaviour exactly (the residual's mean is 0)
             zero_last_layer(model)
     else:

@@ -574,3 +574,17 @@ def test_the_reference_law_reads_what_the_policy_reads():
                                   None) == "lqr-clipped-biexp"  # fmt: skip
     preview = {"setting": "sim", "observation": "measured", "preview_points": 8}
     assert training.reference_law(preview, None) == "preview-lq-biexp-meas"
+
+
+def test_a_checkpoint_continued_in_another_run_s_folder_is_refused(ppo_run, measured_run, tmp_path):
+    # --resume of one run's checkpoint with another run's --output-dir wrote over that run
+    ckpt = measured_run[0] / "checkpoints" / "ckpt_000000001024.zip"
+    out = _copy_run(ppo_run[0], tmp_path)
+    before = _folder_bytes(out)
+    with pytest.raises(SystemExit) as stop:
+        train.train(train.parse_args(["--resume", str(ckpt), "--output-dir", str(out)]))
+    assert f"--output-dir {out} holds another run's files" in str(stop.value.code)
+    assert _folder_bytes(out) == before
+    fresh = tmp_path / "branch"  # a folder of its own: planned, and made only to train
+    plan = training.prepare(train.parse_args(["--resume", str(ckpt), "--output-dir", str(fresh)]))
+    assert plan.ckpt == ckpt and plan.output_dir == fresh and not fresh.exists()
