@@ -95,13 +95,13 @@ HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "hyperparams"
 EVALUATION_CHOSEN = ("guideway_seed", "episode_length_s")
 
 
-def reference_law(env_kwargs: dict, task: str | None) -> str:
-    """The law a run is compared with: the task's best on the same signals
-    (:func:`capsule_env.tasks.reference_law_for`), its LQ counterpart when the MPC's solver (the
-    ``mpc`` extra) is missing."""
+def reference_law(env_kwargs: dict) -> str:
+    """The law a run on ``env_kwargs`` is compared with: its task's best on the same signals,
+    else the best law on them (:func:`capsule_env.tasks.reference_law_for`); its LQ counterpart
+    when the MPC's solver (the ``mpc`` extra) is missing."""
     from capsule_env.agents.mpc_solver import solver_available
 
-    name = reference_law_for(env_kwargs, task)
+    name = reference_law_for(env_kwargs)
     if "mpc" in name.split("-") and not solver_available():
         name = name.replace("preview-mpc", "preview-lq").replace("mpc", "lqr-clipped")
     return name
@@ -459,7 +459,7 @@ class Run:
         values)."""
         a = self.args
         refs = {"passive": {BEST_METRIC: episode_metrics(passive, None)[BEST_METRIC]}}
-        name = reference_law(self.plan.env_kwargs, getattr(a, "task", None))
+        name = reference_law(self.plan.env_kwargs)
         law = classical_controllers().get(name)
         if law is not None:
             m = episode_metrics(self._episodes(law, {**self.eval_kwargs, **law.env_kwargs}),

@@ -561,19 +561,42 @@ def test_a_run_is_compared_with_its_task_s_best_law_on_the_same_signals(
     assert refs[best]["wk_rms_body_acc_m_s2"] < refs["passive"]["wk_rms_body_acc_m_s2"]
 
 
-def test_the_reference_law_reads_what_the_policy_reads():
+def _reads(env_kwargs: dict) -> tuple[str, bool]:
+    """The signal set a policy (or a law, by its own env arguments) reads: the full state or
+    measurable signals ('sensors' is a subset of 'measured'), and whether with a preview."""
+    full = env_kwargs.get("observation") == "full_state"
+    return ("full_state" if full else "measured"), int(env_kwargs.get("preview_points", 0)) > 0
+
+
+def test_the_reference_law_reads_what_the_policy_reads(monkeypatch):
+    # issue 40: every run was compared with the ideal-sensor skyhook-cont-biexp; then a run
+    # with a preview other than the preview task's was compared with a law without one, and a
+    # 'sensors' or 'full_state' run with the clipped LQR, not the best law on its signals
+    from capsule_env.agents import classical_controllers, mpc_solver
+
     from capsule_env.tasks import TASKS
 
-    for task in TASKS:  # a task's own: its card's law, by id or by its options
-        assert training.reference_law(dict(task.kwargs), task.env_id) == task.best_classical
-        if task.kwargs:
-            assert training.reference_law(dict(task.kwargs), None) == task.best_classical
-    measured = {"setting": "sim", "observation": "measured", "speed_kmh": 400}
-    assert training.reference_law(measured, None) == "lqr-clipped-biexp-meas"
-    assert training.reference_law({"setting": "hils", "observation": "full_state"},
-                                  None) == "lqr-clipped-biexp"  # fmt: skip
-    preview = {"setting": "sim", "observation": "measured", "preview_points": 8}
-    assert training.reference_law(preview, None) == "preview-lq-biexp-meas"
+    monkeypatch.setattr(mpc_solver, "solver_available", lambda *a: True)
+    for task in TASKS:  # a task's own options: its card's law
+        assert training.reference_law(dict(task.kwargs)) == task.best_classical
+    laws = classical_controllers()
+    results = json.loads((ROOT / "docs" / "figures" / "evaluation.json").read_text())
+    for setting in ("sim", "hils"):
+        wk = {n: c["wk_rms_body_acc_m_s2"]
+              for n, c in results["settings"][setting]["controllers"].items() if n in laws}  # fmt: skip
+        for observation in ("sensors", "measured", "full_state"):
+            for points in (0, 8, 32):
+                env = {"setting": setting, "observation": observation, "preview_points": points}
+                name = training.reference_law(env)
+                assert _reads(laws[name].env_kwargs) == _reads(env), (env, name)
+                same = [n for n in wk if _reads(laws[n].env_kwargs) == _reads(env)]
+                assert name == min(same, key=wk.get), (env, name)  # the best on those signals
+    ride = {"setting": "hils", "observation": "measured", "speed_kmh": 600}
+    assert training.reference_law({**ride, "preview_points": 16}) == "preview-mpc-biexp-meas"
+    monkeypatch.setattr(mpc_solver, "solver_available", lambda *a: False)  # no mpc extra
+    assert training.reference_law(ride) == "lqr-clipped-biexp-meas"
+    assert training.reference_law({**ride, "preview_points": 32}) == "preview-lq-biexp-meas"
+    assert training.reference_law({**ride, "observation": "full_state"}) == "lqr-clipped-biexp"
 
 
 def test_a_checkpoint_continued_in_another_run_s_folder_is_refused(ppo_run, measured_run, tmp_path):
