@@ -144,6 +144,32 @@ def test_the_installed_package_finds_its_policies_and_hyperparameters(site, tmp_
     assert not got["bare_agents"]
 
 
+def test_the_installed_package_reads_its_tuned_gains_from_inside_it(site, tmp_path):
+    """A missing tuned_gains.json reads as ``{}`` (every law on its reconstructed defaults), so
+    the file is checked where the installed package looks for it, not only in the wheel."""
+    code = """
+        import json
+        from capsule_env.agents.tuned import TUNED_GAINS_PATH, load_tuned
+        print(json.dumps({"path": str(TUNED_GAINS_PATH), "exists": TUNED_GAINS_PATH.is_file(),
+                          "controllers": sorted(load_tuned().get("controllers", {}))}))
+    """
+    done = run_installed(site, code, tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    assert Path(got["path"]).is_relative_to(site) and got["exists"], got["path"]
+    assert "lqr-clipped-biexp" in got["controllers"], got["controllers"]
+
+
+def test_the_installed_evaluate_script_prints_its_help(site, tmp_path):
+    environ = {**os.environ, "MPLBACKEND": "Agg"}
+    environ.pop("PYTHONPATH", None)
+    done = subprocess.run([str(site.parents[2] / "bin" / "capsule-evaluate"), "--help"],
+                          cwd=tmp_path, env=environ, capture_output=True, text=True,
+                          timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "--controllers" in done.stdout and "--episodes" in done.stdout
+
+
 @pytest.mark.parametrize("module", ["capsule_env.evaluate", "capsule_env.train"])
 def test_the_installed_commands_run(site, tmp_path, module):
     if module == "capsule_env.train":
