@@ -32,3 +32,26 @@ def test_no_module_of_the_package_triggers_its_own_deprecation_warning():
                           text=True, timeout=600)  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
     assert "capsule_env.plant.reference_solver" in names
+
+
+def test_the_reference_solver_runs_with_deprecation_warnings_as_errors():
+    """Imported and used (a short open-loop run, each damper kind's path) with every
+    DeprecationWarning an error, as a user's ``-W error::DeprecationWarning`` would have it."""
+    code = (
+        "import warnings\n"
+        "warnings.simplefilter('error', DeprecationWarning)\n"
+        "import numpy as np\n"
+        "from capsule_env.dampers import BiExponentialDamper, BoucWenDamper\n"
+        "from capsule_env.guideway import GuidewayParams, make_profile\n"
+        "from capsule_env.plant.reference_solver import simulate_variable_step\n"
+        "gw = GuidewayParams()\n"
+        "profile = make_profile(gw, 0.1, seed=3)\n"
+        "for damper in (BiExponentialDamper(), BoucWenDamper()):\n"
+        "    out = simulate_variable_step(damper, profile, gw.spacing_m, gw.speed_mps, 1.0, 0.05)\n"
+        "    assert np.isfinite(out['car_body_displacement_m']).all()\n"
+        "    print(damper.name, int(out['nfev']))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert len(done.stdout.strip().splitlines()) == 2, done.stdout
