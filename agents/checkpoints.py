@@ -29,6 +29,7 @@ from the checkpoint's statistics plus that one batch, not from exactly the check
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -165,6 +166,50 @@ def check_fresh_run_dir(output_dir: Path) -> None:
         f"--output-dir {output_dir} holds another run's files ({shown}): {way} with another "
         "--output-dir, or remove that folder first; a new run never writes over a run's files"
     )
+
+
+class RunFolderLock:
+    """An exclusive lock on a run folder while one ``train.py`` works in it: ``flock`` on the
+    folder itself (no file is made), released when the process ends, killed or not. A second
+    process that tries it (a run started twice at once, a ``--resume`` of a run still going)
+    gets ``ValueError``: two processes never save into one folder, nor does one clean up the
+    other's save in progress (:func:`capsule_env.policy_files.clean_leftovers`). Where folders
+    cannot be locked (Windows, some network file systems) it does nothing."""
+
+    def __init__(self) -> None:
+        self.fd: int | None = None
+
+    def acquire(self, folder: Path) -> None:
+        """Lock ``folder`` if it exists and this holds no lock yet."""
+        if self.fd is not None or not Path(folder).is_dir():
+            return
+        try:
+            import fcntl
+        except ImportError:  # Windows
+            return
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise ValueError(f"--output-dir {folder} is in use by another train.py (it holds "
+                             "the folder's lock): let that run end, or give another "
+                             "--output-dir") from None  # fmt: skip
+        except OSError:  # no locks on this file system
+            os.close(fd)
+            return
+        self.fd = fd
+
+    def release(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self) -> RunFolderLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
 
 
 def latest_checkpoint(output_dir: Path) -> Path:

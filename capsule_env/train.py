@@ -37,7 +37,14 @@ from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.utils import set_random_seed
 
 from capsule_env.agents.algorithms import ON_POLICY
-from capsule_env.agents.checkpoints import logged_timesteps, resume_model, save_policy, saved_at
+from capsule_env.agents.checkpoints import (
+    RunFolderLock,
+    check_fresh_run_dir,
+    logged_timesteps,
+    resume_model,
+    save_policy,
+    saved_at,
+)
 from capsule_env.agents.compiled import check_compile, compile_update
 from capsule_env.agents.residual import zero_last_layer
 from capsule_env.agents.run_args import continue_command
@@ -45,8 +52,10 @@ from capsule_env.agents.training import (
     HYPERPARAMS_DIR,
     Run,
     TrainingMonitor,
+    continues_own_run,
     make_env,
     make_run_folders,
+    output_dir_for,
     prepare,
     residual_of,
     run_seed_for,
@@ -133,17 +142,23 @@ class Args:
 
 def train(args: Args, extra_callbacks: list | None = None) -> dict:
     """Train as ``args`` says; returns a summary (paths, timesteps, best evaluation, model).
-    Bad arguments or files raise ``SystemExit`` with one line before training starts; a
-    failed write (a full disk) raises ``SystemExit`` with one line too, the files as the last
-    complete save left them."""
-    try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
-        if not args.resume:  # before any folder is made
-            check_compile(args.algo, args.compile)
-        plan = prepare(args)
-        if args.resume:  # the algorithm the checkpoint restored
-            check_compile(plan.args.algo, plan.args.compile)
-    except (ValueError, OSError, TypeError) as exc:
-        raise SystemExit(f"train.py: error: {exc}") from None
+    Bad arguments or files raise ``SystemExit`` with one line before training starts, and so
+    does a run folder another ``train.py`` is working in; a failed write (a full disk) raises
+    ``SystemExit`` with one line too, the files as the last complete save left them."""
+    with RunFolderLock() as lock:  # one process per run folder (agents/checkpoints.py)
+        try:  # hyperparameters, env arguments, checkpoint, writable folders: checked first
+            if not args.resume:  # before any folder is made
+                check_compile(args.algo, args.compile)
+            lock.acquire(output_dir_for(args))  # an existing folder: before prepare cleans it
+            plan = prepare(args)
+            if args.resume:  # the algorithm the checkpoint restored
+                check_compile(plan.args.algo, plan.args.compile)
+        except (ValueError, OSError, TypeError) as exc:
+            raise SystemExit(f"train.py: error: {exc}") from None
+        return _train(plan, lock, extra_callbacks)
+
+
+def _train(plan: Any, lock: RunFolderLock, extra_callbacks: list | None) -> dict:
     args = plan.args  # a resumed run's own arguments restored (agents/run_args.py)
     torch.set_num_threads(args.threads)
     numba.set_num_threads(min(args.env_threads, numba.config.NUMBA_NUM_THREADS))
@@ -156,7 +171,7 @@ def train(args: Args, extra_callbacks: list | None = None) -> dict:
                    residual_of(args))  # fmt: skip
     try:
         model = _model(args, plan, env, run_seed)
-        _make_folders(plan)  # only now: a run refused before training leaves nothing on disk
+        _make_folders(plan, lock)  # only now: a run refused before training leaves nothing
         run = Run(args, plan, model)  # evaluation, best model, checkpoints, clock
         interrupted = _learn(run, model, extra_callbacks)
         if not interrupted:
@@ -186,9 +201,15 @@ def _write_failed(exc: OSError, args: Args, output_dir: Path) -> str:
             f"remove {output_dir} and start the run again")  # fmt: skip
 
 
-def _make_folders(plan: Any) -> None:
+def _make_folders(plan: Any, lock: RunFolderLock) -> None:
+    """The run's folders made; a folder made just now locked, and looked at again: another run
+    may have started in it since :func:`prepare` looked (a one-line ``SystemExit`` then)."""
     try:
         make_run_folders(plan)
+        if lock.fd is None:
+            lock.acquire(plan.output_dir)
+            if not continues_own_run(plan.args, plan.output_dir):
+                check_fresh_run_dir(plan.output_dir)
     except ValueError as exc:
         raise SystemExit(f"train.py: error: {exc}") from None
 

@@ -145,3 +145,67 @@ def test_a_run_killed_before_its_first_checkpoint_is_not_mixed_with_a_new_one(ti
         message = str(stop.value.code)
         assert "\n" not in message and expected[case] in message, message
         assert {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()} == left
+
+
+# ------------------------------------------------------------- one process per run folder
+def _hold_lock(folder: Path) -> int:
+    """Lock ``folder`` as another train.py working in it does; returns the descriptor."""
+    import os
+
+    fcntl = pytest.importorskip("fcntl")  # flock (where there is none, train.py takes none)
+    fd = os.open(folder, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    return fd
+
+
+def test_a_folder_another_run_works_in_is_left_alone(tiny_yml, tmp_path):
+    # issue 40: a second train.py in a folder wrote over the first's files (two started at
+    # once) or removed its save in progress (a --resume auto while it ran: prepare's cleanup)
+    import os
+
+    out = tmp_path / "run"
+    (out / "checkpoints").mkdir(parents=True)
+    in_progress = out / ".best_model.zip.0123abcd.tmp"  # a save being written
+    in_progress.write_bytes(b"PK half a model")
+    fd = _hold_lock(out)
+    try:
+        for extra in ([], ["--resume", "auto"]):
+            with pytest.raises(SystemExit) as stop:
+                train.train(train.parse_args(fast_args(tiny_yml, out, *extra)))
+            message = str(stop.value.code)
+            assert "\n" not in message
+            assert f"--output-dir {out} is in use by another train.py" in message
+            assert in_progress.read_bytes() == b"PK half a model"
+    finally:
+        os.close(fd)
+
+
+@pytest.mark.parametrize("other", ["running", "finished"])
+def test_two_new_runs_started_at_once_into_one_folder(tiny_yml, tmp_path, monkeypatch, other):
+    # both look at the folder before either makes it: the second to make it is refused
+    import os
+
+    from capsule_env.agents import training
+
+    out = tmp_path / "run"
+    real = training.make_run_folders
+    held: list[int] = []
+
+    def the_other_run_first(plan):  # it made the folder since this run looked
+        (out / "checkpoints").mkdir(parents=True)
+        if other == "running":
+            held.append(_hold_lock(out))
+        else:
+            (out / "evaluations.jsonl").write_text('{"num_timesteps": 1024}\n')
+        real(plan)
+
+    monkeypatch.setattr(train, "make_run_folders", the_other_run_first)
+    try:
+        with pytest.raises(SystemExit) as stop:
+            train.train(train.parse_args(fast_args(tiny_yml, out, "--total-timesteps", "256")))
+    finally:
+        for fd in held:
+            os.close(fd)
+    expected = "is in use by another train.py" if other == "running" else "holds another run's"
+    assert expected in str(stop.value.code)
+    assert {p.name for p in out.rglob("*")} <= {"checkpoints", "evaluations.jsonl"}
