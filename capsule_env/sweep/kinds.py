@@ -276,7 +276,11 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
     if resume is None and out.exists():  # this trial's own start, stopped before a checkpoint:
-        shutil.rmtree(out)  # nothing to continue, and train.py starts only in an empty folder
+        from capsule_env.agents.checkpoints import RunFolderLock
+
+        with RunFolderLock() as lock:  # not while a process still trains in it (ValueError)
+            lock.acquire(out)
+            shutil.rmtree(out)  # nothing to continue; train.py starts only in an empty folder
     plain["hyperparams"] = str(yml)
     return train_module().Args(**plain, seed=int(trial.seed or 0),
                                env_kwargs=groups.get("env", {}), output_dir=str(out),
