@@ -1,8 +1,8 @@
 """What ``train.py``'s run is made of: its command line, the checks made before training, the
 env, and the state shared by the callbacks and the main loop (evaluation, checkpoints, clock).
 
-- ``parse_args``, ``check_args``: the command line and its values
-  (:mod:`capsule_env.agents.run_args`, re-exported here).
+- the command line and its values: :mod:`capsule_env.agents.run_args` (``parse_args``,
+  ``check_args``).
 - :func:`prepare`: everything checked before any training time is spent (the hyperparameter
   file, the env arguments, the evaluation episode length, the checkpoint to resume from, a
   new run's folder free of another run's files), as a :class:`Plan`; it makes no folder.
@@ -60,10 +60,7 @@ from capsule_env.agents.hyperparams import (
     normalize_kwargs_from,
     resolve_env_kwargs,
 )
-from capsule_env.agents.run_args import (  # parse_args, check_args: re-exported (the sweep's)
-    check_args,  # noqa: F401
-    check_residual_args,  # noqa: F401
-    parse_args,  # noqa: F401
+from capsule_env.agents.run_args import (
     restore_arguments,
     restore_env_kwargs,
     restore_hyperparams,

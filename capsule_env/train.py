@@ -48,6 +48,7 @@ from capsule_env.agents.checkpoints import (
 from capsule_env.agents.compiled import check_compile, compile_update
 from capsule_env.agents.residual import zero_last_layer
 from capsule_env.agents.run_args import continue_command
+from capsule_env.agents.run_args import parse_args as parse_dataclass_args
 from capsule_env.agents.training import (
     HYPERPARAMS_DIR,
     Run,
@@ -60,7 +61,6 @@ from capsule_env.agents.training import (
     residual_of,
     run_seed_for,
 )
-from capsule_env.agents.training import parse_args as parse_dataclass_args
 
 
 @dataclass

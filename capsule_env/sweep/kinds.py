@@ -216,8 +216,9 @@ def check_train(params: dict[str, Any]) -> None:
     """A train trial's arguments: train.Args' values and ranges, the env arguments, the
     evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
     from capsule_env.agents.hyperparams import resolve_env_kwargs
+    from capsule_env.agents.run_args import check_args
     from capsule_env.agents.sb3_policy import ALGORITHMS
-    from capsule_env.agents.training import check_args, policy_env_kwargs
+    from capsule_env.agents.training import policy_env_kwargs
     from capsule_env.evaluation import check_episode_length
     from capsule_env.sweep.hyperparameters import check_hp_values
 
