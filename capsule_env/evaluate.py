@@ -316,8 +316,8 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
     }
     rollouts: dict = {}
     if not kernels_cached():
-        print("evaluate.py: compiling the numba kernels (the first run on this machine: about "
-              "30 s before the first row; cached afterwards)", file=sys.stderr)  # fmt: skip
+        print("evaluate.py: compiling the numba kernels (a first run, or kernels.py changed: "
+              "about 30 s before the first row; cached afterwards)", file=sys.stderr)  # fmt: skip
     done, t0 = 0, time.perf_counter()
     total = len(condition.settings) * len(ctrls)
     for setting in condition.settings:
@@ -410,17 +410,22 @@ def describe(ctrl: Any) -> dict[str, Any]:
 
 
 def kernels_cached() -> bool:
-    """Whether numba's cache holds the env's compiled step (an index file of
-    ``capsule_env.kernels`` where numba writes it: ``NUMBA_CACHE_DIR``, else the package's
-    ``__pycache__``): False on a first run, which compiles for about half a minute."""
-    from numba.core import config
+    """Whether numba's cache holds the env's compiled step for the present source: an index
+    file of ``capsule_env.kernels`` not older than ``kernels.py``, in the folder numba's own
+    locator caches that module in (the package's ``__pycache__``, ``NUMBA_CACHE_DIR``, the
+    user-wide cache of a read-only installation, :mod:`capsule_env._jit`'s fallback). False on
+    a first run, which compiles for about half a minute, and after ``kernels.py`` changed
+    (numba then compiles again); a cheap test, not numba's own (it also compiles a variant,
+    e.g. the trip task's step, the first time it is used)."""
+    from capsule_env import kernels
 
-    import capsule_env
-
-    package = Path(capsule_env.__file__).parent
-    cache_dir = getattr(config, "CACHE_DIR", "")
-    folder = Path(cache_dir) if cache_dir else package / "__pycache__"
-    return folder.is_dir() and any(folder.rglob("kernels.*.nbi"))
+    source = Path(kernels.__file__)
+    try:  # numba's locator for the module, as chosen when it was imported
+        folder = Path(kernels.env_args._cache._cache_path)
+    except AttributeError:  # a numba without these attributes: its default, in-tree
+        folder = source.parent / "__pycache__"
+    indexes = list(folder.glob("kernels.*.nbi")) if folder.is_dir() else []
+    return any(i.stat().st_mtime >= source.stat().st_mtime for i in indexes)
 
 
 def _progress(done: int, total: int, label: str, elapsed: float) -> None:
