@@ -17,6 +17,13 @@ from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import solve_continuous_are
 
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import SPRING, LinearModel, VehicleModel, model_of_params, relative_model
+
+#: The parameters a gain-scheduled law overrides (the EDS levitation at each speed).
+LEVITATION_STIFFNESS, LEVITATION_DAMPING = (
+    "levitation_stiffness_n_per_m",
+    "levitation_damping_n_s_per_m",
+)
 
 #: Names (with units) of the components of the feedback gain ``K``, in state order.
 GAIN_NAMES = ("k_stroke_n_m", "k_body_velocity_n_s_m", "k_gap_n_m", "k_bogie_velocity_n_s_m")
@@ -40,30 +47,34 @@ def lqr_gain(
     levitation) between the bogie and the guideway: ``m_b z_b'' = k_s (z_c - z_b) + F - k_p (z_b - z_g) - c_p (z_b' - z_g')``,
     the guideway's velocity a disturbance. The gain-scheduled law
     (:mod:`capsule_env.agents.scheduled_lqr`) gives the EDS values at each speed."""
-    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-    ks = vehicle.secondary_stiffness_n_per_m
-    kp = vehicle.levitation_stiffness_n_per_m
-    if levitation_stiffness_n_per_m is not None:
-        kp = float(levitation_stiffness_n_per_m)
-    cp = vehicle.levitation_damping_n_s_per_m
-    if levitation_damping_n_s_per_m is not None:
-        cp = float(levitation_damping_n_s_per_m)
-    a = np.array(
-        [
-            [0.0, 1.0, 0.0, -1.0],
-            [-ks / mc, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [ks / mb, 0.0, -kp / mb, 0.0 - cp / mb],  # 0.0 - 0.0 is +0.0: today's matrix
-        ]
-    )
-    b = np.array([[0.0], [-1.0 / mc], [0.0], [1.0 / mb]])
-    c_acc = np.array([[-ks / mc, 0.0, 0.0, 0.0]])
-    d_acc = np.array([[-1.0 / mc]])
-    q = c_acc.T @ c_acc + np.diag([q_stroke, 0.0, q_levitation, 0.0])
-    r = d_acc.T @ d_acc + r_force
+    model = model_of_params(vehicle)
+    scheduled = {LEVITATION_STIFFNESS: levitation_stiffness_n_per_m,
+                 LEVITATION_DAMPING: levitation_damping_n_s_per_m}  # fmt: skip
+    overrides = {k: float(v) for k, v in scheduled.items() if v is not None}
+    plant = relative_model(model, vehicle, 0.0, **overrides)
+    a, b, c_acc, d_acc = plant.a, plant.b, plant.c_acc, plant.d_acc
+    q = c_acc.T @ c_acc + state_weights(model, plant, q_stroke, q_levitation)
+    r = d_acc.T @ d_acc + r_force * np.eye(b.shape[1])
     n = c_acc.T @ d_acc
     p = solve_continuous_are(a, b, q, r, s=n)
-    return np.linalg.solve(r, b.T @ p + n.T)[0]
+    gain = np.linalg.solve(r, b.T @ p + n.T)
+    return gain[0] if gain.shape[0] == 1 else gain
+
+
+def state_weights(
+    model: VehicleModel, plant: LinearModel, q_stroke: float, q_gap: float
+) -> np.ndarray:
+    """The state cost's diagonal part: ``q_stroke`` on each damper slot's stroke, ``q_gap`` on
+    each spring to the guideway's deflection (the levitation gaps), in the relative form."""
+    n = plant.a.shape[0]
+    positions = plant.stroke[:, 0::2]
+    weights = np.zeros((n, n))
+    weights[0::2, 0::2] = q_stroke * (positions.T @ positions)
+    contacts = {c.name for c in model.contacts}
+    springs = {e.name: e for e in model.elements if e.kind == SPRING}
+    gaps = [2 * p for p, s in enumerate(model.relative_positions) if springs[s].lower in contacts]
+    weights[gaps, gaps] += q_gap
+    return weights
 
 
 #: The weights' units (the suffixes of their keys in :meth:`~ClippedOptimalController.gains`)

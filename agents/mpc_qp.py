@@ -37,6 +37,7 @@ from scipy.signal import tf2ss
 
 from capsule_env.inverse import affine_in_current
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import model_of_params, relative_model
 
 __all__ = ["PredictionModel", "CondensedQP", "prediction_model", "condense", "band_edges"]
 
@@ -87,22 +88,19 @@ def wk_state_space() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _continuous(vehicle: VehicleParams, tau_s: float, wk: bool) -> tuple[Any, ...]:
     """The continuous ``(A, B, E, c, d, wk slice)`` on ``[x; F_act (lag); w (Wk)]``, inputs
     the applied request and the guideway's velocity."""
-    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
+    plant = relative_model(model_of_params(vehicle), vehicle)
     lag = tau_s > 0.0
     n = 4 + int(lag) + (4 if wk else 0)
     a, b, e = np.zeros((n, n)), np.zeros(n), np.zeros(n)
-    a[:4, :4] = np.array(
-        [[0, 1, 0, -1], [-ks / mc, 0, 0, 0], [0, 0, 0, 1], [ks / mb, 0, -kp / mb, 0]]
-    )
-    force_col = np.array([0.0, -1.0 / mc, 0.0, 1.0 / mb])
-    e[2] = -1.0  # the guideway's velocity lowers the gap
+    a[:4, :4] = plant.a
+    force_col, d_force = plant.b[:, 0], plant.d_acc[0, 0]
+    e[:4] = plant.e_rate[:, 0]  # the guideway's velocity lowers the gap
     acc = np.zeros(n)  # a_c = acc.z + acc_d u
-    acc[0] = -ks / mc
+    acc[:4] = plant.c_acc[0]
     if lag:  # tau F_act' = u - F_act
-        a[:4, 4], a[4, 4], b[4], acc[4], acc_d = force_col, -1.0 / tau_s, 1.0 / tau_s, -1 / mc, 0.0
+        a[:4, 4], a[4, 4], b[4], acc[4], acc_d = force_col, -1.0 / tau_s, 1.0 / tau_s, d_force, 0.0
     else:
-        b[:4], acc_d = force_col, -1.0 / mc
+        b[:4], acc_d = force_col, d_force
     if not wk:
         return a, b, e, acc, acc_d, slice(0, 0)
     aw, bw, cw = wk_state_space()

@@ -39,6 +39,7 @@ from capsule_env.agents.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import expm, solve_discrete_are
 
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import model_of_params, relative_model
 
 __all__ = [
     "PreviewGains",
@@ -64,24 +65,14 @@ def plant_matrices(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """``(A, B, E, C, D)``: the plant sampled with a zero-order hold at ``dt_s``,
     ``x_{k+1} = A x_k + B F_k + E d_k``, and the body acceleration ``a_c = C x + D F``."""
-    mc, mb = vehicle.car_body_mass_kg, vehicle.bogie_mass_kg
-    ks, kp = vehicle.secondary_stiffness_n_per_m, vehicle.levitation_stiffness_n_per_m
-    a = np.array(
-        [
-            [0.0, 1.0, 0.0, -1.0],
-            [-ks / mc, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [ks / mb, 0.0, -kp / mb, 0.0],
-        ]
-    )
-    b = np.array([0.0, -1.0 / mc, 0.0, 1.0 / mb])
-    e = np.array([0.0, 0.0, -1.0, 0.0])  # the gap falls as the guideway rises (velocity input)
+    plant = relative_model(model_of_params(vehicle), vehicle)
+    a, b, e = plant.a, plant.b[:, 0], plant.e_rate[:, 0]  # e: the gap falls as the guideway rises
     # zero-order hold of [F, z_g'] by the matrix exponential of the augmented system
     m = np.zeros((6, 6))
     m[:4, :4], m[:4, 4], m[:4, 5] = a, b, e
     phi = expm(m * dt_s)
     # a rise d_k over the interval is the velocity d_k / dt held over it
-    return phi[:4, :4], phi[:4, 4], phi[:4, 5] / dt_s, np.array([-ks / mc, 0, 0, 0]), -1.0 / mc
+    return phi[:4, :4], phi[:4, 4], phi[:4, 5] / dt_s, plant.c_acc[0], plant.d_acc[0, 0]
 
 
 def preview_lq_gains(

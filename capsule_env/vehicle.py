@@ -1,4 +1,6 @@
-"""The 2-DOF vertical 1/4-car model of the capsule vehicle (docs/model.md, section 2).
+"""The 2-DOF vertical 1/4-car model of the capsule vehicle (docs/model.md, section 2): its modes,
+state-space form and frequency response, from its declaration
+(:mod:`capsule_env.vehicles.quarter_car`, whose :class:`VehicleParams` this module re-exports).
 
 State vector ``[car_body_displacement, car_body_velocity, bogie_displacement, bogie_velocity]``
 (m, m/s), input the guideway irregularity ``z_g`` (m) under the EDS levitation "spring" and the
@@ -17,7 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_in_range, check_nonnegative
+from capsule_env._validation import check_nonnegative
+from capsule_env.vehicles.linear import absolute_model, mechanical_matrices
+from capsule_env.vehicles.quarter_car import MODEL as QUARTER_CAR
+from capsule_env.vehicles.quarter_car import VehicleParams
 
 __all__ = [
     "VehicleParams",
@@ -27,86 +32,6 @@ __all__ = [
     "state_space",
     "frequency_response",
 ]
-
-
-#: Accepted range of each :class:`VehicleParams` field (SI units).
-_RANGES = {
-    "car_body_mass_kg": (1.0, 1e6),
-    "bogie_mass_kg": (1.0, 1e6),
-    "secondary_stiffness_n_per_m": (1.0, 1e10),
-    "levitation_stiffness_n_per_m": (1.0, 1e10),
-    "passive_damping_n_s_per_m": (0.0, 1e9),
-    "levitation_damping_n_s_per_m": (-2e4, 2e4),
-}
-
-
-@dataclass(frozen=True)
-class VehicleParams:
-    """Parameters of the 1/4-car capsule vehicle.
-
-    Provenance: the form is standard; the values are **[reconstructed]** (docs/model.md, section 2) to
-    put the undamped modes at about 1.30 Hz (car body) and 5.42 Hz (bogie), inside the paper's
-    bands. Every field can be overridden.
-
-    Attributes
-    ----------
-    car_body_mass_kg : m_c, car body mass per quarter (kg), default 6000.
-    bogie_mass_kg : m_b, bogie mass (kg), default 2400.
-    secondary_stiffness_n_per_m : k_s, secondary (air) spring (N/m), default 4.95e5.
-    levitation_stiffness_n_per_m : k_p, EDS levitation stiffness at 810 km/h (N/m), default
-        2.25e6; the paper models the primary suspension as this spring with no damping.
-    passive_damping_n_s_per_m : c_s, the passive secondary damper of the passive baseline
-        (N s/m), default 1.5e4. It is *not* part of the MR-damped plant.
-    levitation_damping_n_s_per_m : c_p, the levitation's damping on the bogie's velocity
-        relative to the guideway (N s/m), default 0 (the paper's undamped primary suspension).
-        An EDS levitation's electromagnetic damping is small and negative at high speed
-        (:mod:`capsule_env.levitation`; the env's ``levitation="eds"`` sets it per speed), hence
-        negative values are accepted; -2e4 to 2e4 N s/m.
-
-    Notes
-    -----
-    Accepted ranges: masses 1 kg to 1e6 kg, stiffnesses 1 to 1e10 N/m, passive damping 0 to
-    1e9 N s/m, levitation damping -2e4 to 2e4 N s/m (``ValueError`` naming the field otherwise;
-    the substep rule's accuracy bound is verified to those ends, and the EDS coil model's
-    damping stays within them: at most ``K_inf tau`` = 18 kN s/m).
-    """
-
-    car_body_mass_kg: float = 6000.0
-    bogie_mass_kg: float = 2400.0
-    secondary_stiffness_n_per_m: float = 4.95e5
-    levitation_stiffness_n_per_m: float = 2.25e6
-    passive_damping_n_s_per_m: float = 1.5e4
-    levitation_damping_n_s_per_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        # Physically plausible ranges, wide enough for scaled test rigs and other vehicles; an
-        # absurd value (a 1e-9 kg bogie) would otherwise ask the integrator for 1e12 substeps.
-        for name, (low, high) in _RANGES.items():
-            check_in_range(name, getattr(self, name), low, high)
-
-    @property
-    def mass_matrix(self) -> np.ndarray:
-        """Diagonal mass matrix (kg), order ``[car body, bogie]``."""
-        return np.diag([self.car_body_mass_kg, self.bogie_mass_kg])
-
-    @property
-    def stiffness_matrix(self) -> np.ndarray:
-        """Stiffness matrix (N/m) of the undamped plant with the guideway held fixed."""
-        ks, kp = self.secondary_stiffness_n_per_m, self.levitation_stiffness_n_per_m
-        return np.array([[ks, -ks], [-ks, ks + kp]])
-
-    def as_array(self) -> np.ndarray:
-        """Packed float64 vector ``[m_c, m_b, k_s, k_p, c_p]`` used by the compiled kernels
-        (``layout.VEHICLE_PARAM_NAMES``)."""
-        return np.array(
-            [
-                self.car_body_mass_kg,
-                self.bogie_mass_kg,
-                self.secondary_stiffness_n_per_m,
-                self.levitation_stiffness_n_per_m,
-                self.levitation_damping_n_s_per_m,
-            ]
-        )
 
 
 @dataclass(frozen=True)
@@ -127,9 +52,8 @@ class ModalProperties:
 def modal_properties(params: VehicleParams | None = None) -> ModalProperties:
     """Natural frequencies and mode shapes of the undamped 2-DOF plant (eigenvalues of M^-1 K)."""
     params = params or VehicleParams()
-    eigenvalues, eigenvectors = np.linalg.eig(
-        np.linalg.solve(params.mass_matrix, params.stiffness_matrix)
-    )
+    mass, stiffness, _ = mechanical_matrices(QUARTER_CAR, params)
+    eigenvalues, eigenvectors = np.linalg.eig(np.linalg.solve(mass, stiffness))
     order = np.argsort(eigenvalues.real)
     omegas = np.sqrt(eigenvalues.real[order])
     shapes = eigenvectors.real[:, order]
@@ -161,20 +85,8 @@ def state_space(
     """
     params = params or VehicleParams()
     c = check_nonnegative("secondary_damping_n_s_per_m", secondary_damping_n_s_per_m)
-    mc, mb = params.car_body_mass_kg, params.bogie_mass_kg
-    ks, kp = params.secondary_stiffness_n_per_m, params.levitation_stiffness_n_per_m
-    cp = params.levitation_damping_n_s_per_m
-    a = np.array(
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [-ks / mc, -c / mc, ks / mc, c / mc],
-            [0.0, 0.0, 0.0, 1.0],
-            [ks / mb, c / mb, -(ks + kp) / mb, -(c + cp) / mb],
-        ]
-    )
-    b = np.array([[0.0], [-1.0 / mc], [0.0], [1.0 / mb]])
-    e = np.array([[0.0], [0.0], [0.0], [kp / mb]])
-    return a, b, e
+    model = absolute_model(QUARTER_CAR, params, slot_damping=c)
+    return model.a, model.b, model.e
 
 
 def frequency_response(
@@ -189,11 +101,12 @@ def frequency_response(
     Returns an array of shape ``(len(frequencies_hz), 4)``.
     """
     params = params or VehicleParams()
-    a, _, e = state_space(params, secondary_damping_n_s_per_m)
-    e_rate = np.array([0.0, 0.0, 0.0, params.levitation_damping_n_s_per_m / params.bogie_mass_kg])
+    c = check_nonnegative("secondary_damping_n_s_per_m", secondary_damping_n_s_per_m)
+    model = absolute_model(QUARTER_CAR, params, slot_damping=c)
+    a, e, e_rate = model.a, model.e[:, 0], model.e_rate[:, 0]
     freqs = np.atleast_1d(np.asarray(frequencies_hz, dtype=float))
-    out = np.empty((freqs.size, 4), dtype=complex)
+    out = np.empty((freqs.size, a.shape[0]), dtype=complex)
     for j, f in enumerate(freqs):
         s = 2j * np.pi * f
-        out[j] = np.linalg.solve(s * np.eye(4) - a, e[:, 0] + s * e_rate)
+        out[j] = np.linalg.solve(s * np.eye(a.shape[0]) - a, e + s * e_rate)
     return out

@@ -9,9 +9,7 @@ dispatch (:mod:`capsule_env.dampers.dispatch`), the substep rule, the inverses, 
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
+from capsule_env._discover import modules_exporting_model
 from capsule_env._validation import check_choice
 from capsule_env.dampers.base import DamperModel
 
@@ -78,15 +76,7 @@ def model_of_code(code: int) -> DamperModel:
 
 
 def _discover() -> tuple[str, ...]:
-    package = importlib.import_module(__package__)
-    found = []
-    for info in pkgutil.iter_modules(package.__path__):
-        if info.name in _NOT_MODELS or info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__package__}.{info.name}")
-        model = getattr(module, "MODEL", None)
-        if isinstance(model, DamperModel):
-            found.append(model)
+    found = modules_exporting_model(__package__, DamperModel, _NOT_MODELS)
     for model in sorted(found, key=lambda m: m.code):
         register(model)
     return tuple(m.name for m in sorted(found, key=lambda m: m.code))

@@ -3,10 +3,12 @@
 The env integrates the quarter-car and its damper with fixed RK4 substeps and the closed-form
 Bouc-Wen update (:mod:`capsule_env.plant.rk4`). The paper ran Simulink, whose default solver is
 the variable-step ``ode45`` (Dormand-Prince, relative tolerance 1e-3). This module integrates
-the same equations (docs/model.md 1-4)::
+the same equations (docs/model.md 1-4), the vehicle's from its declaration's linear model
+(:func:`capsule_env.vehicles.absolute_model`: ``x' = A x + B F + E z_g + E_rate z_g'``, for
+the 1/4-car)::
 
     m_c z_c'' = -(k_s (z_c - z_b) + F)
-    m_b z_b'' =   k_s (z_c - z_b) + F - k_p (z_b - z_g(t))
+    m_b z_b'' =   k_s (z_c - z_b) + F - k_p (z_b - z_g(t)) - c_p (z_b' - z_g'(t))
     F, y', w = damper_eval(model, x = z_c - z_b, v = z_c' - z_b', y, z, i)
     z' = -gamma |w| z |z| - beta w z^2 + A w            (Bouc-Wen, reference damper)
     i' = (i_cmd - i) / tau                              (tau > 0; else i = i_cmd)
@@ -38,16 +40,10 @@ from capsule_env.dampers.dispatch import damper_eval
 from capsule_env.dampers.dispatch import hysteresis_params as _hysteresis_params
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.hysteresis import hysteresis_rate, saturation_level
-from capsule_env.layout import (
-    COIL_TAU,
-    DAMP_LEVITATION,
-    MASS_BODY,
-    MASS_BOGIE,
-    STIFF_LEVITATION,
-    STIFF_SECONDARY,
-)
+from capsule_env.layout import COIL_TAU
 from capsule_env.plant.block import guideway_elevation
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import absolute_model, model_of_params
 
 __all__ = ["ODE_STATE_NAMES", "VariableStepPlant", "simulate_variable_step"]
 
@@ -80,23 +76,27 @@ def _slope(profiles, spacing, position):  # type: ignore[no-untyped-def]
 
 def _make_rhs(model: int) -> Any:
     @njit
-    def rhs(t, s, p, vp, i_cmd, route, profiles, spacing):  # type: ignore[no-untyped-def]
-        zc, vc, zb, vb, z, y, ic = s[0], s[1], s[2], s[3], s[4], s[5], s[6]
+    def rhs(t, s, p, lin, i_cmd, route, profiles, spacing):  # type: ignore[no-untyped-def]
+        a, b, e, e_rate, stroke = lin  # the vehicle's absolute linear model, one damper slot
+        n = a.shape[0]
+        x = s[:n]
+        z, y, ic = s[n], s[n + 1], s[n + 2]
         tau = p[COIL_TAU]
         i_now = ic if tau > 0.0 else i_cmd
         zg = route[2] * guideway_elevation(profiles, 0, spacing, profiles.shape[1] - 1.0,
                                            route[0] + route[1] * t)  # fmt: skip
-        force, y_dot, w = damper_eval(model, p, zc - zb, vc - vb, y, z, i_now)
-        a_coef, gamma, beta = _hysteresis_params(model, p)
-        sec = vp[STIFF_SECONDARY] * (zc - zb) + force
-        out = np.empty(7)
-        out[0], out[1] = vc, -sec / vp[MASS_BODY]
         zg_rate = route[2] * route[1] * _slope(profiles, spacing, route[0] + route[1] * t)
-        lev = vp[STIFF_LEVITATION] * (zb - zg) + vp[DAMP_LEVITATION] * (vb - zg_rate)
-        out[2], out[3] = vb, (sec - lev) / vp[MASS_BOGIE]
-        out[4] = hysteresis_rate(z, w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
-        out[5] = y_dot
-        out[6] = (i_cmd - ic) / tau if tau > 0.0 else 0.0
+        deflection, rate = 0.0, 0.0
+        for j in range(0, n, 2):
+            deflection += stroke[j] * x[j]
+            rate += stroke[j] * x[j + 1]
+        force, y_dot, w = damper_eval(model, p, deflection, rate, y, z, i_now)
+        a_coef, gamma, beta = _hysteresis_params(model, p)
+        out = np.empty(n + 3)
+        out[:n] = a @ x + b * force + e * zg + e_rate * zg_rate
+        out[n] = hysteresis_rate(z, w, a_coef, gamma, beta) if a_coef > 0.0 else 0.0
+        out[n + 1] = y_dot
+        out[n + 2] = (i_cmd - ic) / tau if tau > 0.0 else 0.0
         return out, force, zg
 
     return rhs
@@ -148,7 +148,13 @@ class VariableStepPlant:
         if self.speed_mps <= 0.0 or self.spacing_m <= 0.0:
             raise ValueError("speed_mps and spacing_m must be > 0")
         self._p = self.damper.as_array()
-        self._vp = self.vehicle.as_array()
+        plant = absolute_model(model_of_params(self.vehicle), self.vehicle)
+        if plant.b.shape[1] != 1 or plant.e.shape[1] != 1:
+            raise ValueError(
+                "the reference solver runs vehicles of one damper slot and one contact"
+            )
+        self._lin = (plant.a, plant.b[:, 0].copy(), plant.e[:, 0].copy(),
+                     plant.e_rate[:, 0].copy(), plant.stroke[0].copy())  # fmt: skip
         self._profiles = np.ascontiguousarray(np.atleast_2d(self.profile_m), dtype=float)
         self._route = np.array([self.start_m, self.speed_mps, self.gain], dtype=float)
         if self.atol is None:
@@ -159,11 +165,11 @@ class VariableStepPlant:
             self.atol = self.rtol * scales
 
     def _fun(self, i_cmd: float):
-        rhs, p, vp = _rhs_of(self.damper.code), self._p, self._vp
+        rhs, p, lin = _rhs_of(self.damper.code), self._p, self._lin
         route, profiles, spacing = self._route, self._profiles, float(self.spacing_m)
 
         def fun(t: float, s: np.ndarray) -> np.ndarray:
-            return rhs(t, s, p, vp, i_cmd, route, profiles, spacing)[0]
+            return rhs(t, s, p, lin, i_cmd, route, profiles, spacing)[0]
 
         return fun
 
@@ -171,7 +177,7 @@ class VariableStepPlant:
         """``(damper force N, body acceleration, bogie acceleration m/s^2, guideway m)`` at the
         present state under the command ``i_cmd``."""
         s = self.state
-        d, force, zg = _rhs_of(self.damper.code)(self.time_s, s, self._p, self._vp, i_cmd,
+        d, force, zg = _rhs_of(self.damper.code)(self.time_s, s, self._p, self._lin, i_cmd,
                                                  self._route, self._profiles,
                                                  float(self.spacing_m))  # fmt: skip
         return float(force), float(d[1]), float(d[3]), float(zg)

@@ -16,6 +16,8 @@ import numpy as np
 from capsule_env.dampers.base import DamperParamsBase as DamperParams  # any registered model
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles.linear import packed_matrices
+from capsule_env.vehicles.quarter_car import MODEL as QUARTER_CAR
 
 __all__ = [
     "DEFAULT_INPUT_RATE",
@@ -69,35 +71,37 @@ def stiffness_rates(
     (rad/s) over the eigenvalues of the plant with its damper linearised near rest in each of
     its regimes (:func:`_linearised_damper`). A light vehicle turns Spencer's pre-yield
     relaxation into a lightly damped oscillation: hence two numbers and two bounds."""
-    vp = np.atleast_2d(np.asarray(vehicle_params, dtype=float))
-    mc, mb, ks, kp = (vp[:, j, None] for j in range(4))
+    inertia, stiffness, damping, slots = packed_matrices(QUARTER_CAR, vehicle_params)
+    j_s = slots[0]  # the one damper slot's stroke over the coordinates
+    n = inertia.shape[1]
     i = np.atleast_1d(np.asarray(current_a, dtype=float))[None, :]
-    shape = np.broadcast_shapes(mc.shape, i.shape)
+    shape = np.broadcast_shapes(inertia[:, :1].shape, i.shape)
     rate, omega = np.zeros(shape), np.zeros(shape)
+    outer = np.outer(j_s, j_s)
     for c, k, big_k, big_c in _linearised_damper(damper, i):
-        # states [z_c, z_c', z_b, z_b', y]; the damper force F = fx x + fv x' + fy y
+        # states [q_0, q_0', q_1, q_1', ..., y]; the damper force F = fx x + fv x' + fy y on
+        # the stroke x (the slot's deflection)
         spencer = big_c > 0.0
         inv_c = np.where(spencer, 1.0 / np.where(spencer, big_c, 1.0), 0.0)
         c1 = big_c - c
         fx = k + c1 * big_k * inv_c
         fv = np.where(spencer, c1 * c * inv_c, c)
         fy = -c1 * big_k * inv_c
-        m = np.zeros((*shape, 5, 5))
-        m[..., 0, 1] = m[..., 2, 3] = 1.0
-        for row, sign, mass in ((1, -1.0, mc), (3, 1.0, mb)):
-            m[..., row, 0] = sign * (ks + fx) / mass
-            m[..., row, 2] = -sign * (ks + fx) / mass
-            m[..., row, 1] = sign * fv / mass
-            m[..., row, 3] = -sign * fv / mass
-            m[..., row, 4] = sign * fy / mass
-        m[..., 3, 2] -= kp / mb
-        if vp.shape[1] > 4:  # the levitation's damping (0 for the paper's plant)
-            m[..., 3, 3] -= vp[:, 4, None] / mb
-        m[..., 4, 0] = big_k * inv_c
-        m[..., 4, 2] = -big_k * inv_c
-        m[..., 4, 1] = c * inv_c
-        m[..., 4, 3] = -c * inv_c
-        m[..., 4, 4] = np.where(spencer, -big_k * inv_c, 0.0)  # y unused: an eigenvalue 0
+        m = np.zeros((*shape, 2 * n + 1, 2 * n + 1))
+        for r in range(n):
+            m[..., 2 * r, 2 * r + 1] = 1.0
+            mass = inertia[:, r, None]
+            for col in range(n):
+                m[..., 2 * r + 1, 2 * col] = (
+                    -(stiffness[:, r, col, None] + fx * outer[r, col]) / mass
+                )
+                m[..., 2 * r + 1, 2 * col + 1] = (
+                    -(damping[:, r, col, None] + fv * outer[r, col]) / mass
+                )
+            m[..., 2 * r + 1, 2 * n] = -(j_s[r] * fy) / mass
+            m[..., 2 * n, 2 * r] = big_k * inv_c * j_s[r]
+            m[..., 2 * n, 2 * r + 1] = c * inv_c * j_s[r]
+        m[..., 2 * n, 2 * n] = np.where(spencer, -big_k * inv_c, 0.0)  # y unused: an eigenvalue 0
         lam = np.linalg.eigvals(m)
         rate = np.maximum(rate, np.abs(lam.real).max(axis=-1))
         omega = np.maximum(omega, np.abs(lam.imag).max(axis=-1))

@@ -1,0 +1,251 @@
+"""A vehicle as data: its bodies' coordinates, its points, its springs, dashpots and damper slots,
+and the guideway contacts it stands on (docs/model.md, section 2).
+
+A :class:`VehicleModel` declares, once, everything the plant, the env and the controllers read
+about a vehicle:
+
+- its **coordinates** (generalised displacements, each with its unit and the parameter that is
+  its mass or inertia: the mass matrix is diagonal in them);
+- its **points**: the vertical displacement of a point of a body is a linear combination of the
+  coordinates (``z + x theta`` for a point ``x`` ahead of a pitching body's centre);
+- its **contacts**: the points where the guideway acts, each at a longitudinal offset (m, > 0
+  ahead of the reference point), so that a contact's guideway input is the profile at its own
+  position (a rear bogie meets what the front one met ``offset / speed`` earlier);
+- its **elements**, in order: springs and dashpots between two points (or a point and a
+  contact), and the damper slots where a semi-active damper acts (one action per slot).
+
+The **equations of motion** follow from the elements and nothing else::
+
+    M q'' = - sum_e J_e^T f_e,   f_e = k_e d_e   (spring),   c_e d_e'   (dashpot),   F_s   (slot)
+
+with ``d_e = J_e q - g_e z_g`` the element's deflection (its upper point's displacement less
+its lower point's, the guideway's elevation where the lower end is a contact) and ``F_s`` the
+damper force, positive when it resists a positive stroke rate. The declaration is plain numbers
+and names: an array backend (numba today, JAX for GPUs) compiles the same sums
+(:mod:`capsule_env.vehicles.linear` derives the linear model every controller reads from it).
+
+Every element coefficient and every mass names a field of the vehicle's parameter dataclass
+(``params``), which carries the documented defaults, their provenance and their accepted ranges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Coordinate",
+    "Point",
+    "Contact",
+    "Element",
+    "SPRING",
+    "DASHPOT",
+    "DAMPER",
+    "VehicleModel",
+]
+
+#: Element kinds.
+SPRING, DASHPOT, DAMPER = "spring", "dashpot", "damper"
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """A generalised coordinate: ``name`` (with its unit, e.g. ``car_body_displacement_m``),
+    ``unit`` (``"m"`` or ``"rad"``), ``inertia``: the parameter holding its mass (kg) or
+    moment of inertia (kg m^2), and ``rate_name``: its velocity's name with unit."""
+
+    name: str
+    unit: str
+    inertia: str
+    rate_name: str
+
+
+@dataclass(frozen=True)
+class Point:
+    """A point on the vehicle: ``name`` and its displacement ``sum(coefficient * coordinate)``
+    as ``((coordinate name, coefficient), ...)``; a coefficient is a number or the name of a
+    length parameter (a lever arm, m)."""
+
+    name: str
+    terms: tuple[tuple[str, float | str], ...]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Where the guideway acts: ``name`` and its longitudinal offset (m, > 0 ahead of the
+    vehicle's reference point; a number or the name of a length parameter). Its input is the
+    guideway's elevation at its own position."""
+
+    name: str
+    offset_m: float | str = 0.0
+
+
+@dataclass(frozen=True)
+class Element:
+    """A spring, a dashpot or a damper slot between ``upper`` (a point) and ``lower`` (a point
+    or a contact). ``coefficient``: the parameter of its stiffness (N/m) or damping (N s/m);
+    ``None`` for a damper slot. ``passive``: for a damper slot, the parameter of the linear
+    damper that replaces it in the passive baseline (N s/m), if any."""
+
+    kind: str
+    name: str
+    upper: str
+    lower: str
+    coefficient: str | None = None
+    passive: str | None = None
+
+
+@dataclass(frozen=True)
+class VehicleModel:
+    """One vehicle, declared (module doc). ``params``: its parameter dataclass (frozen, with
+    defaults); ``comfort_points``: the points whose acceleration the ride metric weighs
+    (one for the 1/4-car: the car body); ``relative_positions``: the springs whose deflections
+    are the position states of the controllers' relative form (one per coordinate, in
+    coordinate order; :func:`capsule_env.vehicles.linear.relative_model`)."""
+
+    name: str
+    params: type
+    coordinates: tuple[Coordinate, ...]
+    points: tuple[Point, ...]
+    contacts: tuple[Contact, ...]
+    elements: tuple[Element, ...]
+    comfort_points: tuple[str, ...]
+    relative_positions: tuple[str, ...] = ()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        _check_declaration(self)
+
+    # ---- names --------------------------------------------------------------------------
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """The mechanical state, ``[q_0, q_0', q_1, q_1', ...]`` (names with units)."""
+        return tuple(n for c in self.coordinates for n in (c.name, c.rate_name))
+
+    @property
+    def dampers(self) -> tuple[Element, ...]:
+        """The damper slots, in order: one action each."""
+        return tuple(e for e in self.elements if e.kind == DAMPER)
+
+    @property
+    def packed_param_names(self) -> tuple[str, ...]:
+        """What the compiled plant reads per vehicle, in packed order: the coordinates'
+        inertias, then the springs' and dashpots' coefficients in element order."""
+        inertias = tuple(c.inertia for c in self.coordinates)
+        coefs = tuple(e.coefficient for e in self.elements if e.kind != DAMPER)
+        return inertias + tuple(c for c in coefs if c is not None)
+
+    def values(self, params: Any = None, **overrides: float) -> dict[str, float]:
+        """``{parameter name: value}`` of ``params`` (default: the defaults), with
+        ``overrides`` (e.g. a levitation stiffness scheduled with speed) taking precedence."""
+        params = self.params() if params is None else params
+        if not isinstance(params, self.params):
+            raise TypeError(
+                f"vehicle {self.name!r} reads {self.params.__name__}, got {type(params).__name__}"
+            )
+        out = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
+        out.update({k: float(v) for k, v in overrides.items() if v is not None})
+        return out
+
+    def as_array(self, params: Any = None) -> np.ndarray:
+        """``params`` (default: the defaults) packed in :attr:`packed_param_names` order."""
+        values = self.values(params)
+        return np.array([float(values[n]) for n in self.packed_param_names])
+
+    # ---- geometry -------------------------------------------------------------------------
+    def point_row(self, name: str, values: dict[str, float]) -> np.ndarray:
+        """The point's displacement as a row over the coordinates (``values``: :meth:`values`)."""
+        index = {c.name: j for j, c in enumerate(self.coordinates)}
+        point = next(p for p in self.points if p.name == name)
+        row = np.zeros(len(self.coordinates))
+        for coordinate, coefficient in point.terms:
+            row[index[coordinate]] += _value(coefficient, values)
+        return row
+
+    def contact_offsets_m(self, params: Any = None) -> np.ndarray:
+        """Each contact's longitudinal offset (m, > 0 ahead)."""
+        values = self.values(params)
+        return np.array([_value(c.offset_m, values) for c in self.contacts])
+
+    def element_rows(
+        self, element: Element, values: dict[str, float]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(J, g)``: the element's deflection ``J q - g z_g`` (``g`` over the contacts)."""
+        j = self.point_row(element.upper, values)
+        g = np.zeros(len(self.contacts))
+        contacts = [c.name for c in self.contacts]
+        if element.lower in contacts:
+            g[contacts.index(element.lower)] = 1.0
+        else:
+            j = j - self.point_row(element.lower, values)
+        return j, g
+
+    def with_name(self, name: str, **changes: Any) -> VehicleModel:
+        """A copy under another name (e.g. to register a variant)."""
+        return dataclasses.replace(self, name=name, **changes)
+
+
+def _value(coefficient: float | str, values: dict[str, float]) -> float:
+    return float(values[coefficient]) if isinstance(coefficient, str) else float(coefficient)
+
+
+def _check_declaration(model: VehicleModel) -> None:
+    """One clear ``ValueError`` for a declaration that names what it does not declare."""
+    if not isinstance(model.name, str) or not model.name:
+        raise ValueError("a vehicle model needs a non-empty name")
+    if not dataclasses.is_dataclass(model.params):
+        raise TypeError(f"vehicle {model.name!r}: params must be a dataclass type")
+    fields = {f.name for f in dataclasses.fields(model.params)}
+    coords = [c.name for c in model.coordinates]
+    points = [p.name for p in model.points]
+    contacts = [c.name for c in model.contacts]
+    if not coords:
+        raise ValueError(f"vehicle {model.name!r}: declare at least one coordinate")
+    for what, names in (("coordinate", coords), ("point", points), ("contact", contacts),
+                        ("element", [e.name for e in model.elements])):  # fmt: skip
+        if len(set(names)) != len(names):
+            raise ValueError(f"vehicle {model.name!r}: {what} names must be unique: {names}")
+
+    def need(name: object, where: str) -> None:
+        if isinstance(name, str) and name not in fields:
+            raise ValueError(
+                f"vehicle {model.name!r}: {where} names {name!r}, not a field of "
+                f"{model.params.__name__} ({', '.join(sorted(fields))})"
+            )
+
+    for c in model.coordinates:
+        need(c.inertia, f"coordinate {c.name!r}")
+    _check_points(model, coords, need)
+    for c in model.contacts:
+        need(c.offset_m, f"contact {c.name!r}")
+    for e in model.elements:
+        _check_element(model, e, points, contacts, need)
+    missing = [p for p in model.comfort_points if p not in points]
+    if missing:
+        raise ValueError(f"vehicle {model.name!r}: comfort points {missing} are not points")
+
+
+def _check_points(model: VehicleModel, coords: list, need) -> None:
+    for p in model.points:
+        for coordinate, coefficient in p.terms:
+            if coordinate not in coords:
+                raise ValueError(f"vehicle {model.name!r}: point {p.name!r} names {coordinate!r}, "
+                                 f"not a coordinate ({', '.join(coords)})")  # fmt: skip
+            need(coefficient, f"point {p.name!r}")
+
+
+def _check_element(model: VehicleModel, e: Element, points: list, contacts: list, need) -> None:
+    if e.kind not in (SPRING, DASHPOT, DAMPER):
+        raise ValueError(f"vehicle {model.name!r}: element {e.name!r} kind must be one of "
+                         f"{SPRING!r}, {DASHPOT!r}, {DAMPER!r}, got {e.kind!r}")  # fmt: skip
+    if e.upper not in points or e.lower not in points + contacts:
+        raise ValueError(f"vehicle {model.name!r}: element {e.name!r} joins {e.upper!r} and "
+                         f"{e.lower!r}; upper must be a point, lower a point or a contact")  # fmt: skip
+    if (e.kind == DAMPER) != (e.coefficient is None):
+        raise ValueError(f"vehicle {model.name!r}: element {e.name!r}: a spring or dashpot "
+                         "names its coefficient, a damper slot does not")  # fmt: skip
+    need(e.coefficient, f"element {e.name!r}")
+    need(e.passive, f"element {e.name!r}")
