@@ -158,7 +158,7 @@ class CapsuleBatch:
         self.config = config
         self.num_envs = n = check_num_envs(num_envs)
         config.check_memory(n)  # before anything large is allocated
-        self.vehicle = config.vehicle
+        self.vehicle = config.vehicle_parameters
         self.plant = config.plant_damper
         self.inverse = config.inverse_damper
         self.i_max = config.max_current_a
@@ -170,7 +170,7 @@ class CapsuleBatch:
         self._profiles = self._build_bank()
         self._offsets = self._build_offsets()
         self.rngs = vehicle_streams(None, n)
-        self._nominal_vehicle = self.vehicle.as_array()
+        self._nominal_vehicle = config.packed_vehicle
         self._fresh_signals = bool(fresh_signals)
         # the columns equal to the start elevation in a reset observation (the rest are 0)
         self._rest_columns = np.flatnonzero(rest_observation(config.observation, 1.0))

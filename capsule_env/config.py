@@ -38,6 +38,8 @@ from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS, STIFF_LEVITATION
 from capsule_env.metrics import wk_filter_sos
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
 from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleModel, model_named
+from capsule_env.vehicles.compiled import check_compiled
 
 __all__ = [
     "ACTION_MODES",
@@ -132,6 +134,7 @@ class EnvConfig:
     velocity_scale_m_s: float = 0.05
     stroke_limit_m: float = 0.06
     bump_stop_penalty: float = 100.0
+    vehicle: str = "quarter_car"
     vehicle_params: dict = field(default_factory=dict)
     damper_params: dict = field(default_factory=dict)
     inverse_params: dict = field(default_factory=dict)
@@ -233,7 +236,7 @@ class EnvConfig:
             raise ValueError("speed_range_kmh must be None with speed_profile='trip' (the trip "
                              "sets the speed)")  # fmt: skip
         # Build everything once so that bad overrides fail here, with the parameter named.
-        _ = self.vehicle, self.plant_damper, self.inverse_damper, self.guideway_spec
+        _ = self.vehicle_parameters, self.plant_damper, self.inverse_damper, self.guideway_spec
         if self.damper_params:  # a plant damper of the user's: it must dissipate (issue 40)
             _check_dissipative_plant(self.plant_damper, self.plant_damper_name)
         _ = self.envelope
@@ -277,8 +280,19 @@ class EnvConfig:
         return "reference" if self.hils else inverse_models()[self.inverse_model]
 
     @property
-    def vehicle(self) -> VehicleParams:
-        return _build("vehicle_params", VehicleParams, self.vehicle_params)
+    def vehicle_model(self) -> VehicleModel:
+        """The declared vehicle (:mod:`capsule_env.vehicles`) named by ``vehicle``."""
+        return check_compiled(model_named(self.vehicle))
+
+    @property
+    def vehicle_parameters(self) -> VehicleParams:
+        """The vehicle's parameters: its model's defaults with ``vehicle_params`` applied."""
+        return _build("vehicle_params", self.vehicle_model.params, self.vehicle_params)
+
+    @property
+    def packed_vehicle(self) -> np.ndarray:
+        """The parameters as the compiled plant reads them (the model's packed order)."""
+        return self.vehicle_model.as_array(self.vehicle_parameters)
 
     @property
     def plant_damper(self) -> DamperParamsBase:
@@ -436,7 +450,7 @@ class EnvConfig:
         if self.substeps is not None:
             return
         r = self.vehicle_randomization
-        corner = self.vehicle.as_array() * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r, 1.0])
+        corner = self.packed_vehicle * np.array([1.0 - r, 1.0 - r, 1.0 + r, 1.0 + r, 1.0])
         if self.payload_range is not None:  # the lightest car body
             corner[0] *= 1.0 + min(self.payload_range)
         if self.levitation == "eds":  # the stiffness at any speed is below K_inf

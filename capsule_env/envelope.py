@@ -165,7 +165,7 @@ def build_envelope(config: Any) -> Envelope:
         raise ValueError("span_params needs spans='continuous' or 'simply_supported'")
     coil = None
     if config.levitation == "eds":
-        vehicle: VehicleParams = config.vehicle
+        vehicle: VehicleParams = config.vehicle_parameters
         try:
             coil = eds_coil(vehicle, eds)
         except ValueError as exc:

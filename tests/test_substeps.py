@@ -114,8 +114,8 @@ def test_each_vehicle_gets_the_table_of_its_own_parameters():
     np.testing.assert_array_equal(batch.sub_table, expected)
     assert len({tuple(row) for row in batch.sub_table}) > 1  # they really differ
     # A light bogie on a stiff levitation has a 4.4x faster bogie mode: more substeps at 0 A.
-    nominal = substep_tables(config.plant_damper, config.dt_s, config.vehicle.as_array())
-    light = config.vehicle.as_array() * [1.0, 0.1, 1.0, 1.9, 1.0]
+    nominal = substep_tables(config.plant_damper, config.dt_s, config.packed_vehicle)
+    light = config.packed_vehicle * [1.0, 0.1, 1.0, 1.9, 1.0]
     assert substep_tables(config.plant_damper, config.dt_s, light)[0, 0] > nominal[0, 0]
 
 

@@ -217,3 +217,48 @@ def test_a_declaration_that_names_what_it_lacks_is_refused():
         dataclasses.replace(
             QUARTER_CAR, elements=(Element("magnet", "x", "car_body", "bogie", "bogie_mass_kg"),)
         )
+
+
+# ------------------------------------------------------------------- through the env
+def _rollout(**kwargs) -> dict[str, np.ndarray]:
+    import gymnasium as gym
+
+    env = gym.make("CapsuleSuspension-v0", setting="hils", observation="measured",
+                   vehicle_randomization=0.2, **kwargs)  # fmt: skip
+    obs, _ = env.reset(seed=5)
+    actions = np.random.default_rng(1).uniform(-1.0, 1.0, size=(300, 1))
+    out = {"obs": [obs]}
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a.astype(np.float32))
+        out["obs"].append(obs)
+        out.setdefault("reward", []).append(reward)
+        out.setdefault("acc", []).append(info["car_body_acceleration_m_s2"])
+    env.close()
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def test_a_copy_of_the_quarter_car_under_another_name_runs_bit_identically():
+    register(QUARTER_CAR.with_name("quarter_car_copy"))
+    try:
+        mass = {"car_body_mass_kg": 5800.0}
+        base = _rollout(vehicle_params=mass)
+        copy = _rollout(vehicle="quarter_car_copy", vehicle_params=mass)
+    finally:
+        unregister("quarter_car_copy")
+    for key in base:
+        assert np.array_equal(base[key], copy[key]), key
+
+
+def test_the_env_names_a_vehicle_it_cannot_run():
+    import gymnasium as gym
+
+    register(_toy())
+    try:
+        with pytest.raises(ValueError, match="vehicle 'seat_toy'.*3 coordinates"):
+            gym.make("CapsuleSuspension-v0", vehicle="seat_toy")
+    finally:
+        unregister("seat_toy")
+    with pytest.raises(ValueError, match="unknown vehicle .no_such_vehicle.; accepted values: quarter_car"):
+        gym.make("CapsuleSuspension-v0", vehicle="no_such_vehicle")
+    with pytest.raises(ValueError, match="unknown key 'seat_mass_kg' in vehicle_params"):
+        gym.make("CapsuleSuspension-v0", vehicle_params={"seat_mass_kg": 1.0})

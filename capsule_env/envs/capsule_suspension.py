@@ -238,6 +238,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       ``stroke_scale_m``, ``velocity_scale_m_s``, ``stroke_limit_m``, ``bump_stop_penalty``,
       ``reward_acceleration_filter`` (``"none"`` | ``"wk"``);
       ``max_force_n`` (8 kN, force-mode scale).
+    - The vehicle: ``vehicle`` (a registered model of :mod:`capsule_env.vehicles`, default
+      ``"quarter_car"``).
     - Overrides: ``vehicle_params``, ``damper_params`` (plant), ``inverse_params`` (the model
       the controller inverts), each a dict of dataclass fields.
     - Domain randomisation per episode: ``vehicle_randomization`` (relative half-width of a

@@ -40,7 +40,7 @@ def _routes(env_kwargs: dict[str, Any], seeds: Sequence[int], episode_length_s: 
     out = {"profiles": b.profiles[b.profile_index].copy(), "start_m": b.start_position.copy(),
            "speed_mps": b.speed.copy(), "gain": b.gain.copy(), "zg0": b.state[:, BODY_DISP].copy(),
            "spacing_m": float(b.spacing), "dt_s": float(b.dt), "steps": int(b.max_steps),
-           "vehicle": env.config.vehicle}  # fmt: skip
+           "vehicle": env.config.vehicle_parameters}  # fmt: skip
     env.close()
     return out
 
