@@ -143,12 +143,18 @@ def _imports(path: Path) -> set[str]:
 def test_layering_of_the_house():
     # the damper models sit below the plant, the kernels, the env and the layout
     below = ("capsule_env._fastmath", "capsule_env._validation", "capsule_env._jit",
-             "capsule_env.hysteresis", "capsule_env.dampers")  # fmt: skip
+             "capsule_env.hysteresis", "capsule_env.dampers", "capsule_env._discover")  # fmt: skip
     for path in sorted((PACKAGE / "dampers").glob("*.py")):
         above = {
             m for m in _imports(path) if m.startswith("capsule_env") and not m.startswith(below)
         }
         assert not above, f"dampers/{path.name} imports {sorted(above)}"
+    # the vehicle models sit below everything but the validation helpers
+    for path in sorted((PACKAGE / "vehicles").glob("*.py")):
+        above = {m for m in _imports(path) if m.startswith("capsule_env")
+                 and not m.startswith(("capsule_env._validation", "capsule_env._discover",
+                                       "capsule_env.vehicles"))}  # fmt: skip
+        assert not above, f"vehicles/{path.name} imports {sorted(above)}"
     equations = {m for m in _imports(PACKAGE / "plant" / "equations.py") if "capsule_env" in m}
     assert equations <= {"capsule_env._jit"}  # the vehicle depends on no damper, no layout
     for path in PACKAGE.rglob("*.py"):  # numba's overload machinery only in _jit
