@@ -54,7 +54,7 @@ from capsule_env.agents.tuned import tuned_gains
 
 from capsule_env._validation import check_choice, check_in_range
 from capsule_env.config import OBSERVATION_NAMES
-from capsule_env.envelope import LEVITATION_MODELS, TRIP_COLUMN_NAMES
+from capsule_env.envelope import LEVITATION_MODELS
 from capsule_env.levitation import (
     EdsParams,
     check_levitating,
@@ -62,6 +62,8 @@ from capsule_env.levitation import (
     levitation_damping_n_s_per_m,
     levitation_stiffness_n_per_m,
 )
+from capsule_env.observations import TRIP_COLUMN_NAMES
+from capsule_env.units import kmh_to_m_s
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [
@@ -88,7 +90,7 @@ def design_speeds_m_s(low_kmh: float, high_kmh: float, step_kmh: float) -> np.nd
         raise ValueError(f"top_speed_kmh must exceed the lift-off speed {low_kmh:g} km/h, "
                          f"got {high_kmh:g}")  # fmt: skip
     points = math.ceil((high_kmh - low_kmh) / step_kmh - 1e-9) + 1
-    return np.linspace(low_kmh, high_kmh, points) / 3.6
+    return kmh_to_m_s(np.linspace(low_kmh, high_kmh, points))
 
 
 def levitation_schedule(

@@ -195,7 +195,7 @@ class CapsuleBatch:
         config, n = self.config, self.num_envs
         self._damper_params = np.ascontiguousarray(np.tile(self.plant.as_array(), (n, 1)))
         self._vehicle_params = np.ascontiguousarray(np.tile(self._nominal_vehicle, (n, 1)))
-        self._speed = np.full(n, config.speed_kmh / 3.6)
+        self._speed = np.full(n, config.speed_m_s)
         # substeps per vehicle and current bin, and the block kernel's per-vehicle constants;
         # recomputed at each vehicle's reset when vehicles differ (config.randomizes_substeps)
         stiffest = self._stiffest(self.vehicle_params[:1].copy())
@@ -310,7 +310,7 @@ class CapsuleBatch:
             ]
             return np.ascontiguousarray(np.stack(bank))
         # a finite profile: the preview looks past its end, where the guideway continues
-        duration = cfg.window_m / (cfg.speed_kmh / 3.6)
+        duration = cfg.window_m / cfg.speed_m_s
         profile = make_profile(gw, duration, extend_m=self._preview_reach_m())
         return np.ascontiguousarray(profile[None, :])
 
@@ -329,7 +329,7 @@ class CapsuleBatch:
         cfg, gw = self.config, self.guideway
         if gw.kind == "random":
             return self.profiles.shape[1]
-        duration = cfg.window_m / (cfg.speed_kmh / 3.6)
+        duration = cfg.window_m / cfg.speed_m_s
         return n_samples(profile_length_m(gw, duration), gw.spacing_m)
 
     def _build_survey_error(self) -> np.ndarray:

@@ -30,13 +30,14 @@ from capsule_env._validation import (
 from capsule_env.dampers import DAMPER_NAMES, make_damper
 from capsule_env.dampers.base import DamperParamsBase
 from capsule_env.dampers.registry import MODELS
-from capsule_env.envelope import TRIP_COLUMN_BOUNDS, TRIP_COLUMN_NAMES, Envelope, build_envelope
+from capsule_env.envelope import Envelope, build_envelope
 from capsule_env.guideway import GUIDEWAY_KINDS, GuidewayParams, fft_length
 from capsule_env.inverse import INVERSE_CODES as _INVERSE_CODES
 from capsule_env.inverse import INVERSE_MODELS, inverse_models
 from capsule_env.layout import MAX_REWARD_FILTER_SECTIONS, STIFF_LEVITATION
 from capsule_env.metrics import wk_filter_sos
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, SUBSTEP_BINS, substep_tables
+from capsule_env.units import kmh_to_m_s
 from capsule_env.vehicle import VehicleParams
 from capsule_env.vehicles import VehicleModel, model_named
 from capsule_env.vehicles.compiled import check_compiled
@@ -385,10 +386,15 @@ class EnvConfig:
         return np.maximum(rate, span) if spans else rate
 
     @property
+    def speed_m_s(self) -> float:
+        """The vehicle's speed (m/s) at ``speed_kmh``."""
+        return kmh_to_m_s(float(self.speed_kmh))
+
+    @property
     def speed_range_mps(self) -> tuple[float, float]:
         """Lowest and highest vehicle speed (m/s)."""
         lo, hi = self.speed_range_kmh or (self.speed_kmh, self.speed_kmh)
-        return float(lo) / 3.6, float(hi) / 3.6
+        return kmh_to_m_s(float(lo)), kmh_to_m_s(float(hi))
 
     @property
     def window_m(self) -> float:
@@ -455,7 +461,7 @@ class EnvConfig:
             corner[0] *= 1.0 + min(self.payload_range)
         if self.levitation == "eds":  # the stiffness at any speed is below K_inf
             corner[STIFF_LEVITATION] /= self.envelope.reference_shape
-        speed = max(self.speed_range_kmh or (self.speed_kmh,)) / 3.6
+        speed = kmh_to_m_s(max(self.speed_range_kmh or (self.speed_kmh,)))
         need = int(self.substep_tables(corner, np.array([speed])).max())
         if need > MAX_AUTO_SUBSTEPS:
             raise ValueError(
@@ -468,17 +474,20 @@ class EnvConfig:
 
     @property
     def observation_names(self) -> tuple[str, ...]:
-        """The observation's columns: the chosen set, then the trip's (speed and longitudinal
-        acceleration, with ``speed_profile="trip"``), then the preview points (if any)."""
-        trip = TRIP_COLUMN_NAMES if self.speed_profile == "trip" else ()
-        return OBSERVATION_NAMES[self.observation] + trip + self.preview_names
+        """The observation's columns (:func:`capsule_env.observations.columns`): the chosen set,
+        then the trip's (speed and longitudinal acceleration, with ``speed_profile="trip"``),
+        then the preview points (if any)."""
+        return _observations.columns(self.observation, self.has_trip, self.preview_points)
+
+    @property
+    def has_trip(self) -> bool:
+        """Whether the speed follows a trip (and the observation has the trip's columns)."""
+        return self.speed_profile == "trip"
 
     @property
     def preview_names(self) -> tuple[str, ...]:
-        """Columns of the guideway preview: ``preview_ahead_<k>`` is the surveyed elevation
-        ``k * preview_horizon_s / preview_points`` seconds ahead of the bogie, relative to the
-        surveyed elevation under it now (m)."""
-        return tuple(f"preview_ahead_{k}" for k in range(1, self.preview_points + 1))
+        """Columns of the guideway preview (:func:`capsule_env.observations.preview_columns`)."""
+        return tuple(c.name for c in _observations.preview_columns(self.preview_points))
 
     def reward_filter_sos(self) -> np.ndarray:
         """Second-order sections ``(b0, b1, b2, 1, a1, a2)`` the reward's car-body acceleration
@@ -521,12 +530,8 @@ def observation_bounds(config: EnvConfig, i_max: float) -> tuple[np.ndarray, np.
     displacements, the gap and the preview 1 m, commanded current [0, i_max], measured current
     [-0.5, i_max + 0.5] A so that its noise is not clipped on one side): each column's
     ``low`` and ``high`` in :data:`capsule_env.observations.OBSERVABLES`, then the preview's."""
-    low, high = _observations.bounds(config.observation, config.stroke_limit_m, i_max)
-    if config.speed_profile == "trip":
-        low += [b[0] for b in TRIP_COLUMN_BOUNDS]
-        high += [b[1] for b in TRIP_COLUMN_BOUNDS]
-    high += [1.0] * config.preview_points
-    low += [-1.0] * config.preview_points
+    low, high = _observations.column_bounds(config.observation, config.stroke_limit_m, i_max,
+                                            config.has_trip, config.preview_points)  # fmt: skip
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 

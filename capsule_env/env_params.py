@@ -28,9 +28,9 @@ from capsule_env.layout import (
     VEHICLE_FLOAT_NAMES,
 )
 from capsule_env.observations import (
-    OBSERVATION_NAMES,
     OBSERVATION_SETS,
     SENSOR_NOISE_STD,
+    first_column,
     noise_channels_read,
 )
 from capsule_env.plant.params import Route
@@ -228,7 +228,9 @@ class EnvParams(NamedTuple):
             reward_filter=config.reward_filter_sos(),
             trip=envelope.trip_array(),
             eds=envelope.eds_array(),
-            trip_column=len(OBSERVATION_NAMES[config.observation]) if envelope.trip else -1,
+            trip_column=first_column(
+                config.observation, "trip", envelope.trip is not None, config.preview_points
+            ),  # fmt: skip
         )
 
 

@@ -14,7 +14,7 @@ setting, bit for bit):
   from the vehicle's own stream. The guideway is read at the distance travelled: over each
   control interval the route is the chord of the exact trajectory (exact at both ends; at
   1 m/s^2 and 200 Hz the mid-interval position is off by ``a dt^2 / 8 = 3 um``). Every
-  observation set gets two more columns after its own, :data:`TRIP_COLUMN_NAMES` (exact: a
+  observation set gets two more columns after its own, :data:`capsule_env.observations.TRIP_COLUMN_NAMES` (exact: a
   capsule knows its speed and acceleration from its propulsion control). A trip that never
   changes speed reduces to the constant-speed env bit for bit (the extra distance is a sum of
   terms proportional to the accelerations, exactly 0 then).
@@ -37,14 +37,13 @@ from capsule_env._validation import check_choice
 from capsule_env.guideway.spans import SPAN_SHAPES, SpanParams
 from capsule_env.levitation import EdsCoil, EdsParams, check_levitating, eds_coil
 from capsule_env.trips import TripParams
+from capsule_env.units import kmh_to_m_s
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [
     "LEVITATION_MODELS",
     "SPEED_PROFILES",
     "SPAN_OPTIONS",
-    "TRIP_COLUMN_NAMES",
-    "TRIP_COLUMN_BOUNDS",
     "ENVELOPE_TRIP",
     "ENVELOPE_EDS_PER_STEP",
     "Envelope",
@@ -54,11 +53,6 @@ __all__ = [
 LEVITATION_MODELS = ("fixed", "eds")
 SPEED_PROFILES = ("constant", "trip")
 SPAN_OPTIONS = ("none", *SPAN_SHAPES)
-#: The observation columns a trip adds after the set's own: the speed (m/s) and the
-#: longitudinal acceleration (m/s^2, > 0 speeding up).
-TRIP_COLUMN_NAMES = ("speed_m_s", "longitudinal_acceleration_m_s2")
-#: ``(low, high)`` of each trip column (m/s up to 2000 km/h; m/s^2 up to 2 g).
-TRIP_COLUMN_BOUNDS = ((0.0, 2000.0 / 3.6), (-20.0, 20.0))
 #: Flags of the env kernel (compile-time): the route and the trip columns follow a trip, and
 #: the levitation follows the speed every step.
 ENVELOPE_TRIP, ENVELOPE_EDS_PER_STEP = 1, 2
@@ -109,7 +103,9 @@ class Envelope:
     def reference_shape(self) -> float:
         """``k_p(v_ref) / K_inf``: a vehicle's ``K_inf`` is its reference ``k_p`` over this."""
         assert self.coil is not None and self.eds is not None
-        return _lift_shape(self.eds.reference_speed_kmh / 3.6 / self.coil.characteristic_speed_m_s)
+        return _lift_shape(
+            kmh_to_m_s(self.eds.reference_speed_kmh) / self.coil.characteristic_speed_m_s
+        )
 
     def trip_array(self) -> np.ndarray:
         """``(a, b, t1, t2, t3)``: the trip's acceleration, braking (m/s^2) and phase ends (s)
@@ -135,7 +131,7 @@ class Envelope:
 
     def highest_speed_m_s(self, speed_high_m_s: float) -> float:
         """The highest speed a vehicle reaches (m/s): the trip's cruise, else the given one."""
-        return self.trip.cruise_speed_kmh / 3.6 if self.trip is not None else speed_high_m_s
+        return kmh_to_m_s(self.trip.cruise_speed_kmh) if self.trip is not None else speed_high_m_s
 
 
 def build_envelope(config: Any) -> Envelope:
@@ -176,7 +172,7 @@ def build_envelope(config: Any) -> Envelope:
                 f"{exc}"
             ) from None
         if config.speed_profile == "trip":
-            check_levitating("trip_params['lift_off_speed_kmh']", trip.lift_off_speed_kmh / 3.6,
+            check_levitating("trip_params['lift_off_speed_kmh']", kmh_to_m_s(trip.lift_off_speed_kmh),
                              coil)  # fmt: skip
         else:
             name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"

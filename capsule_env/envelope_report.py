@@ -19,6 +19,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from capsule_env.units import kmh_to_m_s
+
 __all__ = ["tables", "figures", "sync_page", "BEGIN", "END"]
 
 BEGIN, END = "<!-- generated: envelope -->", "<!-- end generated: envelope -->"
@@ -246,7 +248,7 @@ def _psd_figure(plt: Any, pairs: list[tuple[dict, dict, str]], path: Path) -> Pa
     lines = set()
     for row, (base, spans, title) in zip(axes, pairs):
         span_m = spans["env_kwargs"]["span_params"]["span_m"]
-        f_span = spans["env_kwargs"]["speed_kmh"] / 3.6 / span_m
+        f_span = kmh_to_m_s(spans["env_kwargs"]["speed_kmh"]) / span_m
         lines.add(f"v/L = {f_span:.2f} Hz")
         for ax, name in zip(row, names):
             for p, label, colour in ((base, "no spans", "tab:blue"),

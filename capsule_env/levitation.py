@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capsule_env._validation import check_choice, check_in_range
+from capsule_env.units import kmh_to_m_s, m_s_to_kmh
 from capsule_env.vehicle import VehicleParams
 
 __all__ = [
@@ -141,8 +142,8 @@ def eds_coil(vehicle: VehicleParams | None = None, params: EdsParams | None = No
     params = params or EdsParams()
     weight = (vehicle.car_body_mass_kg + vehicle.bogie_mass_kg) * GRAVITY_M_S2
     k_ref = vehicle.levitation_stiffness_n_per_m
-    a = params.lift_off_speed_kmh / 3.6
-    b = params.reference_speed_kmh / 3.6
+    a = kmh_to_m_s(params.lift_off_speed_kmh)
+    b = kmh_to_m_s(params.reference_speed_kmh)
     rho = weight / k_ref / params.levitation_travel_m
     if not (a / b) ** 2 < rho < 1.0:
         raise ValueError(
@@ -168,9 +169,9 @@ def check_levitating(name: str, speed_m_s: np.ndarray | float, coil: EdsCoil) ->
     low = float(np.min(speed_m_s))
     if not low >= coil.lift_off_speed_m_s:
         raise ValueError(
-            f"{name} must be at least the lift-off speed {coil.lift_off_speed_m_s * 3.6:.1f} km/h "
+            f"{name} must be at least the lift-off speed {m_s_to_kmh(coil.lift_off_speed_m_s):.1f} km/h "
             f"with levitation='eds' (below it the capsule rolls on its wheels), got "
-            f"{low * 3.6:.1f} km/h"
+            f"{m_s_to_kmh(low):.1f} km/h"
         )
 
 

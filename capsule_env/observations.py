@@ -19,6 +19,12 @@ table's row order is the column order of every set. Everything else is generated
   -m capsule_env.observations_docs docs/env.md`` rewrites them; a test checks they are in
   sync).
 
+After a set's own columns come two groups the configuration adds, declared here too
+(:data:`TRIP_COLUMNS`, :func:`preview_columns`; :func:`columns` lists them in order and
+:func:`first_column` gives the kernels their offsets): a trip's speed and longitudinal
+acceleration (``speed_profile="trip"``; the envelope kernel writes them) and the surveyed
+guideway preview (``preview_points``; the env kernel writes them).
+
 Adding a signal is one row of :data:`OBSERVABLES` (and, if it reads a quantity the env does not
 compute yet, a row of :data:`QUANTITIES` and its line in ``env_kernel._quantities``; a new noise
 channel is appended to :data:`NOISE_CHANNELS`). A new row placed after the others appends a
@@ -31,6 +37,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+from capsule_env.units import kmh_to_m_s
 
 __all__ = [
     "Quantity",
@@ -50,6 +58,13 @@ __all__ = [
     "bounds",
     "noise_channels_read",
     "rest_observation",
+    "Column",
+    "TRIP_COLUMNS",
+    "TRIP_COLUMN_NAMES",
+    "preview_columns",
+    "columns",
+    "column_bounds",
+    "first_column",
 ]
 
 
@@ -291,3 +306,62 @@ def _check_table() -> None:
 
 
 _check_table()
+
+
+# ----------------------------------------------------------------- appended column groups
+class Column(NamedTuple):
+    """A column a configuration appends after a set's own: its name (ending with its unit),
+    what it is, and its ``(low, high)`` bounds."""
+
+    name: str
+    what: str
+    low: float
+    high: float
+
+
+#: The trip's columns (``speed_profile="trip"``): exact, from the trip's schedule.
+TRIP_COLUMNS = (
+    Column("speed_m_s", "the capsule's speed (up to 2000 km/h)", 0.0, kmh_to_m_s(2000.0)),
+    Column("longitudinal_acceleration_m_s2",
+           "longitudinal acceleration (> 0 speeding up; up to 2 g)", -20.0, 20.0),
+)  # fmt: skip
+TRIP_COLUMN_NAMES = tuple(c.name for c in TRIP_COLUMNS)
+
+
+def preview_columns(preview_points: int) -> tuple[Column, ...]:
+    """The guideway preview's columns: ``preview_ahead_<k>`` is the surveyed elevation ``k *
+    preview_horizon_s / preview_points`` seconds ahead of the bogie, relative to the surveyed
+    elevation under it now (m, saturating at 1 m)."""
+    return tuple(Column(f"preview_ahead_{k}", f"surveyed guideway {k} preview steps ahead, "
+                        "relative to under the bogie now", -1.0, 1.0)
+                 for k in range(1, preview_points + 1))  # fmt: skip
+
+
+def _groups(trip: bool, preview_points: int) -> tuple[tuple[str, tuple[Column, ...]], ...]:
+    return (("trip", TRIP_COLUMNS if trip else ()), ("preview", preview_columns(preview_points)))
+
+
+def columns(observation: str, trip: bool = False, preview_points: int = 0) -> tuple[str, ...]:
+    """Every column of an observation, in order: the set's, the trip's, the preview's."""
+    appended = tuple(c.name for _, group in _groups(trip, preview_points) for c in group)
+    return OBSERVATION_NAMES[observation] + appended
+
+
+def first_column(observation: str, group: str, trip: bool, preview_points: int) -> int:
+    """The index of ``group``'s (``"trip"`` or ``"preview"``) first column, -1 if absent."""
+    at = len(OBSERVATION_NAMES[observation])
+    for name, group_columns in _groups(trip, preview_points):
+        if name == group:
+            return at if group_columns else -1
+        at += len(group_columns)
+    raise ValueError(f"group must be 'trip' or 'preview', got {group!r}")
+
+
+def column_bounds(observation: str, stroke_limit_m: float, i_max_a: float, trip: bool = False,
+                  preview_points: int = 0) -> tuple[list, list]:  # fmt: skip
+    """``(low, high)`` of every column of :func:`columns` (float64 lists)."""
+    low, high = bounds(observation, stroke_limit_m, i_max_a)
+    for _, group in _groups(trip, preview_points):
+        low += [c.low for c in group]
+        high += [c.high for c in group]
+    return low, high

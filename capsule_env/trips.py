@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capsule_env._validation import check_in_range
+from capsule_env.units import kmh_to_m_s
 
 __all__ = ["TripParams", "trip_speed_m_s", "trip_position_m", "trip_acceleration_m_s2",
            "draw_window_start_s"]  # fmt: skip
@@ -62,7 +63,7 @@ class TripParams:
     @property
     def phase_ends_s(self) -> tuple[float, float, float]:
         """Ends of the acceleration, cruise and braking phases (s from the trip's start)."""
-        dv = (self.cruise_speed_kmh - self.lift_off_speed_kmh) / 3.6
+        dv = kmh_to_m_s(self.cruise_speed_kmh - self.lift_off_speed_kmh)
         t_acc = dv / self.acceleration_m_s2
         t_cruise = t_acc + self.cruise_duration_s
         return t_acc, t_cruise, t_cruise + dv / self.braking_m_s2
@@ -76,7 +77,7 @@ class TripParams:
 def _phases(t_s: np.ndarray, trip: TripParams):
     t = np.clip(np.asarray(t_s, dtype=float), 0.0, trip.duration_s)
     t1, t2, _ = trip.phase_ends_s
-    return t, t1, t2, trip.lift_off_speed_kmh / 3.6, trip.cruise_speed_kmh / 3.6
+    return t, t1, t2, kmh_to_m_s(trip.lift_off_speed_kmh), kmh_to_m_s(trip.cruise_speed_kmh)
 
 
 def trip_speed_m_s(t_s: np.ndarray | float, trip: TripParams) -> np.ndarray:

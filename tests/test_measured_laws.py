@@ -19,8 +19,8 @@ from capsule_env.agents.lqr import lqr_gain
 from capsule_env.agents.search_space import SEARCH_SPACES
 
 from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
-from capsule_env.envelope import TRIP_COLUMN_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+from capsule_env.observations import TRIP_COLUMN_NAMES
 from capsule_env.vehicle import VehicleParams
 
 MEASURED_LAWS = [n for n, c in classical_controllers().items() if c.observation == "measured"]

@@ -157,3 +157,47 @@ def test_docs_rewrite(tmp_path):
     assert text.startswith("a\n") and text.endswith("<!-- /generated -->\nb\n")
     page.write_text("<!-- generated: nothing -->\nx\n<!-- /generated -->\n")
     assert main([str(page)]) == 1  # an unknown key: one line on stderr, no traceback
+
+
+def test_trip_and_preview_columns_are_declared_in_the_table_module():
+    """Issue 41: the trip's and the preview's columns come from observations.py, and the kernels'
+    offsets point at their names."""
+    from capsule_env.config import EnvConfig, observation_bounds
+    from capsule_env.env_params import EnvParams
+    from capsule_env.observations import TRIP_COLUMN_NAMES, columns, first_column
+
+    config = EnvConfig(setting="hils", observation="measured", speed_profile="trip",
+                       preview_points=3)  # fmt: skip
+    names = config.observation_names
+    assert names == columns("measured", trip=True, preview_points=3)
+    trip = first_column("measured", "trip", True, 3)
+    preview = first_column("measured", "preview", True, 3)
+    assert names[trip : trip + 2] == TRIP_COLUMN_NAMES
+    assert names[preview:] == ("preview_ahead_1", "preview_ahead_2", "preview_ahead_3")
+    assert preview == len(names) - 3  # the env kernel writes the preview as the last columns
+    assert EnvParams.from_config(config).trip_column == trip
+    low, high = observation_bounds(config, 1.0)
+    assert low.shape == high.shape == (len(names),)
+    assert high[trip] == np.float32(2000.0 / 3.6) and high[preview] == 1.0
+    assert first_column("measured", "trip", False, 0) == -1
+    with pytest.raises(ValueError, match="group must be"):
+        first_column("measured", "speed", True, 0)
+
+
+def test_speed_conversions_go_through_units():
+    """Issue 41: km/h <-> m/s only in capsule_env/units.py (no literal 3.6 in arithmetic)."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    found = []
+    for path in [*(root / "capsule_env").rglob("*.py"), *(root / "agents").rglob("*.py")]:
+        if path.name == "units.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.BinOp) and any(
+                isinstance(side, ast.Constant) and side.value == 3.6
+                for side in (node.left, node.right)
+            ):
+                found.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert not found, found

@@ -15,6 +15,7 @@ from capsule_env.guideway.deterministic import (
     swept_sine_profile,
 )
 from capsule_env.guideway.random import FRA_CLASS6, FraPsdParams, random_profile
+from capsule_env.units import kmh_to_m_s
 
 __all__ = [
     "GUIDEWAY_KINDS",
@@ -98,7 +99,7 @@ def time_signal(
 
 def kmh_to_mps(speed_kmh: float) -> float:
     """Convert a speed from km/h to m/s (``/ 3.6``); e.g. 810 km/h -> 225 m/s."""
-    return check_finite("speed_kmh", speed_kmh) / 3.6
+    return kmh_to_m_s(check_finite("speed_kmh", speed_kmh))
 
 
 # --------------------------------------------------------------------------------------------
