@@ -20,11 +20,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # The files mypy checks, as paths in the installed layout (issue 26 item 7).
 TARGETS = (
-    "capsule_env/config.py",
+    "capsule_env/engine/config.py",
     "capsule_env/envs",
     "capsule_env/agents",
-    "capsule_env/evaluation.py",
-    "capsule_env/evaluate.py",
+    "capsule_env/evaluation/episodes.py",
+    "capsule_env/evaluation/evaluate.py",
 )
 
 

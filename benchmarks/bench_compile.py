@@ -17,7 +17,7 @@ after which the compilation has paid for itself. One torch thread (train.py's se
 
 This measures the gradient step alone, with the whole loss compiled. In training, ``train.py
 --compile`` and ``bench_training.py --compile`` compile ``policy.evaluate_actions``, what SB3's
-``PPO.train`` calls on every minibatch (``capsule_env/agents/compiled.py``); the rollouts'
+``PPO.train`` calls on every minibatch (``capsule_env/agents/learning/compiled.py``); the rollouts'
 forward passes (one row per vehicle) stay eager.
 """
 
@@ -30,7 +30,7 @@ import sys
 import time
 from pathlib import Path
 
-from capsule_env._cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser
 
 #: The largest minibatch (rows): 64 times the 100k setting's 8192, well inside memory.
 MAX_BATCH = 2**19
@@ -52,7 +52,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         if not 1 <= getattr(args, name) <= most:
             parser.error(f"--{name} must be in [1, {most}] (got {getattr(args, name)})")
     if args.json is not None:
-        from capsule_env.safe_io import check_writable_file
+        from capsule_env.common.safe_io import check_writable_file
 
         try:
             check_writable_file(args.json, "--json")
@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     if result["break_even_steps"] is not None:
         print(f"the compilation pays for itself after {result['break_even_steps']:,.0f} steps")
     if args.json:
-        from capsule_env.safe_io import atomic_write_text
+        from capsule_env.common.safe_io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(result, indent=2))
     return 0

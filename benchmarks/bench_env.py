@@ -94,7 +94,7 @@ def vector_env(env_id: str, num_envs: int, n_steps: int, **kwargs) -> float:
 
 
 def sb3_vec_env(num_envs: int, n_steps: int, **kwargs) -> float:
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     env = CapsuleSuspensionSB3VecEnv(num_envs, **kwargs)
     env.seed(0)
@@ -287,7 +287,7 @@ def mean_substeps(env, actions: list, steps: int = 200) -> float:
     """Mean RK4 substeps per vehicle-step of a native vector env over ``steps`` further steps:
     each vehicle's substep-table bin of the highest current its interval can see (the command,
     and with coil lag the current at the start; ``plant/block.py``)."""
-    from capsule_env.layout import COIL_CURRENT, COIL_TAU, I_MAX
+    from capsule_env.engine.layout import COIL_CURRENT, COIL_TAU, I_MAX
 
     batch = env.unwrapped.batch
     i_max, tau = batch.damper_params[:, I_MAX], batch.damper_params[:, COIL_TAU]
@@ -374,7 +374,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     args = parser.parse_args(argv)
     if args.json is not None:
-        from capsule_env.safe_io import check_writable_file
+        from capsule_env.common.safe_io import check_writable_file
 
         try:
             check_writable_file(args.json, "--json")
@@ -501,7 +501,7 @@ def main(argv: list[str] | None = None) -> int:
     print_windows(res)
     print_cold(res)
     if args.json is not None:
-        from capsule_env.safe_io import atomic_write_text
+        from capsule_env.common.safe_io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(res, indent=2))
     return 0

@@ -21,16 +21,14 @@ import time
 import numpy as np
 from numba import njit
 
-import capsule_env.env_kernel as env_kernel
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
-from capsule_env.env_kernel import EnvOutputs, env_sense
+import capsule_env.engine.env_kernel as env_kernel
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.env_kernel import EnvOutputs, env_sense
 
 N = 1024
-#: env_sense's scratch (its name before issue 26 is NOISE_SCRATCH_SHAPE).
-SHAPE = env_kernel.__dict__.get("SENSE_SCRATCH_SHAPE") or env_kernel.__dict__.get(
-    "NOISE_SCRATCH_SHAPE"
-)
+#: env_sense's scratch.
+SHAPE = env_kernel.SENSE_SCRATCH_SHAPE
 
 
 @njit

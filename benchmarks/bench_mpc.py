@@ -52,9 +52,8 @@ class _Timed:
 
 def step_times(name: str, episodes: int, length_s: float) -> dict[str, Any]:
     """Per-step cost of law ``name`` on one vehicle (``episodes`` runs of ``length_s``)."""
-    from capsule_env.agents.classical import make_controller
-
-    from capsule_env.evaluation import run_episodes
+    from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.evaluation.episodes import run_episodes
 
     times: list[float] = []
     ctrl = make_controller(name)
@@ -77,10 +76,9 @@ def step_times(name: str, episodes: int, length_s: float) -> dict[str, Any]:
 def evaluation_time(episodes: int, length_s: float, names: list[str]) -> dict[str, Any]:
     """Seconds of each controller's run (``hils``; ``names`` or [] for the default
     evaluation's classical controllers), and the totals with and without the MPC rows."""
-    from capsule_env.agents.classical import make_controller
-
-    from capsule_env.evaluate import DEFAULT_CONTROLLERS
-    from capsule_env.evaluation import run_episodes
+    from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.evaluation.episodes import run_episodes
+    from capsule_env.evaluation.evaluate import DEFAULT_CONTROLLERS
 
     per: dict[str, float] = {}
     for name in dict.fromkeys(["passive", *(names or DEFAULT_CONTROLLERS)]):
@@ -124,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="a smoke test: seconds, not minutes")
     args = p.parse_args(argv)
     if args.json is not None:
-        from capsule_env.safe_io import check_writable_file
+        from capsule_env.common.safe_io import check_writable_file
 
         try:
             check_writable_file(args.json, "--json")
@@ -138,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     res["evaluation"] = evaluation_time(episodes, length_s, quick_rows)
     print(report(res))
     if args.json is not None:
-        from capsule_env.safe_io import atomic_write_text
+        from capsule_env.common.safe_io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(res, indent=2) + "\n")
     return 0

@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{t:26s} {r['wall_steps_per_s']:14,.0f} {r['wall_ratio_to_paper']:6.2f} "
               f"{r['cpu_steps_per_s']:14,.0f} {r['cpu_ratio_to_paper']:6.2f}")  # fmt: skip
     if args.json:
-        from capsule_env.safe_io import atomic_write_text
+        from capsule_env.common.safe_io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(results, indent=1))
     for env in envs.values():

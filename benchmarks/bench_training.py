@@ -5,7 +5,7 @@
     python benchmarks/bench_training.py --algos ppo --hp n_epochs=2 --hp batch_size=8192
     python benchmarks/bench_training.py --algos ppo --compile both   # eager, then compiled
 
-For each algorithm of ``--algos`` (``capsule_env.agents.algorithms``), in one process: the
+For each algorithm of ``--algos`` (``capsule_env.agents.learning.algorithms``), in one process: the
 run ``train.py --algo ALGO`` would make (``hyperparams/<algo>.yml``, its env arguments: the
 ride task ``CapsuleRide-v0``; ``--hp KEY=VALUE`` and ``--num-envs`` override the file), whose
 policy is evaluated every ``--eval-every-s`` seconds of training on the validation guideway
@@ -25,7 +25,7 @@ passes, buffers, normalisation, callbacks), ``update_s`` (the algorithm's ``trai
 gradient steps). The machine, its load average (start and end) and the command are in the JSON.
 
 ``--compile on`` runs PPO's update under ``torch.compile`` as ``train.py --compile`` does
-(``capsule_env.agents.compiled``); ``--compile both`` runs each algorithm eager, then compiled
+(``capsule_env.agents.learning.compiled``); ``--compile both`` runs each algorithm eager, then compiled
 (reported as ``ppo+compile``), in the same process. The compilation happens in the first update,
 inside ``train_s`` (``first_update_s`` says how long that update took).
 """
@@ -46,24 +46,24 @@ from typing import Any
 import numba
 import numpy as np
 import torch
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnvWrapper, VecMonitor, VecNormalize
+
 from capsule_env.agents import classical_controllers
-from capsule_env.agents.algorithms import ALGORITHMS, ON_POLICY, algorithm_class
-from capsule_env.agents.compiled import check_compile, compile_update
-from capsule_env.agents.hyperparams import (
+from capsule_env.agents.learning.algorithms import ALGORITHMS, ON_POLICY, algorithm_class
+from capsule_env.agents.learning.compiled import check_compile, compile_update
+from capsule_env.agents.learning.hyperparams import (
     algo_kwargs_from,
     load_hyperparams,
     normalize_kwargs_from,
     resolve_env_kwargs,
 )
-from capsule_env.agents.sb3_policy import SB3Policy
-from capsule_env.agents.training import HYPERPARAMS_DIR, policy_env_kwargs
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnvWrapper, VecMonitor, VecNormalize
-
-from capsule_env._cli import ArgumentParser, parse_literal
-from capsule_env.evaluation import VALIDATION_GUIDEWAY_SEED, episode_metrics, run_episodes
-from capsule_env.safe_io import atomic_write_text, check_writable_file
-from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+from capsule_env.agents.learning.sb3_policy import SB3Policy
+from capsule_env.agents.learning.training import HYPERPARAMS_DIR, policy_env_kwargs
+from capsule_env.common.cli import ArgumentParser, parse_literal
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file
+from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
+from capsule_env.evaluation.episodes import VALIDATION_GUIDEWAY_SEED, episode_metrics, run_episodes
 
 #: The classical law whose Wk is the bar: the best one on the ride task's measured signals.
 BAR_LAW = "lqr-clipped-biexp-meas"

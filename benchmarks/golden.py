@@ -106,7 +106,7 @@ def env_cases() -> dict[str, np.ndarray]:
 def sb3_cases() -> dict[str, np.ndarray]:
     """The SB3 VecEnv over the compiled kernel (skipped without stable-baselines3)."""
     try:
-        from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+        from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
     except ImportError:
         return {}
     out: dict = {}

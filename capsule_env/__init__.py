@@ -2,13 +2,13 @@
 
 Physics (pure functions and frozen parameter dataclasses, no Gym import):
 
-- :mod:`capsule_env.vehicle`: the 2-DOF vertical 1/4-car, modes, state-space form.
+- :mod:`capsule_env.vehicles.modes`: the 2-DOF vertical 1/4-car, modes, state-space form.
 - :mod:`capsule_env.guideway`: FRA-shaped random guideway, sine, swept sine, bump, step.
 - :mod:`capsule_env.dampers`: MR damper forward models (reference Spencer, Bouc-Wen, tanh,
   Bi-exponential) and the linear passive damper, one interface.
-- :mod:`capsule_env.hysteresis`: closed-form Bouc-Wen (n = 2) update.
+- :mod:`capsule_env.dampers.hysteresis`: closed-form Bouc-Wen (n = 2) update.
 - :mod:`capsule_env.plant`: the batched plant + damper integration kernels.
-- :mod:`capsule_env.damper_rig`: a damper alone under a prescribed stroke (test-rig loops).
+- :mod:`capsule_env.dampers.rig`: a damper alone under a prescribed stroke (test-rig loops).
 """
 
 # First: a writable place for numba's cache before any kernel is defined (capsule_env._jit).
@@ -24,7 +24,12 @@ from capsule_env.dampers import (
     make_damper,
 )
 from capsule_env.guideway import GuidewayParams, make_profile, random_profile
-from capsule_env.vehicle import VehicleParams, modal_properties, natural_frequencies_hz, state_space
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import (
+    modal_properties,
+    natural_frequencies_hz,
+    state_space,
+)
 
 __version__ = "0.1.0"
 

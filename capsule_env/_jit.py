@@ -216,7 +216,7 @@ class Bundle(structref.StructRefProxy):
     check, a reference and a small allocation each), a bundle only once. Its fields are
     readable in compiled code only; it refers to the arrays it was made from (their memory,
     not copies). Made in compiled code: ``structref.new(BundleType([(name, type), ...]))``,
-    then its fields assigned (``capsule_env.kernels.env_args``)."""
+    then its fields assigned (``capsule_env.engine.kernels.env_args``)."""
 
 
 structref.define_boxing(BundleType, Bundle)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from capsule_env._validation import check_positive
+from capsule_env.common.validation import check_positive
 
 __all__ = [
     "DEFAULT_BANDS_HZ",

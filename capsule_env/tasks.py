@@ -23,8 +23,8 @@ oracle)``: 0 is the passive damper, 1 the clairvoyant oracle on the same episode
 multi-start local search that reads the whole guideway: a reference, not a proven limit).
 The reference scores of each card (passive, the best tuned classical law, the shipped policy,
 the oracle) are read from ``docs/figures/evaluation.json``, the file the results page is built
-from (the trip task's from its own file, ``Task.results``), by :mod:`capsule_env.task_cards`
-(``python -m capsule_env.task_cards docs/tasks.md``; a test checks the page is in sync).
+from (the trip task's from its own file, ``Task.results``), by :mod:`capsule_env.evaluation.task_cards`
+(``python -m capsule_env.evaluation.task_cards docs/tasks.md``; a test checks the page is in sync).
 
 Names and versions follow Gymnasium's conventions: a change of a task's options or of the
 physics under it gets a new version; the old id keeps its meaning.

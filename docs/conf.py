@@ -6,7 +6,7 @@ Build (from the repository root, with the ``docs`` extra installed)::
 
 Markdown pages are read by MyST; the API reference is built from the docstrings by autodoc
 (numpy-style sections through napoleon), so the package and its controllers (``capsule_env.agents``, the checkout's ``agents/``) must be
-importable (the ``dev`` extra installs torch and stable-baselines3 for ``capsule_env.agents.sb3_policy``).
+importable (the ``dev`` extra installs torch and stable-baselines3 for ``capsule_env.agents.learning.sb3_policy``).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@
 
 The shipped :class:`~capsule_env.dampers.BiExponentialDamper` defaults are the reference
 damper's fit with the literal branch split (``x >= 0`` / ``x < 0``); today's
-``python -m capsule_env.identify --emit-defaults`` leaves out the samples within the model's
+``python -m capsule_env.identification.cli --emit-defaults`` leaves out the samples within the model's
 0.1 mm branch blend (two per loop) and differs by up to 0.58 %. This script prints both
 parameter sets side by side, then runs each controller on evaluate.py's episodes (guideway
 bank and seeds) with the shipped defaults and with today's fit rounded as ``--emit-defaults``
@@ -20,10 +20,10 @@ import argparse
 from dataclasses import fields
 
 import numpy as np
-from capsule_env.agents import make_controller
 
+from capsule_env.agents import make_controller
 from capsule_env.dampers import BiExponentialDamper
-from capsule_env.evaluation import episode_metrics, run_episodes
+from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 from capsule_env.identification import identify_reference
 from capsule_env.identification.results import dataclass_default_lines
 

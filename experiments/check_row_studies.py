@@ -41,7 +41,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env._cli import ArgumentParser  # noqa: E402
+from capsule_env.common.cli import ArgumentParser  # noqa: E402
 
 #: train.Args fields recorded in a run's ``args`` that decide its training.
 ARG_KEYS = ("algo", "seed", "eval_episodes", "eval_seed", "eval_episode_length", "eval_freq",
@@ -51,8 +51,7 @@ ARG_KEYS = ("algo", "seed", "eval_episodes", "eval_seed", "eval_episode_length",
 def planned(trial: Any, folder: Path) -> dict[str, Any]:
     """What the sweep would train for ``trial``: ``train.py``'s own plan (``prepare``) of the
     trial's arguments, in a scratch folder."""
-    from capsule_env.agents.training import prepare
-
+    from capsule_env.agents.learning.training import prepare
     from capsule_env.sweep.kinds import train_args
 
     args = train_args(trial, folder)

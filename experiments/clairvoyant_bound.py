@@ -22,12 +22,12 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from capsule_env.agents import classical_controllers
 
-from capsule_env.config import EnvConfig
-from capsule_env.evaluation import episode_metrics, run_episodes
+from capsule_env.agents import classical_controllers
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file
+from capsule_env.engine.config import EnvConfig
+from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 from capsule_env.oracle import DEFAULT_STARTS, applied_currents, clairvoyant_bound
-from capsule_env.safe_io import atomic_write_text, check_writable_file
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -8,7 +8,7 @@ The ISO 2631-1 Wk-weighted RMS car-body acceleration (the project's metric, m/s^
 passive damper, the tuned classical laws that read measured signals, the shipped PPO policy
 that reads them (``ppo-measured``) and, at the points ``--oracle`` names, the clairvoyant bound
 (:mod:`capsule_env.oracle`), on the evaluation bank (guideway bank
-:data:`~capsule_env.evaluation.EVALUATION_GUIDEWAY_SEED`, episode seeds 1000..1009 of 10 s,
+:data:`~capsule_env.evaluation.episodes.EVALUATION_GUIDEWAY_SEED`, episode seeds 1000..1009 of 10 s,
 ``evaluate.py``'s default), in the ``hils`` setting, at each point of four sweeps
 (:func:`envelope_points`):
 
@@ -20,14 +20,14 @@ that reads them (``ppo-measured``) and, at the points ``--oracle`` names, the cl
 - ``trip``: the registered task ``CapsuleTrip-v0``.
 
 Every controller runs on the point's env options with its own over them (what it reads and how
-it acts: :func:`capsule_env.eval_condition.controller_env`, as ``evaluate.py --env`` does); the
+it acts: :func:`capsule_env.evaluation.condition.controller_env`, as ``evaluate.py --env`` does); the
 fixed-gain laws keep the gains tuned at 810 km/h. A policy whose observation is not the
 point's (``ppo-measured`` on the trip task: two more columns), or a law that refuses the
 point's env with a ``ValueError``, is recorded as not run, with the reason. Each finished
 (point, controller) pair is saved at once to ``--json`` (atomically): a rerun with the same
 ``--episodes``, ``--seed`` and ``--episode-length`` skips what is done (another JSON is
 refused unless ``--restart``), so controllers added later (e.g. a new law) run alone. At the end the figures (``--figures``) and the page's tables (``--page``) are
-written from the JSON (:mod:`capsule_env.envelope_report`). Bad arguments: one line on stderr,
+written from the JSON (:mod:`capsule_env.envelope.report`). Bad arguments: one line on stderr,
 exit status 2.
 """
 
@@ -43,16 +43,16 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env._cli import ArgumentParser, add_dataclass_options, dataclass_values
-from capsule_env.config import EnvConfig
-from capsule_env.eval_condition import controller_env, physics_changes, task_env_kwargs
-from capsule_env.evaluation import (
+from capsule_env.common.cli import ArgumentParser, add_dataclass_options, dataclass_values
+from capsule_env.common.safe_io import atomic_write_text, check_writable_dir, check_writable_file
+from capsule_env.engine.config import EnvConfig
+from capsule_env.evaluation.condition import controller_env, physics_changes, task_env_kwargs
+from capsule_env.evaluation.episodes import (
     EVALUATION_GUIDEWAY_SEED,
     check_episode_length,
     episode_metrics,
     run_episodes,
 )
-from capsule_env.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 
 REPO = Path(__file__).resolve().parents[1]
 #: The setting and observation of every point (the ride task's): the signals a capsule has.
@@ -218,7 +218,7 @@ def physics_mismatch(
 ) -> str | None:
     """Why a controller cannot run at a point: its own options (``own``) change the point's
     operating condition, i.e. the plant's physics resolved with every default
-    (:func:`capsule_env.eval_condition.physics_changes`: speeds, envelope, vehicle, payload,
+    (:func:`capsule_env.evaluation.condition.physics_changes`: speeds, envelope, vehicle, payload,
     damper, guideway, bump stop; what it reads and how it acts are its own), or None."""
     changed = physics_changes({**point_env, "setting": SETTING}, own, episode_length_s,
                               "the point")  # fmt: skip
@@ -329,7 +329,7 @@ def controllers(args: Args) -> dict[str, Any]:
     ctrls = {n: available[n] for n in names}
     policies = _names(args.policies)
     if policies:
-        from capsule_env.agents.sb3_policy import shipped_policies
+        from capsule_env.agents.learning.sb3_policy import shipped_policies
 
         shipped = shipped_policies()
         unknown = [n for n in policies if n not in shipped]
@@ -411,7 +411,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     t0 = time.perf_counter()
     sweep(args, data, ctrls)
-    from capsule_env import envelope_report
+    from capsule_env.envelope import report as envelope_report
 
     print(envelope_report.tables(data))
     if args.figures:

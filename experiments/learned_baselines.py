@@ -29,7 +29,7 @@ seconds of the runs. These intervals resample the seeds only, each run's Wk bein
 the same 10 episodes. Every law of the task is re-evaluated here episode by episode (the
 first, the check law, must reproduce the file's figure: a check of the pipeline), each run's
 Wk is kept per episode (``eval_wk_per_episode_m_s2``), and the IQM's ratio to each law gets a
-paired interval over seeds AND episodes (:func:`capsule_env.rl_statistics.
+paired interval over seeds AND episodes (:func:`capsule_env.evaluation.rl_statistics.
 paired_ratio_interval`, the episodes drawn jointly for the group and the law):
 ``ratio_paired_to_LAW`` = ``{"value", "seeds_and_episodes", "seeds_only"}``.
 
@@ -97,7 +97,7 @@ def _wk_episodes(policy, guideway_seed: int, episodes: int, first_seed: int,
                  task: dict) -> list[float]:  # fmt: skip
     """Wk of ``policy`` on each episode of the task's options ``task``, its own over them."""
     from capsule_env import metrics
-    from capsule_env.evaluation import run_episodes
+    from capsule_env.evaluation.episodes import run_episodes
 
     kwargs = {**task, **policy.env_kwargs, "setting": "hils", "guideway_seed": guideway_seed}
     rollout = run_episodes(policy, kwargs, episodes, first_seed, LENGTH_S)
@@ -147,9 +147,8 @@ def _machine() -> str:
 
 def _run_record(folder: Path, task: dict) -> dict:
     """One training run: evaluation-bank Wk of its best model, validation Wk, steps, wall."""
-    from capsule_env.agents.sb3_policy import load_policy
-
-    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
+    from capsule_env.agents.learning.sb3_policy import load_policy
+    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
 
     best = json.loads((folder / "best_model.json").read_text())
     final_path = folder / "final_model.json"
@@ -177,7 +176,7 @@ def _run_record(folder: Path, task: dict) -> dict:
 def _law_wk(law: str, guideway_seed: int, episodes: int, first_seed: int,
             task: dict) -> list[float]:  # fmt: skip
     """The law's Wk on each episode."""
-    from capsule_env.agents.classical import make_controller
+    from capsule_env.agents.controllers.classical import make_controller
 
     return _wk_episodes(make_controller(law), guideway_seed, episodes, first_seed, task)
 
@@ -186,7 +185,7 @@ def _paired_ratios(runs: list[dict], law_episodes: dict[str, list[float]]) -> di
     """Per law, the group's IQM Wk over the law's on the same episodes with paired intervals
     over seeds and episodes and over seeds alone; empty unless every run has its Wk per
     episode on the law's episodes (JSONs made before these were kept)."""
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     per_episode = [r.get("eval_wk_per_episode_m_s2") for r in runs]
     out = {}
@@ -207,7 +206,7 @@ def _statistics(records: dict[str, list[dict]], refs: dict[str, float], laws: li
     of ``laws``; the normalised score when ``refs`` has an oracle, else ``Wk_passive - Wk``
     (m/s^2) underneath and ``iqm_score`` None; with ``law_episodes`` (each law's Wk per
     evaluation episode) the paired seeds x episodes ratios of :func:`_paired_ratios`."""
-    from capsule_env.rl_statistics import iqm, probability_of_improvement
+    from capsule_env.evaluation.rl_statistics import iqm, probability_of_improvement
 
     passive, oracle = refs["passive"], refs.get("oracle")
     span = passive - oracle if oracle is not None else 1.0
@@ -245,7 +244,7 @@ def _curves(records: dict[str, list[dict]], law_val_wk: float,
     """Per group, the IQM and interval of the runs' training-time evaluations (validation
     bank) at the steps every run evaluated: the normalised score ``(passive - Wk) / (passive -
     oracle)`` with the validation bank's ``val_refs``, else ``Wk(law) / Wk``."""
-    from capsule_env.rl_statistics import iqm_curves
+    from capsule_env.evaluation.rl_statistics import iqm_curves
 
     out = {}
     for group, rs in records.items():
@@ -359,7 +358,7 @@ def _groups(items: list[str]) -> dict[str, list[Path]] | None:
 
 def _parse(argv: list[str] | None) -> tuple[Any, Any]:
     """The command line's arguments, and the parser (for usage errors in one line)."""
-    from capsule_env._cli import ArgumentParser  # usage errors in one line
+    from capsule_env.common.cli import ArgumentParser  # usage errors in one line
 
     p = ArgumentParser(prog="learned_baselines.py", description=__doc__.split("\n\n")[0])
     p.add_argument("--group", action="append", metavar="NAME=GLOB",
@@ -386,10 +385,9 @@ def main(argv: list[str] | None = None) -> int:
     groups = _groups(args.group)
     if groups is None:
         return 2
-    from capsule_env.agents.sb3_policy import use_one_torch_thread
-
-    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, VALIDATION_GUIDEWAY_SEED
-    from capsule_env.safe_io import atomic_write_text
+    from capsule_env.agents.learning.sb3_policy import use_one_torch_thread
+    from capsule_env.common.safe_io import atomic_write_text
+    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, VALIDATION_GUIDEWAY_SEED
     from capsule_env.tasks import task_named
 
     try:  # before any evaluation: a validation file made on other episodes

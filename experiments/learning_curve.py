@@ -23,7 +23,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env.safe_io import atomic_write_text  # noqa: E402
+from capsule_env.common.safe_io import atomic_write_text  # noqa: E402
 
 #: The reference lines' colours: the passive damper black, the others (train.py's reference
 #: Skyhook) in turn from these, none of them a colour of the first three runs' curves.

@@ -23,11 +23,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from capsule_env.agents.classical import make_controller
 
 from capsule_env import metrics
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, run_episodes
-from capsule_env.safe_io import atomic_write_text, check_writable_file
+from capsule_env.agents.controllers.classical import make_controller
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes
 
 #: Variant name -> the options changed from the shipped law.
 VARIANTS: dict[str, dict[str, Any]] = {

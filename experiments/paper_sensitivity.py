@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import NoReturn
 
-from capsule_env.safe_io import atomic_write_text, check_writable_file
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.sensitivity.points import fitted_models, study_points
 from capsule_env.sensitivity.runner import format_table, plot_tornado, run_point
 

@@ -4,11 +4,11 @@
     python experiments/pareto.py --policy runs/ppo/best_model.zip     # add any SB3 policy
 
 For each tuned classical law (default: those of ``evaluate.py``'s default run) one gain is
-swept over its whole search range (:mod:`capsule_env.agents.search_space`: Skyhook's and the hybrid's
+swept over its whole search range (:mod:`capsule_env.agents.learning.search_space`: Skyhook's and the hybrid's
 ``c_sky``, the two-state laws' ``i_on``, the LQR's ``r_force``), the other gains held at their
 tuned values, and every sweep point runs on the EVALUATION bank (``guideway_seed`` 2026,
 episode seeds 1000..1009, ``hils``): for this figure only. The shipped gains were tuned on the
-TRAINING bank (``guideway_seed`` 0, :mod:`capsule_env.agents.tuning`) and are starred on each curve. The
+TRAINING bank (``guideway_seed`` 0, :mod:`capsule_env.agents.controllers.tuning`) and are starred on each curve. The
 passive damper (the VRE's reference), the constant currents and the learned policies (the
 shipped ones unless ``--no-shipped-policy``, and each ``--policy``) are points.
 
@@ -30,18 +30,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env.agents.classical import make_controller  # noqa: E402
-from capsule_env.agents.search_space import SEARCH_SPACES  # noqa: E402
-from capsule_env.agents.tuning import TuningSettings  # noqa: E402
-
-from capsule_env.evaluate import DEFAULT_CONTROLLERS  # noqa: E402
-from capsule_env.evaluation import (  # noqa: E402
+from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
+from capsule_env.agents.controllers.tuning import TuningSettings  # noqa: E402
+from capsule_env.agents.learning.search_space import SEARCH_SPACES  # noqa: E402
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file  # noqa: E402
+from capsule_env.evaluation.episodes import (  # noqa: E402
     EVALUATION_GUIDEWAY_SEED,
     Rollout,
     episode_metrics,
     run_episodes,
 )
-from capsule_env.safe_io import atomic_write_text, check_writable_file  # noqa: E402
+from capsule_env.evaluation.evaluate import DEFAULT_CONTROLLERS  # noqa: E402
 
 SETTING = "hils"
 #: The laws drawn by default: the tuned ones of evaluate.py's default run.
@@ -144,12 +143,12 @@ def checked_inputs(args: argparse.Namespace) -> tuple[list[str], list[Any]]:
             check_writable_file(path, option)
     paths = list(args.policy)
     if not args.no_shipped_policy:
-        from capsule_env.agents.sb3_policy import shipped_policy_paths
+        from capsule_env.agents.learning.sb3_policy import shipped_policy_paths
 
         paths = shipped_policy_paths({}) + paths  # those trained in the paper's env
     if not paths:
         return laws, []
-    from capsule_env.agents.sb3_policy import SB3Policy, use_one_torch_thread
+    from capsule_env.agents.learning.sb3_policy import SB3Policy, use_one_torch_thread
 
     use_one_torch_thread()
     return laws, [SB3Policy.load(p) for p in paths]
@@ -207,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     passive_metrics, passive = point(make_controller("passive"), seeds, args.episode_length, None)
     data: dict[str, Any] = {
         "description": "Gain sweeps of the tuned classical laws on the EVALUATION bank, for this "
-        "figure only (the gains were tuned on the training bank, agents/tuned_gains.json).",
+        "figure only (the gains were tuned on the training bank, agents/controllers/tuned_gains.json).",
         "date": datetime.date.today().isoformat(),
         "command": " ".join(
             ["python experiments/pareto.py", *(sys.argv[1:] if argv is None else argv)]

@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env._cli import ArgumentParser, integer  # noqa: E402
+from capsule_env.common.cli import ArgumentParser, integer  # noqa: E402
 
 #: |action| at or above this counts as at the bound.
 AT_BOUND = 0.95
@@ -63,7 +63,7 @@ def action_statistics(controller: Any, env_kwargs: dict, seeds: list[int],
     Wk, over the episodes ``seeds`` of the env ``env_kwargs``. An episode that hit the bump
     stop is left out of the action statistics (its actions after the stop are not the
     controller's choice) and counted in ``terminated_episodes``."""
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     recorder = _Recorder(controller)
     rollout = run_episodes(recorder, env_kwargs, seeds=seeds, episode_length_s=episode_length_s)
@@ -119,7 +119,7 @@ def _parser() -> ArgumentParser:
 def _controllers(args: Any) -> dict[str, Any]:
     """The controllers to run, by name; ``ValueError`` naming a bad one."""
     from capsule_env.agents import classical_controllers
-    from capsule_env.agents.sb3_policy import load_policy
+    from capsule_env.agents.learning.sb3_policy import load_policy
 
     laws = classical_controllers()
     out: dict[str, Any] = {}
@@ -140,10 +140,9 @@ def _controllers(args: Any) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
-    from capsule_env.agents.training import task_env_kwargs
-
-    from capsule_env.evaluation import VALIDATION_GUIDEWAY_SEED
-    from capsule_env.safe_io import atomic_write_text, check_writable_file
+    from capsule_env.agents.learning.training import task_env_kwargs
+    from capsule_env.common.safe_io import atomic_write_text, check_writable_file
+    from capsule_env.evaluation.episodes import VALIDATION_GUIDEWAY_SEED
 
     try:
         if not 1 <= args.episodes <= 100:

@@ -9,7 +9,7 @@ clipped LQR with its shipped weights (tuned at 810 km/h); the gain-scheduled LQR
 shipped weights (tuned on the trip task's TRAINING bank); the scheduled LQR with the fixed
 law's weights (what scheduling alone does); with ``--retune-fixed``, the fixed LQR with
 weights searched on the trip task's training bank exactly as the scheduled law's were (what
-re-tuning alone does; the search, :mod:`capsule_env.agents.tuning`, takes a few minutes; its
+re-tuning alone does; the search, :mod:`capsule_env.agents.controllers.tuning`, takes a few minutes; its
 weights are printed, not shipped). Printed: Wk (m/s^2) mean over the episodes, its ratio to
 the fixed LQR's and the spread of the per-episode ratios, the worst max |stroke|.
 """
@@ -27,14 +27,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env.agents import search_space  # noqa: E402
-from capsule_env.agents.classical import make_controller  # noqa: E402
-from capsule_env.agents.tuning import TuningSettings, tune  # noqa: E402
-
 from capsule_env import metrics  # noqa: E402
-from capsule_env._cli import ArgumentParser  # noqa: E402
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, run_episodes  # noqa: E402
-from capsule_env.safe_io import atomic_write_text, check_writable_file  # noqa: E402
+from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
+from capsule_env.agents.controllers.tuning import TuningSettings, tune  # noqa: E402
+from capsule_env.agents.learning import search_space  # noqa: E402
+from capsule_env.common.cli import ArgumentParser  # noqa: E402
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file  # noqa: E402
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes  # noqa: E402
 from capsule_env.tasks import task_named  # noqa: E402
 
 TASK = "CapsuleTrip-v0"

@@ -11,7 +11,7 @@ when runs are within 0.01 m/s^2 of each other (docs/learned-baselines.md: on the
 validation bank's best runs are not the evaluation bank's), and favours the runs whose
 checkpoints were chosen on them. This script scores every run's ``best_model`` and the shipped
 policies on the **selection bank**: guideway seed 11
-(:data:`~capsule_env.evaluation.SELECTION_GUIDEWAY_SEED`, neither the training, validation nor
+(:data:`~capsule_env.evaluation.episodes.SELECTION_GUIDEWAY_SEED`, neither the training, validation nor
 evaluation bank) with a bank of ``--profiles`` (128) guideway profiles, so that the episodes'
 windows rarely share a profile; episodes ``--first-seed`` (0) .. + ``--episodes`` (60), 10 s,
 the task's setting and options with each policy's own reading options over them (what
@@ -39,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env._cli import ArgumentParser, integer  # noqa: E402
+from capsule_env.common.cli import ArgumentParser, integer  # noqa: E402
 
 LENGTH_S = 10.0
 BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED = 10_000, 20261125
@@ -48,7 +48,7 @@ MIN_EPISODES, MAX_EPISODES = 10, 1000
 
 def bank_kwargs(task: dict, setting: str, profiles: int) -> dict:
     """The selection bank's env options over the task's."""
-    from capsule_env.evaluation import SELECTION_GUIDEWAY_SEED
+    from capsule_env.evaluation.episodes import SELECTION_GUIDEWAY_SEED
 
     return {**task, "setting": setting, "guideway_seed": SELECTION_GUIDEWAY_SEED,
             "guideway_bank_size": profiles}  # fmt: skip
@@ -66,7 +66,7 @@ def episode_profiles(kwargs: dict, seeds: list[int]) -> np.ndarray:
 def per_episode_wk(policy, kwargs: dict, seeds: list[int]) -> np.ndarray:
     """Wk-weighted RMS body acceleration (m/s^2) of ``policy`` per episode, on the bank's
     options ``kwargs`` with the policy's own over them (as evaluate.py runs a controller)."""
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     own = {k: v for k, v in policy.env_kwargs.items() if k not in ("setting", "guideway_seed")}
     rollout = run_episodes(policy, {**kwargs, **own}, seeds=seeds, episode_length_s=LENGTH_S)
@@ -126,7 +126,7 @@ def _report(result: dict) -> list[str]:
                  f"{d['best_on_comparison_m_s2']:.4f}, best shipped {rival} {wk:.4f}; "
                  f"difference {mean:+.4f} [{low:+.4f}, {high:+.4f}] m/s^2 (95 %, by profile)")  # fmt: skip
     if d["ship"]:
-        lines.append(f"decision: ship {d['best']}\n  python -m capsule_env.agents.ship "
+        lines.append(f"decision: ship {d['best']}\n  python -m capsule_env.agents.learning.ship "
                      f"{d['best']}/best_model.zip NAME --note '...'")  # fmt: skip
     else:
         lines.append(f"decision: keep {rival} (the candidate's interval is not below 0)")
@@ -174,9 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         print(f"select_policy.py: error: {error}", file=sys.stderr)
         return 2
-    from capsule_env.agents.sb3_policy import use_one_torch_thread
-
-    from capsule_env.safe_io import atomic_write_text
+    from capsule_env.agents.learning.sb3_policy import use_one_torch_thread
+    from capsule_env.common.safe_io import atomic_write_text
 
     use_one_torch_thread()
     kwargs, seeds = inputs["bank_kwargs"], inputs["seeds"]
@@ -210,9 +209,8 @@ def _reads_the_task(own: dict, task: dict, setting: str, trained: bool) -> bool:
     ``preview_horizon_s``; the env's defaults where none is named) and runs in the task's physics: for a trained policy
     :func:`fits_condition` (its training options), for a law its options other than
     :data:`READING_OPTIONS` leave the task's env as it is."""
-    from capsule_env.agents.sb3_policy import READING_OPTIONS, fits_condition
-
-    from capsule_env.config import EnvConfig
+    from capsule_env.agents.learning.sb3_policy import READING_OPTIONS, fits_condition
+    from capsule_env.engine.config import EnvConfig
 
     condition = {**task, "setting": setting}
     own = {k: v for k, v in own.items() if k != "setting"}
@@ -256,10 +254,13 @@ def _check_arguments(args) -> None:
 def load_inputs(args) -> dict:
     """The runs', shipped policies' and laws' controllers, checked against the task, with the
     bank's options, the seeds and the files' digests; ``ValueError`` naming a bad one."""
-    from capsule_env.agents.classical import FACTORIES, make_controller
-    from capsule_env.agents.sb3_policy import PRETRAINED_DIR, load_policy, shipped_policy_paths
-
-    from capsule_env.safe_io import file_digest
+    from capsule_env.agents.controllers.classical import FACTORIES, make_controller
+    from capsule_env.agents.learning.sb3_policy import (
+        PRETRAINED_DIR,
+        load_policy,
+        shipped_policy_paths,
+    )
+    from capsule_env.common.safe_io import file_digest
     from capsule_env.tasks import task_named
 
     _check_arguments(args)

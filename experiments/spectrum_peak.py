@@ -5,7 +5,7 @@
 
 Runs the passive damper on evaluate.py's episodes and prints, per spectral line up to 2 Hz,
 the mean amplitude of the guideway input ``z_g`` and of the body and bogie displacements,
-beside the linear plant's transmissibilities ``|H(f)|`` (``capsule_env.vehicle.
+beside the linear plant's transmissibilities ``|H(f)|`` (``capsule_env.vehicles.modes.
 frequency_response``, passive damping) and the products ``|H| z_g``: where the body and bogie
 lines equal ``|H| z_g``, the peak is the guideway's own content passed through the
 suspension. ``--max-wavelength`` shortens the random guideway's longest wavelength (default
@@ -18,11 +18,12 @@ import argparse
 import sys
 
 import numpy as np
-from capsule_env.agents import make_controller
 
-from capsule_env.evaluation import run_episodes
+from capsule_env.agents import make_controller
+from capsule_env.evaluation.episodes import run_episodes
 from capsule_env.metrics import amplitude_spectrum
-from capsule_env.vehicle import VehicleParams, frequency_response, natural_frequencies_hz
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import frequency_response, natural_frequencies_hz
 
 SIGNALS = ("guideway_elevation_m", "car_body_displacement_m", "bogie_displacement_m")
 

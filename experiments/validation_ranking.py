@@ -39,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env._cli import ArgumentParser  # noqa: E402
+from capsule_env.common.cli import ArgumentParser  # noqa: E402
 
 #: The seed of the one-seed draws (fixed: the figures are reproducible).
 DRAW_SEED = 20261126
@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--draws", type=int, default=20_000, help="one-seed draws (1..10**6)")
     parser.add_argument("--json", type=Path, help="write the results here (atomically)")
     args = parser.parse_args(argv)
-    from capsule_env.safe_io import atomic_write_text, check_writable_file
+    from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 
     results: dict[str, dict] = {}
     try:

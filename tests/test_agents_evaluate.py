@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+
+from capsule_env import metrics
 from capsule_env.agents import (
     ClippedOptimalController,
     ConstantCurrentController,
@@ -14,17 +16,17 @@ from capsule_env.agents import (
     SkyhookController,
     classical_controllers,
 )
-from capsule_env.agents.base import FULL
-
-from capsule_env import evaluate, metrics
-from capsule_env.evaluation import (
+from capsule_env.agents.controllers.base import FULL
+from capsule_env.evaluation import evaluate
+from capsule_env.evaluation.episodes import (
     METRIC_UNITS,
     RECORDED,
     Rollout,
     episode_metrics,
     run_episodes,
 )
-from capsule_env.vehicle import VehicleParams, state_space
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import state_space
 
 
 def _obs(body_vel, bogie_vel, n=10):

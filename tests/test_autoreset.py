@@ -16,13 +16,13 @@ import pytest
 from gymnasium.error import ResetNeeded
 
 import capsule_env  # noqa: F401  (registers the env)
+from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 from capsule_env.envs._compat import (
     GYMNASIUM_HAS_AUTORESET_MODE,
     AutoresetMode,
     check_autoreset_mode,
 )
-from capsule_env.layout import SIGNAL_NAMES
 
 from conftest import ENV_ID
 

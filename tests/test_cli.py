@@ -1,4 +1,4 @@
-"""The command lines' shared helper (capsule_env._cli): one-line usage errors with status 2,
+"""The command lines' shared helper (capsule_env.common.cli): one-line usage errors with status 2,
 the dataclass-to-argparse bridge, and the KEY=VALUE env items; and that each command built on
 it answers a bad option with one line and status 2."""
 
@@ -10,8 +10,8 @@ from typing import Literal
 
 import pytest
 
-from capsule_env import _cli
-from capsule_env._cli import (
+from capsule_env.common import cli as _cli
+from capsule_env.common.cli import (
     ArgumentParser,
     add_dataclass_options,
     dataclass_values,
@@ -161,7 +161,7 @@ def test_parse_env_kwargs():
 
 
 def test_hyperparams_reexports_the_env_parsers():
-    from capsule_env.agents import hyperparams
+    from capsule_env.agents.learning import hyperparams
 
     assert hyperparams.parse_env_item is _cli.parse_env_item
     assert hyperparams.parse_env_kwargs is _cli.parse_env_kwargs
@@ -169,9 +169,9 @@ def test_hyperparams_reexports_the_env_parsers():
 
 
 def test_tuning_command_usage_errors(tmp_path, capsys):
-    from capsule_env.agents.tuning import main
+    from capsule_env.agents.controllers.tuning import main
 
-    prog = "python -m capsule_env.agents.tuning: error: "
+    prog = "python -m capsule_env.agents.controllers.tuning: error: "
     err = _usage_error(lambda: main(["--controllers", "nope", "--quick"]), capsys)
     assert err.startswith(prog + "--controllers: no search space for ['nope']"), err
     err = _usage_error(lambda: main(["--stroke-limit-mm", "0", "--quick"]), capsys)
@@ -184,7 +184,7 @@ def test_tuning_command_usage_errors(tmp_path, capsys):
 
 
 def test_evaluate_and_sweep_usage_errors(capsys):
-    from capsule_env import evaluate
+    from capsule_env.evaluation import evaluate
     from capsule_env.sweep.__main__ import parse_args as sweep_args
 
     err = _usage_error(lambda: evaluate.parse_args(["--episodes", "x"]), capsys)

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import capsule_env  # noqa: F401  (registers the env)
-from capsule_env.config import EnvConfig, UnexpectedArgumentError
+from capsule_env.engine.config import EnvConfig, UnexpectedArgumentError
 from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
 from capsule_env.envs._compat import GYMNASIUM_HAS_AUTORESET_MODE
 
@@ -121,7 +121,7 @@ def test_unknown_keyword_lists_the_env_s_own_arguments_too():
 
 def test_sb3_vec_env_unknown_keyword():
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     with pytest.raises(TypeError, match="unexpected keyword argument 'frameskip'"):
         CapsuleSuspensionSB3VecEnv(2, frameskip=4)
@@ -140,7 +140,7 @@ def test_render_fps_is_one_frame_per_control_step(rate):
 
 def test_sb3_vec_env_render_fps_is_the_control_rate():
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     for rate in (200.0, 50.0):
         assert CapsuleSuspensionSB3VecEnv(1, control_rate_hz=rate).metadata["render_fps"] == rate

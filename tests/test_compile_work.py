@@ -27,18 +27,18 @@ import sys
 import numpy as np
 import pytest
 
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig, observation_bounds
-from capsule_env.env_kernel import (
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig, observation_bounds
+from capsule_env.engine.env_kernel import (
     SENSE_ALL,
     SENSE_FILTER,
     SENSE_NOISE,
     command_path,
     sense_flags,
 )
-from capsule_env.kernels import ENV, BatchedKernel
-from capsule_env.layout import SIGNAL_NAMES
-from capsule_env.observations import OBSERVATION_NAMES, QUANTITIES
+from capsule_env.engine.kernels import ENV, BatchedKernel
+from capsule_env.engine.layout import SIGNAL_NAMES
+from capsule_env.engine.observations import OBSERVATION_NAMES, QUANTITIES
 
 #: numba's typing work of the default env's first step, in typed variables (4,957 before
 #: issue 40, 3,638 after, numba 0.68).
@@ -63,7 +63,7 @@ typed_passes.type_inference_stage = counting
 
 import gymnasium as gym
 import capsule_env
-from capsule_env import env_kernel
+from capsule_env.engine import env_kernel
 from capsule_env._fastmath import fast_log
 
 env = gym.make("CapsuleSuspension-v0")

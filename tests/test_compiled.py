@@ -1,4 +1,4 @@
-"""``torch.compile`` of PPO's update (agents/compiled.py, ``train.py --compile``): it trains as
+"""``torch.compile`` of PPO's update (agents/learning/compiled.py, ``train.py --compile``): it trains as
 the eager update does, within float32 rounding, and leaves the saved files as they were."""
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)
 
 import torch  # noqa: E402
-from capsule_env.agents.compiled import check_compile, compile_update, is_compiled  # noqa: E402
-from capsule_env.agents.run_args import continue_command  # noqa: E402
-from capsule_env.agents.sb3_policy import SB3Policy  # noqa: E402
 from test_train import edited_yml, fast_args  # noqa: E402
 
-from capsule_env import train  # noqa: E402
+from capsule_env.agents.learning import train  # noqa: E402
+from capsule_env.agents.learning.compiled import check_compile, compile_update, is_compiled  # noqa: E402
+from capsule_env.agents.learning.run_args import continue_command  # noqa: E402
+from capsule_env.agents.learning.sb3_policy import SB3Policy  # noqa: E402
 
 pytestmark = pytest.mark.rl
 
@@ -36,7 +36,7 @@ def _ppo_parameters(compiled: bool) -> tuple[dict, dict]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     env = VecNormalize(CapsuleSuspensionSB3VecEnv(4, setting="hils", action_mode="force",
                                                   observation="measured"))  # fmt: skip
@@ -113,7 +113,7 @@ def test_a_copy_of_a_compiled_policy_uses_its_own_parameters():
 
     from stable_baselines3 import PPO
 
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     env = CapsuleSuspensionSB3VecEnv(2, setting="hils", action_mode="force", observation="measured")
     model = PPO("MlpPolicy", env, n_steps=8, batch_size=16, device="cpu", seed=0)

@@ -1,4 +1,4 @@
-"""Tests of capsule_env.csdc_variants against independent facts.
+"""Tests of capsule_env.sensitivity.csdc_variants against independent facts.
 
 Facts used: the env's compiled force-mode CSDC (the same law on the same measurements, in
 another code path) for the exact observer with the continuous law; the exact closed-form
@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from capsule_env.agents.classical import make_controller
 
-from capsule_env.csdc_variants import CSDCVariant, InverseSkyhook, euler_z_step
+from capsule_env.agents.controllers.classical import make_controller
 from capsule_env.dampers import BoucWenDamper
-from capsule_env.evaluation import episode_metrics, run_episodes
-from capsule_env.hysteresis import hysteresis_update
+from capsule_env.dampers.hysteresis import hysteresis_update
+from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 from capsule_env.identification.constrained import SPENCER_SHAPE
+from capsule_env.sensitivity.csdc_variants import CSDCVariant, InverseSkyhook, euler_z_step
 
 SEEDS = [1000, 1001]
 LENGTH_S = 2.0

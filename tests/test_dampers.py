@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
 from capsule_env.dampers import (
     DAMPER_NAMES,
     BiExponentialDamper,
@@ -25,6 +24,7 @@ from capsule_env.dampers import (
     damper_force,
     make_damper,
 )
+from capsule_env.dampers.rig import simulate_damper, sinusoidal_stroke
 
 from conftest import I_MAX, SPENCER
 

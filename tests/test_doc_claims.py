@@ -32,7 +32,7 @@ def test_the_oracle_is_never_called_a_bound():
 
 
 def test_the_trip_acceleration_in_g_is_the_default_s():
-    from capsule_env import trips
+    from capsule_env.envelope import trips
 
     g = trips.TripParams().acceleration_m_s2 / 9.80665
     doc = " ".join(trips.__doc__.split())
@@ -94,7 +94,7 @@ def test_the_shipped_seeds_episode_intervals_are_the_envelopes():
     # against the MPC, from the per-episode Wk that experiments/envelope.py stored
     import numpy as np
 
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     points = json.loads((FIGURES / "envelope.json").read_text())["points"]
     page = " ".join((DOCS / "learned-baselines.md").read_text().split())

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import capsule_env
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
-from capsule_env.layout import SIGNAL_NAMES
 
 from conftest import ENV_COMBOS as COMBOS
 from conftest import ENV_ID
@@ -383,7 +383,7 @@ def test_sensor_noise_is_white_gaussian_with_the_documented_std():
     # SENSOR_NOISE_STD * sensor_noise. The residuals must have that std, zero mean, a Gaussian
     # kurtosis (3) and no correlation between channels (noise comes in Box-Muller pairs) or
     # from one step to the next.
-    from capsule_env.config import SENSOR_NOISE_STD
+    from capsule_env.engine.config import SENSOR_NOISE_STD
 
     config = EnvConfig(setting="hils", observation="full_state")
     batch = CapsuleBatch(config, 64)
@@ -421,7 +421,7 @@ def test_measured_set_noise_of_gap_and_current_sensors():
     # hils, measured: the gap sensor reads z_b - z_g and the current sensor the coil current,
     # each with its own documented noise (channels 9 and 10), independent of each other and of
     # the accelerometers.
-    from capsule_env.config import SENSOR_NOISE_STD
+    from capsule_env.engine.config import SENSOR_NOISE_STD
 
     config = EnvConfig(setting="hils", observation="measured")
     batch = CapsuleBatch(config, 64)

@@ -6,12 +6,11 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-import pytest
 
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
-from capsule_env.env_params import OBS_MEASURED, EnvParams, EnvState
-from capsule_env.layout import VEHICLE_FLOAT_NAMES
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.env_params import OBS_MEASURED, EnvParams, EnvState
+from capsule_env.engine.layout import VEHICLE_FLOAT_NAMES
 from capsule_env.plant.params import Route
 
 
@@ -83,16 +82,3 @@ def test_delay_ring_owned_by_the_kernel():
             expected = commands[j, n] if j >= start[n] else 0.0
             assert batch.applied_current[n] == expected, (k, n)
         assert batch.step_count.tolist() == [k + 1, k + 1 - start[1]]
-
-
-def test_deprecated_names_warn():
-    import capsule_env.env_kernel as env_kernel
-
-    batch = CapsuleBatch(EnvConfig(), 1)
-    with pytest.warns(DeprecationWarning, match="CapsuleBatch.floats"):
-        block = batch.floats
-    assert block is batch.env_state.vehicle_floats
-    with pytest.warns(DeprecationWarning, match="EnvState.floats"):
-        assert batch.env_state.floats is block
-    with pytest.warns(DeprecationWarning, match="NOISE_SCRATCH_SHAPE"):
-        assert env_kernel.NOISE_SCRATCH_SHAPE == env_kernel.SENSE_SCRATCH_SHAPE

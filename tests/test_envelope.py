@@ -1,6 +1,6 @@
 """The operating envelope in the env (issue 28): EDS levitation against speed, trips, spans,
 payload. Checked against independent facts: the coil model's closed forms
-(capsule_env.levitation), the trip's exact position (capsule_env.trips), the beam's sag
+(capsule_env.envelope.levitation), the trip's exact position (capsule_env.envelope.trips), the beam's sag
 (capsule_env.guideway.spans), the linear plant's exact solution (matrix exponential) and its
 frequency response, and the constant-speed env itself (bit for bit)."""
 
@@ -10,25 +10,31 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
 from capsule_env.dampers import make_damper
-from capsule_env.guideway.spans import SpanParams, span_profile
-from capsule_env.layout import (
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.layout import (
     DAMP_LEVITATION,
     SIG_GUIDEWAY,
     STATE_SIZE,
     STIFF_LEVITATION,
     TIME,
 )
-from capsule_env.levitation import (
+from capsule_env.envelope.levitation import (
     eds_coil,
     levitation_damping_n_s_per_m,
     levitation_stiffness_n_per_m,
 )
+from capsule_env.envelope.trips import (
+    TripParams,
+    trip_acceleration_m_s2,
+    trip_position_m,
+    trip_speed_m_s,
+)
+from capsule_env.guideway.spans import SpanParams, span_profile
 from capsule_env.plant.simulate import simulate
-from capsule_env.trips import TripParams, trip_acceleration_m_s2, trip_position_m, trip_speed_m_s
-from capsule_env.vehicle import VehicleParams, state_space
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import state_space
 
 BASE = {"setting": "hils", "observation": "measured", "episode_length_s": 2.0}
 

@@ -1,4 +1,4 @@
-"""experiments/envelope.py and capsule_env/envelope_report.py: a point's Wk is evaluate.py's on
+"""experiments/envelope.py and capsule_env/envelope/report.py: a point's Wk is evaluate.py's on
 the same options, a rerun skips what is done, bad arguments are one line (exit 2), the page's
 tables are the JSON's and say what did not run."""
 
@@ -12,8 +12,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from capsule_env import envelope_report
-from capsule_env.evaluate import evaluate, parse_args
+from capsule_env.envelope import report as envelope_report
+from capsule_env.evaluation.evaluate import evaluate, parse_args
 
 ROOT = Path(__file__).resolve().parents[1]
 SPANS_30 = "spans/continuous/30m/L3000"

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from capsule_env.config import MEASURED_NAMES
+from capsule_env.engine.config import MEASURED_NAMES
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 
 EST_BODY = MEASURED_NAMES.index("car_body_velocity_estimate_m_s")

@@ -20,7 +20,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from capsule_env import eval_condition, evaluate, metrics
+from capsule_env import metrics
+from capsule_env.evaluation import condition as eval_condition
+from capsule_env.evaluation import evaluate
 from capsule_env.tasks import TASKS, Task
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -101,7 +103,7 @@ def test_task_equals_its_options_given_as_env_items(tmp_path, capsys):
     assert kept == {"observation": {"controller": "full_state", "condition": "measured"}}
     assert "own options kept over the evaluated env's: observation='full_state' " in printed
     # the tuned gains were tuned in hils: no note on this condition
-    assert "tuned gains (agents/tuned_gains.json) were tuned at" not in printed
+    assert "tuned gains (agents/controllers/tuned_gains.json) were tuned at" not in printed
 
 
 def test_tuned_gains_are_kept_and_the_condition_change_is_stated(tmp_path, capsys):
@@ -246,7 +248,7 @@ def test_a_controllers_own_physics_is_stated_where_the_condition_left_the_defaul
     # a law made for trips (its own options: a trip, EDS levitation) on the paper's task runs
     # its own physics: the results say so, naming the env's defaults it replaced; what a law
     # reads and how it acts (observation, inverse model, force limit) is never such a change
-    from capsule_env.eval_condition import controller_env
+    from capsule_env.evaluation.condition import controller_env
 
     own = {"observation": "measured", "inverse_model": "bi_exponential", "max_force_n": 8000.0,
            "speed_profile": "trip", "levitation": "eds"}  # fmt: skip
@@ -313,13 +315,14 @@ def test_a_cold_cache_is_announced_on_stderr(tmp_path, capsys, monkeypatch):
 
 def test_a_cold_or_stale_cache_is_told_from_a_warm_one(tmp_path):
     """In a fresh interpreter whose numba caches in an empty folder: not cached; after numba
-    compiled a function of capsule_env.kernels (it writes its index there): cached; with
+    compiled a function of capsule_env.engine.kernels (it writes its index there): cached; with
     that index older than kernels.py, as after an edit of the module, which numba compiles
     again: not cached (it read as cached, issue 40)."""
     code = textwrap.dedent("""
         import os
         from pathlib import Path
-        from capsule_env import evaluate, kernels
+        from capsule_env.evaluation import evaluate
+        from capsule_env.engine import kernels
         print(evaluate.kernels_cached())
         kernels.work_item_size(4)
         print(evaluate.kernels_cached())

@@ -9,9 +9,8 @@ import re
 from pathlib import Path
 
 from capsule_env.agents import classical_controllers
-
-from capsule_env import evaluate
-from capsule_env.table_key import DESCRIPTIONS
+from capsule_env.evaluation import evaluate
+from capsule_env.evaluation.table_key import DESCRIPTIONS
 
 ROOT = Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"

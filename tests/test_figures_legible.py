@@ -132,7 +132,7 @@ def test_learned_baselines_from_its_json(drawn, tmp_path, task):
 
 
 def test_envelope_figures(drawn, tmp_path):
-    from capsule_env.envelope_report import figures
+    from capsule_env.envelope.report import figures
 
     written = figures(json.loads((FIGURES / "envelope.json").read_text()), tmp_path)
     assert [p.name for p in written] == ["envelope_speed.png", "envelope_span_psd.png"]

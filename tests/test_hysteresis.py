@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from capsule_env.dampers import make_damper
-from capsule_env.hysteresis import hysteresis_rate, hysteresis_update, saturation_level
+from capsule_env.dampers.hysteresis import hysteresis_rate, hysteresis_update, saturation_level
 
 # (A, gamma, beta): Spencer (gamma = beta), beta > gamma, beta < gamma (also beta < 0), and a
 # set far from the damper's scale; gamma + beta > 0 and gamma >= 0 throughout.

@@ -385,7 +385,7 @@ def _run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""),
                MPLBACKEND="Agg")  # fmt: skip
     return subprocess.run(
-        [sys.executable, "-m", "capsule_env.identify", *args],
+        [sys.executable, "-m", "capsule_env.identification.cli", *args],
         cwd=cwd, env=env, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
 

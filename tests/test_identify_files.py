@@ -1,7 +1,7 @@
 """Identification from CSV and NumPy files (issue 17, section 4).
 
 Synthetic loops of known damper models (:mod:`capsule_env.dampers`, run on the test rig
-:func:`capsule_env.damper_rig.simulate_damper`) are written the way users' files come (CSV
+:func:`capsule_env.dampers.rig.simulate_damper`) are written the way users' files come (CSV
 with a header, ``.npz`` with one file per current, a headerless ``.npy`` in other units), read
 back and identified: the fitted parameters must be the model's own within a stated tolerance.
 The derived velocity is checked against the analytic derivative of a sine, and every bad file
@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from capsule_env import identify
-from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
 from capsule_env.dampers import BiExponentialDamper, TanhDamper
+from capsule_env.dampers.rig import simulate_damper, sinusoidal_stroke
 from capsule_env.identification import (
     PlausibilityWarning,
     derive_velocity,
@@ -30,6 +29,7 @@ from capsule_env.identification import (
     identify_measured,
     load_loops,
 )
+from capsule_env.identification import cli as identify
 from capsule_env.identification.tabular import current_from_file_name, default_velocity_window
 
 REPO = Path(__file__).resolve().parents[1]
@@ -288,7 +288,9 @@ def test_cli_bad_files_exit_2_with_one_line(case, tmp_path, capsys):
         argv += ["--current", str(options["current_a"])]
     assert identify.main(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("python -m capsule_env.identify: error:")
+    assert err.count("\n") == 1 and err.startswith(
+        "python -m capsule_env.identification.cli: error:"
+    )
     assert str(path) in err and column in err and text in err
 
 
@@ -297,7 +299,7 @@ def test_cli_process_reads_a_folder_and_fails_cleanly(tmp_path):
                MPLBACKEND="Agg")  # fmt: skip
 
     def run(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "capsule_env.identify", *args], cwd=tmp_path,
+        return subprocess.run([sys.executable, "-m", "capsule_env.identification.cli", *args], cwd=tmp_path,
                               env=env, capture_output=True, text=True, timeout=300)  # fmt: skip
 
     folder = tmp_path / "loops"

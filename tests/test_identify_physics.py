@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 
 import capsule_env  # noqa: F401  (registers the env)
-from capsule_env import identify
-from capsule_env.damper_rig import (
+from capsule_env.dampers import DAMPER_NAMES, BiExponentialDamper, make_damper
+from capsule_env.dampers.rig import (
     MIN_DISSIPATION_RATIO,
     check_dissipative,
     dissipation_ratio,
     sinusoidal_stroke,
 )
-from capsule_env.dampers import DAMPER_NAMES, BiExponentialDamper, make_damper
+from capsule_env.identification import cli as identify
 from capsule_env.identification import identify_loops, identify_measured, reference_loops
 from capsule_env.identification.plausibility import MAX_FIT_RMSE_FRACTION, check_fit_quality
 

@@ -20,19 +20,19 @@ import numpy as np
 import pytest
 import scipy.io as sio
 
-from capsule_env import identify
-from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
 from capsule_env.dampers import BiExponentialDamper
+from capsule_env.dampers.rig import simulate_damper, sinusoidal_stroke
 from capsule_env.identification import (
     PlausibilityWarning,
     identify_measured,
     load_loops,
     measured_files,
 )
+from capsule_env.identification import cli as identify
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data" / "labcontrol-mr-damper"
-PROG = "python -m capsule_env.identify"
+PROG = "python -m capsule_env.identification.cli"
 
 
 def _real_a1() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env.damper_rig import sinusoidal_stroke
 from capsule_env.dampers import BiExponentialDamper, BoucWenDamper, TanhDamper, damper_force
-from capsule_env.hysteresis import hysteresis_update
-from capsule_env.inverse import (
+from capsule_env.dampers.hysteresis import hysteresis_update
+from capsule_env.dampers.inverse import (
     CSDCInverse,
     bi_exponential_inverse,
     inverse_current,
     tanh_inverse,
 )
+from capsule_env.dampers.rig import sinusoidal_stroke
 
 from conftest import I_MAX
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from capsule_env.levitation import (
+from capsule_env.envelope.levitation import (
     EdsCoil,
     EdsParams,
     check_levitating,
@@ -19,7 +19,7 @@ from capsule_env.levitation import (
     levitation_stiffness_n_per_m,
     magnetic_drag_n,
 )
-from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleParams
 
 
 def _circuit_force(inductance_h, resistance_ohm, a, omega, z_of_t, dz_of_t, t_end, n_samples):

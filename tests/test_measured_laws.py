@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from capsule_env.agents import (
     ADDController,
     ClippedOptimalController,
@@ -14,14 +15,13 @@ from capsule_env.agents import (
     classical_controllers,
     make_controller,
 )
-from capsule_env.agents.base import MEAS
-from capsule_env.agents.lqr import lqr_gain
-from capsule_env.agents.search_space import SEARCH_SPACES
-
-from capsule_env.config import FULL_STATE_NAMES, MEASURED_NAMES
+from capsule_env.agents.controllers.base import MEAS
+from capsule_env.agents.controllers.lqr import lqr_gain
+from capsule_env.agents.learning.search_space import SEARCH_SPACES
+from capsule_env.engine.config import FULL_STATE_NAMES, MEASURED_NAMES
+from capsule_env.engine.observations import TRIP_COLUMN_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
-from capsule_env.observations import TRIP_COLUMN_NAMES
-from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleParams
 
 MEASURED_LAWS = [n for n, c in classical_controllers().items() if c.observation == "measured"]
 

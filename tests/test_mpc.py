@@ -1,6 +1,6 @@
-"""The semi-active MPC (agents/mpc.py) against independent facts: Giorgetti et al. (2006)'s
+"""The semi-active MPC (agents/controllers/mpc.py) against independent facts: Giorgetti et al. (2006)'s
 one-step result (the MPC is the clipped LQR), the unconstrained LQ optimum (Tomizuka's preview
-law of agents/preview_lq.py, a separate derivation), the band of the damper written out by
+law of agents/controllers/preview_lq.py, a separate derivation), the band of the damper written out by
 hand, a QP solved by SciPy, the fallback, determinism and bad input; with both QP solvers
 (DAQP, active set; OSQP, ADMM)."""
 
@@ -8,15 +8,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from capsule_env.agents.mpc import MPCController
-from capsule_env.agents.mpc_qp import condense, prediction_model
-from capsule_env.agents.mpc_solver import BandQP, SolverOptions
-from capsule_env.agents.preview_lq import preview_lq_gains
 from scipy.optimize import minimize
 
-from capsule_env.config import MEASURED_NAMES, EnvConfig
-from capsule_env.evaluation import run_episodes
-from capsule_env.vehicle import VehicleParams
+from capsule_env.agents.controllers.mpc import MPCController
+from capsule_env.agents.controllers.mpc_qp import condense, prediction_model
+from capsule_env.agents.controllers.mpc_solver import BandQP, SolverOptions
+from capsule_env.agents.controllers.preview_lq import preview_lq_gains
+from capsule_env.engine.config import MEASURED_NAMES, EnvConfig
+from capsule_env.evaluation.episodes import run_episodes
+from capsule_env.vehicles import VehicleParams
 
 WEIGHTS = (2.0, 100.0, 3e-8)  # q_stroke, q_gap (1/s^4), r_force (1/kg^2)
 COL = {name: k for k, name in enumerate(MEASURED_NAMES)}
@@ -82,7 +82,7 @@ def test_one_step_horizon_is_clipped_lqr(delay_steps: int, backend: str) -> None
 
 def test_unconstrained_plan_is_the_preview_lq_law() -> None:
     """With the band lifted, the first move of a 12-step plan with a delay and 60 rises ahead
-    equals Tomizuka's preview LQ law (agents/preview_lq.py: another derivation)."""
+    equals Tomizuka's preview LQ law (agents/controllers/preview_lq.py: another derivation)."""
     model = prediction_model(VehicleParams(), 0.005, 1, 0.0)
     qp = condense(model, WEIGHTS, 12, 60)
     gains = preview_lq_gains(VehicleParams(), 0.005, 60, *WEIGHTS, delay_steps=1)
@@ -204,9 +204,8 @@ def test_move_blocking_holds_the_moves() -> None:
 
 
 def test_evaluate_without_the_solver_drops_or_refuses_the_mpc_rows(monkeypatch, capsys) -> None:
-    import capsule_env.agents.mpc_solver as mpc_solver
-
-    from capsule_env.evaluate import DEFAULT_CONTROLLERS, build_controllers
+    import capsule_env.agents.controllers.mpc_solver as mpc_solver
+    from capsule_env.evaluation.evaluate import DEFAULT_CONTROLLERS, build_controllers
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
     ctrls = build_controllers(list(DEFAULT_CONTROLLERS), [], shipped=False)
@@ -220,10 +219,9 @@ def test_without_the_solver_the_shipped_residual_on_the_mpc_is_left_out_or_refus
     monkeypatch, capsys
 ) -> None:
     pytest.importorskip("stable_baselines3")  # the rl extra (the dev extra installs it)
-    import capsule_env.agents.mpc_solver as mpc_solver
-    from capsule_env.agents.sb3_policy import PRETRAINED_DIR, load_policy, shipped_policies
-
-    from capsule_env.evaluate import build_controllers
+    import capsule_env.agents.controllers.mpc_solver as mpc_solver
+    from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR, load_policy, shipped_policies
+    from capsule_env.evaluation.evaluate import build_controllers
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
     ctrls = build_controllers(["passive"], [], shipped=True)
@@ -265,8 +263,7 @@ def test_bench_mpc_quick_reports_consistent_figures(tmp_path) -> None:
 def test_wk_cost_filter_is_the_metric_weighting() -> None:
     """The cost's Wk filter is the metric's weighting without its band limits (0.4 Hz
     high-pass, 100 Hz low-pass): compared as complex responses with capsule_env.metrics."""
-    from capsule_env.agents.mpc_qp import wk_state_space
-
+    from capsule_env.agents.controllers.mpc_qp import wk_state_space
     from capsule_env.metrics import wk_weighting
 
     a, b, c = wk_state_space()
@@ -303,7 +300,7 @@ def test_variants_experiment_runs_every_variant(tmp_path) -> None:
 def test_evaluate_runs_the_mpc_rows(tmp_path) -> None:
     import json
 
-    from capsule_env import evaluate
+    from capsule_env.evaluation import evaluate
 
     out = tmp_path / "eval.json"
     argv = ["--setting", "hils", "--episodes", "1", "--episode-length", "1", "--json", str(out),

@@ -1,4 +1,4 @@
-"""The semi-active MPC (agents/mpc.py) on bad input: a non-finite observation of one vehicle
+"""The semi-active MPC (agents/controllers/mpc.py) on bad input: a non-finite observation of one vehicle
 (a safe action that step, no harm to later steps or to the other vehicles), weights and solver
 options of the wrong shape or type (one clear error naming the parameter), and a solver that
 fails (warned once, naming the option to change)."""
@@ -9,12 +9,12 @@ import warnings
 
 import numpy as np
 import pytest
-from capsule_env.agents.mpc import MPCController
-from capsule_env.agents.mpc_qp import condense, prediction_model
-from capsule_env.agents.mpc_solver import BandQP, SolverOptions
 
-from capsule_env.config import OBSERVATION_NAMES, EnvConfig
-from capsule_env.vehicle import VehicleParams
+from capsule_env.agents.controllers.mpc import MPCController
+from capsule_env.agents.controllers.mpc_qp import condense, prediction_model
+from capsule_env.agents.controllers.mpc_solver import BandQP, SolverOptions
+from capsule_env.engine.config import OBSERVATION_NAMES, EnvConfig
+from capsule_env.vehicles import VehicleParams
 
 N_VEHICLES, N_STEPS, BAD_STEP, BAD_VEHICLE = 3, 8, 2, 1
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from capsule_env import layout, observations
-from capsule_env.config import (
+from capsule_env.engine import layout, observations
+from capsule_env.engine.config import (
     FULL_STATE_NAMES,
     MEASURED_NAMES,
     SENSOR_NAMES,
@@ -20,7 +20,7 @@ from capsule_env.config import (
     EnvConfig,
     observation_bounds,
 )
-from capsule_env.observations_docs import docs_tables, main, sync_docs
+from capsule_env.engine.observations_docs import docs_tables, main, sync_docs
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -143,7 +143,9 @@ def test_unknown_set_names_the_choices():
 
 def test_docs_in_sync():
     text = (ROOT / "docs" / "env.md").read_text(encoding="utf-8")
-    assert sync_docs(text) == text, "run: python -m capsule_env.observations_docs docs/env.md"
+    assert sync_docs(text) == text, (
+        "run: python -m capsule_env.engine.observations_docs docs/env.md"
+    )
     for key in docs_tables():  # every generated table is in the docs
         assert f"<!-- generated: {key} -->" in text
 
@@ -162,9 +164,9 @@ def test_docs_rewrite(tmp_path):
 def test_trip_and_preview_columns_are_declared_in_the_table_module():
     """Issue 41: the trip's and the preview's columns come from observations.py, and the kernels'
     offsets point at their names."""
-    from capsule_env.config import EnvConfig, observation_bounds
-    from capsule_env.env_params import EnvParams
-    from capsule_env.observations import TRIP_COLUMN_NAMES, columns, first_column
+    from capsule_env.engine.config import EnvConfig, observation_bounds
+    from capsule_env.engine.env_params import EnvParams
+    from capsule_env.engine.observations import TRIP_COLUMN_NAMES, columns, first_column
 
     config = EnvConfig(setting="hils", observation="measured", speed_profile="trip",
                        preview_points=3)  # fmt: skip
@@ -185,7 +187,7 @@ def test_trip_and_preview_columns_are_declared_in_the_table_module():
 
 
 def test_speed_conversions_go_through_units():
-    """Issue 41: km/h <-> m/s only in capsule_env/units.py (no literal 3.6 in arithmetic)."""
+    """Issue 41: km/h <-> m/s only in capsule_env/common/units.py (no literal 3.6 in arithmetic)."""
     import ast
     from pathlib import Path
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env.config import EnvConfig
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, episode_metrics, run_episodes
-from capsule_env.layout import OUT_BODY_ACC, OUT_GUIDEWAY
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.layout import OUT_BODY_ACC, OUT_GUIDEWAY
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, episode_metrics, run_episodes
 from capsule_env.oracle import (
     OracleEpisodes,
     RideObjective,
@@ -63,7 +63,7 @@ def test_open_loop_replay_of_a_controllers_currents_is_the_env(kwargs):
     # Skyhook's commands, delayed by the env's control delay, replayed open loop with the
     # env's substeps: the env's recorded body acceleration and guideway, to rounding. On a
     # trip the replay meets the route and the levitation of every step as the env did.
-    from capsule_env.agents.classical import classical_controllers
+    from capsule_env.agents.controllers.classical import classical_controllers
 
     ctrl = classical_controllers()["skyhook-cont-biexp"]
     seeds, length_s = [1000, 1001], 0.5 if kwargs is HILS else 2.0
@@ -85,11 +85,11 @@ def test_a_trips_schedule_is_its_speed_and_levitation_at_every_step():
     # speed there (the chord), and k_p the coil model's at the interval's mid-time speed
     import dataclasses
 
-    from capsule_env.batch import CapsuleBatch
-    from capsule_env.envelope_kernel import ENV_LIMIT, ENV_T0
-    from capsule_env.layout import STIFF_LEVITATION
-    from capsule_env.levitation import levitation_stiffness_n_per_m
-    from capsule_env.trips import trip_position_m, trip_speed_m_s
+    from capsule_env.engine.batch import CapsuleBatch
+    from capsule_env.engine.layout import STIFF_LEVITATION
+    from capsule_env.envelope.kernel import ENV_LIMIT, ENV_T0
+    from capsule_env.envelope.levitation import levitation_stiffness_n_per_m
+    from capsule_env.envelope.trips import trip_position_m, trip_speed_m_s
 
     seeds = [1000, 1001, 1002, 1003]
     episodes = OracleEpisodes(TRIP, seeds, 1.0)
@@ -111,7 +111,7 @@ def test_a_trips_schedule_is_its_speed_and_levitation_at_every_step():
 
 
 def test_search_improves_on_every_start_and_on_skyhook():
-    from capsule_env.agents.classical import classical_controllers
+    from capsule_env.agents.controllers.classical import classical_controllers
 
     ctrl = classical_controllers()["skyhook-cont-biexp"]
     seeds = [1000, 1001]

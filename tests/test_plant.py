@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from capsule_env.damper_rig import simulate_damper
 from capsule_env.dampers import (
     DAMPER_NAMES,
     N_DAMPER_PARAMS,
@@ -25,10 +24,11 @@ from capsule_env.dampers import (
     ReferenceDamper,
     make_damper,
 )
+from capsule_env.dampers.rig import simulate_damper
+from capsule_env.engine.kernels import PARALLEL_THRESHOLD, PLANT, kernels
+from capsule_env.engine.layout import N_PLANT_OUTPUTS as N_OUTPUTS
+from capsule_env.engine.layout import STATE_SIZE
 from capsule_env.guideway import random_profile, sine_profile
-from capsule_env.kernels import PARALLEL_THRESHOLD, PLANT, kernels
-from capsule_env.layout import N_PLANT_OUTPUTS as N_OUTPUTS
-from capsule_env.layout import STATE_SIZE
 from capsule_env.plant import (
     Route,
     block,
@@ -40,7 +40,8 @@ from capsule_env.plant import (
     stiffness_rates,
     substep_tables,
 )
-from capsule_env.vehicle import VehicleParams, frequency_response, state_space
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import frequency_response, state_space
 
 from conftest import DT, I_MAX, K_P, K_S, M_B, M_C, SPEED, SPENCER
 
@@ -560,7 +561,7 @@ BLOCK_CASES = {
 @pytest.mark.parametrize("case", list(BLOCK_CASES))
 def test_vectorised_block_kernel_matches_scalar_kernel(case):
     # Two independent codings of the same scheme: the scalar kernel (libm, branches, exact
-    # hysteresis update of capsule_env.hysteresis) and the vectorised one (call-free exp/log,
+    # hysteresis update of capsule_env.dampers.hysteresis) and the vectorised one (call-free exp/log,
     # selects, lanes sorted by substep count). 10 vehicles with different vehicles, currents,
     # guideway windows and speeds, adaptive substeps, 1 s.
     # Both variants of the block kernel: damper parameters read as constants (KERNEL_UNIFORM,

@@ -1,4 +1,4 @@
-"""A saved policy's files (capsule_env.policy_files): sibling names of dotted stems, and saves
+"""A saved policy's files (capsule_env.agents.learning.policy_files): sibling names of dotted stems, and saves
 that a kill at any point leaves loadable as the previous complete set or the new one, never a
 mix (issue 25 items 1 and 3).
 
@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from capsule_env.agents.checkpoints import (
+
+from capsule_env.agents.learning.checkpoints import (
     checkpoint_problem,
     find_checkpoint,
     latest_checkpoint,
     save_policy,
 )
-
-from capsule_env.policy_files import (
+from capsule_env.agents.learning.policy_files import (
     clean_leftovers,
     readable_stem,
     save_file_set,
@@ -44,7 +44,7 @@ POLICY_ENV = {"setting": "hils", "action_mode": "current", "observation": "full_
 DRIVER = r"""
 import json, os, shutil, sys
 from pathlib import Path
-from capsule_env.agents.checkpoints import save_policy
+from capsule_env.agents.learning.checkpoints import save_policy
 
 folder, out, new_buffer = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3] == "1"
 stem = folder / "checkpoints" / "ckpt_000000001024"
@@ -202,8 +202,9 @@ def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0,
     normalisation statistics updated by ``env_steps`` steps of random actions (seeded by
     ``timesteps``)."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
-    from capsule_env.agents.training import make_env
     from stable_baselines3 import PPO
+
+    from capsule_env.agents.learning.training import make_env
 
     venv = make_env(2, 0, env_kwargs, {"norm_obs": True, "norm_reward": True})
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=timesteps, device="cpu")
@@ -220,9 +221,8 @@ def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0,
 
 @pytest.mark.rl
 def test_a_dotted_policy_name_reads_its_own_metadata(tmp_path):
-    from capsule_env.agents.sb3_policy import SB3Policy
-
-    from capsule_env import evaluate
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
+    from capsule_env.evaluation import evaluate
 
     _save_tiny(tmp_path / "cur.v1", POLICY_ENV, "cur-v1")
     # a decoy where Path.with_suffix would look: force mode, no digests
@@ -250,9 +250,8 @@ class Killed(BaseException):
 
 @pytest.mark.rl
 def test_a_save_cut_after_its_commit_loads_the_new_policy(tmp_path, monkeypatch):
-    from capsule_env.agents.sb3_policy import SB3Policy
-
-    from capsule_env import policy_files
+    from capsule_env.agents.learning import policy_files
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
 
     stem = tmp_path / "best_model"
     old = _save_tiny(stem, POLICY_ENV, "tiny", timesteps=1)
@@ -286,7 +285,7 @@ def test_a_save_cut_after_its_commit_loads_the_new_policy(tmp_path, monkeypatch)
 
 @pytest.mark.rl
 def test_shipped_policies_still_load():
-    from capsule_env.agents.sb3_policy import SB3Policy, shipped_policy_paths
+    from capsule_env.agents.learning.sb3_policy import SB3Policy, shipped_policy_paths
 
     for path in shipped_policy_paths():  # saved before the commit folders: plain files
         assert set_problem(path) is None and readable_stem(path) == sibling(path, "")
@@ -318,7 +317,7 @@ def _members(run: Path) -> dict[str, Path]:
 
 @pytest.mark.rl
 def test_a_renamed_intact_set_loads_and_acts_as_the_original(tmp_path):
-    from capsule_env.agents.sb3_policy import SB3Policy
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
 
     run_a, _ = _two_runs(tmp_path)
     original = SB3Policy.load(sibling(run_a, ".zip"))
@@ -349,9 +348,8 @@ def test_a_renamed_intact_set_loads_and_acts_as_the_original(tmp_path):
     ids=["model-of-a", "statistics-of-b", "metadata-of-a"],
 )  # fmt: skip
 def test_a_set_mixed_from_two_runs_is_refused_naming_the_role(tmp_path, capsys, mix, role, wrong):
-    from capsule_env.agents.sb3_policy import SB3Policy
-
-    from capsule_env import evaluate
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
+    from capsule_env.evaluation import evaluate
 
     runs = _two_runs(tmp_path)
     path = _copy_set({s: sibling(runs[k], s) for s, k in mix.items()}, tmp_path / "mix" / "p")
@@ -374,9 +372,8 @@ def test_a_set_mixed_from_two_runs_is_refused_naming_the_role(tmp_path, capsys, 
 def test_metadata_of_the_earlier_format_is_checked_by_role_too(tmp_path):
     """Metadata written before the digests by role (``files``: by the file names of the save)
     still binds its set: each recorded file's role is its name's suffix."""
-    from capsule_env.agents.sb3_policy import SB3Policy
-
-    from capsule_env.safe_io import file_digest
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
+    from capsule_env.common.safe_io import file_digest
 
     runs = _two_runs(tmp_path)
     for run in runs:

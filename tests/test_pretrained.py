@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from capsule_env.agents.sb3_policy import ALGORITHMS, SB3Policy, shipped_policy_paths
 
-from capsule_env import evaluate
+from capsule_env.agents.learning.sb3_policy import ALGORITHMS, SB3Policy, shipped_policy_paths
 from capsule_env.envs import CapsuleSuspensionVectorEnv
+from capsule_env.evaluation import evaluate
 
 from conftest import NO_SB3
 
@@ -125,7 +125,7 @@ def test_bad_policy_path_is_a_clear_error(tmp_path):
 
 @pytest.mark.rl
 def test_ship_policy_copies_the_set_under_a_new_name(tmp_path):
-    from capsule_env.agents.ship import ship_policy
+    from capsule_env.agents.learning.ship import ship_policy
 
     shipped = ship_policy(SHIPPED[0], "copy-of-it", "a test", folder=tmp_path)
     assert shipped == tmp_path / "copy-of-it.zip"

@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import SURVEY_NOISE_BAND_M, SURVEY_OFFSET_BAND_M, EnvConfig
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import SURVEY_NOISE_BAND_M, SURVEY_OFFSET_BAND_M, EnvConfig
+from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
-from capsule_env.layout import SIGNAL_NAMES
 
 GUIDEWAY = SIGNAL_NAMES.index("guideway_elevation_m")
 PERFECT = {"survey_offset_m": 0.0, "survey_noise_m": 0.0, "position_error_m": 0.0}
@@ -98,7 +98,7 @@ def test_the_preview_changes_nothing_else():
 
 
 def test_single_vector_and_sb3_agree_with_preview():
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv  # noqa: PLC0415
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv  # noqa: PLC0415
 
     kwargs = {"setting": "hils", "observation": "measured", "preview_points": 6}
     vec = CapsuleSuspensionVectorEnv(num_envs=3, **kwargs)

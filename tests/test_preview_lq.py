@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from capsule_env.agents.preview_lq import plant_matrices, preview_lq_gains, preview_rises
 from scipy.linalg import expm
 
-from capsule_env.vehicle import VehicleParams
+from capsule_env.agents.controllers.preview_lq import (
+    plant_matrices,
+    preview_lq_gains,
+    preview_rises,
+)
+from capsule_env.vehicles import VehicleParams
 
 DT = 0.005
 WEIGHTS = {"q_stroke": 1.0e3, "q_gap": 1.0e4, "r_force": 1.0e-9}
@@ -148,7 +152,7 @@ def test_bad_weights_are_named():
 
 
 def test_controller_applies_the_gains_and_remembers_its_requests():
-    from capsule_env.agents.preview_lq import PreviewLQController
+    from capsule_env.agents.controllers.preview_lq import PreviewLQController
 
     ctrl = PreviewLQController(q_stroke=10.0, q_levitation=100.0, r_force=1e-8,
                                preview_points=8, preview_horizon_s=0.2)  # fmt: skip
@@ -157,7 +161,7 @@ def test_controller_applies_the_gains_and_remembers_its_requests():
     obs = rng.normal(0.0, 0.01, (3, 9 + 8))
     names = ("stroke_m", "car_body_velocity_estimate_m_s", "levitation_gap_m",
              "bogie_velocity_estimate_m_s")  # fmt: skip
-    from capsule_env.agents.base import MEAS
+    from capsule_env.agents.controllers.base import MEAS
 
     x = obs[:, [MEAS[n] for n in names]]
     rises = preview_rises(obs[:, 9:], 0.2 / 8, DT, 40)
@@ -176,10 +180,9 @@ def test_preview_helps_on_a_bump_with_the_same_weights():
     # preview law (same weights as the clipped LQR) lowers the RMS body acceleration by ~11 %:
     # it starts acting before the bogie reaches the bump. (On a short, sharp bump it cannot: a
     # semi-active damper makes no force before the stroke moves, so the two laws tie there.)
-    from capsule_env.agents.lqr import ClippedOptimalController
-    from capsule_env.agents.preview_lq import PreviewLQController
-
-    from capsule_env.evaluation import run_episodes
+    from capsule_env.agents.controllers.lqr import ClippedOptimalController
+    from capsule_env.agents.controllers.preview_lq import PreviewLQController
+    from capsule_env.evaluation.episodes import run_episodes
 
     weights = {"q_stroke": 2.0, "q_levitation": 100.0, "r_force": 3e-8}
     env = {"setting": "sim", "guideway": "bump",
@@ -204,7 +207,7 @@ def test_preview_helps_on_a_bump_with_the_same_weights():
     ],
 )
 def test_bad_preview_arguments_are_named(kwargs, match):
-    from capsule_env.agents.preview_lq import PreviewLQController
+    from capsule_env.agents.controllers.preview_lq import PreviewLQController
 
     with pytest.raises(ValueError, match=match):
         PreviewLQController(**kwargs)

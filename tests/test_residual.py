@@ -7,9 +7,11 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from capsule_env.agents.base import Controller
-from capsule_env.agents.classical import make_controller
-from capsule_env.agents.residual import (
+
+import capsule_env  # noqa: F401
+from capsule_env.agents.controllers.base import Controller
+from capsule_env.agents.controllers.classical import make_controller
+from capsule_env.agents.learning.residual import (
     ResidualEnv,
     ResidualPolicy,
     ResidualVecEnv,
@@ -17,10 +19,8 @@ from capsule_env.agents.residual import (
     combine_actions,
     zero_last_layer,
 )
-
-import capsule_env  # noqa: F401
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, run_episodes
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes
 
 RIDE = {
     "setting": "hils",
@@ -107,7 +107,7 @@ def test_law_sees_each_episode_start_once(mode):
 
 
 def test_sb3_wrapper_with_zero_residual_is_the_law():
-    from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv
+    from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     name = "lqr-clipped-biexp-meas"
     venv = ResidualVecEnv(CapsuleSuspensionSB3VecEnv(num_envs=2, info_signals=True, **RIDE),
@@ -118,7 +118,7 @@ def test_sb3_wrapper_with_zero_residual_is_the_law():
     for _ in range(99):  # the 100th step ends the episode and SB3 resets the vehicle at once
         _, _, _, infos = venv.step(np.zeros((2, 1), dtype=np.float32))
         forces.append(infos[0]["damper_force_n"])
-    # vehicle 0 of SB3's seed(3) is the single env seeded 3 (capsule_env.batch.vehicle_streams)
+    # vehicle 0 of SB3's seed(3) is the single env seeded 3 (capsule_env.engine.batch.vehicle_streams)
     assert np.array_equal(np.array(forces), _law_forces(name, RIDE, [3])[0, :99])
 
 
@@ -133,7 +133,8 @@ def test_zero_initialised_model_starts_from_the_law(algo):
     """Every algorithm of train.py --algo: after zero_last_layer its deterministic correction
     is exactly 0, so the residual policy starts as the law."""
     import torch
-    from capsule_env.agents.algorithms import algorithm_class
+
+    from capsule_env.agents.learning.algorithms import algorithm_class
 
     if algo in ("tqc", "crossq", "recurrentppo"):
         pytest.importorskip("sb3_contrib")

@@ -17,11 +17,10 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)
 
-from capsule_env.agents.classical import make_controller  # noqa: E402
-from capsule_env.agents.residual import ResidualPolicy, zero_last_layer  # noqa: E402
-from capsule_env.agents.sb3_policy import SB3Policy, load_policy  # noqa: E402
-
-from capsule_env import train  # noqa: E402
+from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
+from capsule_env.agents.learning import train  # noqa: E402
+from capsule_env.agents.learning.residual import ResidualPolicy, zero_last_layer  # noqa: E402
+from capsule_env.agents.learning.sb3_policy import SB3Policy, load_policy  # noqa: E402
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv  # noqa: E402
 
 pytestmark = pytest.mark.rl

@@ -1,4 +1,4 @@
-"""rliable's statistics through capsule_env.rl_statistics, against independent computations."""
+"""rliable's statistics through capsule_env.evaluation.rl_statistics, against independent computations."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from scipy import stats
 
 pytest.importorskip("rliable")
 
-from capsule_env.rl_statistics import (  # noqa: E402
+from capsule_env.evaluation.rl_statistics import (  # noqa: E402
     iqm,
     iqm_curves,
     normalised_scores,
@@ -79,7 +79,7 @@ def _two_way(rng, seeds, episodes, sd_seed, sd_episode, slope, sd_interaction=0.
 def test_paired_ratio_interval_matches_the_delta_method_variance():
     # ratio of means R = W/L: to first order R - R0 = (a_mean + (slope - R0) b_mean) / 0.3855,
     # variance (sd_seed^2 / S + (slope - R0)^2 sd_episode^2 / E) / 0.3855^2 (no interaction)
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     n, sd_seed, sd_episode, slope, r0 = 400, 0.004, 0.06, 1.05, 0.38 / 0.3855
     group, law = _two_way(np.random.default_rng(3), n, n, sd_seed, sd_episode, slope)
@@ -96,7 +96,7 @@ def test_paired_ratio_interval_pairs_the_episodes():
     # each seed a fixed multiple of the law on every episode: whatever episodes are drawn, the
     # seed's ratio is its multiple, so the episodes alone leave no uncertainty; unpaired
     # draws (the group's and the law's episodes drawn apart) would
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     rng = np.random.default_rng(4)
     law = rng.uniform(0.28, 0.54, 10)
@@ -114,7 +114,7 @@ def test_paired_ratio_interval_pairs_the_episodes():
 def test_paired_ratio_interval_over_seeds_is_rliables_interval():
     # with the episodes fixed, the IQM ratio's interval is rliable's bootstrap of the seeds'
     # IQM divided by the law's mean (independent resampling code: equal to bootstrap noise)
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     group, law = _two_way(np.random.default_rng(5), 10, 10, 0.002, 0.06, 1.0, 0.001)
     mine = paired_ratio_interval(group, law, resample="seeds")
@@ -130,7 +130,7 @@ def test_paired_ratio_interval_covers_the_ratio(size, lowest, highest):
     # 400 simulated data sets of seed and episode effects (and a small interaction): the share
     # of intervals holding the true ratio 0.38 / 0.3855; at 10 x 10 the percentile interval
     # covers a little under 95 % (the docstring says so)
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     rng, hits = np.random.default_rng(6), 0
     for k in range(400):
@@ -141,7 +141,7 @@ def test_paired_ratio_interval_covers_the_ratio(size, lowest, highest):
 
 
 def test_paired_ratio_interval_bad_input_is_named():
-    from capsule_env.rl_statistics import paired_ratio_interval
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
 
     good = np.ones((3, 4))
     with pytest.raises(ValueError, match=r"group_wk must be a finite \(seeds, episodes\)"):

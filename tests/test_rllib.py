@@ -1,4 +1,4 @@
-"""capsule_env.rllib: the env creator, its Ray Tune registration (scale extra) and a short RLlib
+"""capsule_env.envs.rllib: the env creator, its Ray Tune registration (scale extra) and a short RLlib
 PPO run on the native vector env (rllib extra)."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env import rllib
+from capsule_env.envs import rllib
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
 
 NO_RAY = (

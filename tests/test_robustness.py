@@ -13,11 +13,11 @@ import pytest
 from gymnasium.error import ResetNeeded
 
 import capsule_env  # noqa: F401  (registers the env)
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
 from capsule_env.dampers import BiExponentialDamper, TanhDamper
+from capsule_env.dampers.inverse import bi_exponential_inverse, tanh_inverse
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
-from capsule_env.inverse import bi_exponential_inverse, tanh_inverse
 
 from conftest import ENV_ID
 

@@ -1,4 +1,4 @@
-"""The scripts (train.py, evaluate.py, python -m capsule_env.identify) under bad input, kills
+"""The scripts (train.py, evaluate.py, python -m capsule_env.identification.cli) under bad input, kills
 and full disks: one line on stderr and a non-zero exit for bad input, checked before any run;
 saves that leave the previous files intact; resumable checkpoints.
 
@@ -28,17 +28,18 @@ from typing import Any
 
 import numpy as np
 import pytest
-from capsule_env.agents.checkpoints import (
+from scipy import io as sio
+
+from capsule_env.agents.learning.checkpoints import (
     checkpoint_problem,
     latest_checkpoint,
     save_policy,
     saved_at,
 )
-from capsule_env.agents.sb3_policy import SB3Policy
-from scipy import io as sio
-
-from capsule_env import evaluate, identify
-from capsule_env.safe_io import StagedFiles, atomic_write_text, check_writable_file
+from capsule_env.agents.learning.sb3_policy import SB3Policy
+from capsule_env.common.safe_io import StagedFiles, atomic_write_text, check_writable_file
+from capsule_env.evaluation import evaluate
+from capsule_env.identification import cli as identify
 
 from conftest import NO_SB3, NO_YAML
 
@@ -55,7 +56,7 @@ def train():
     """The train.py module (it imports torch and stable-baselines3, and reads PyYAML files)."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
     pytest.importorskip("yaml", reason=NO_YAML)
-    from capsule_env import train as module
+    from capsule_env.agents.learning import train as module
 
     return module
 
@@ -88,9 +89,10 @@ def make_policy(stem: Path, name: str | None = "tiny", env: str = "capsule") -> 
     ``.json``); ``env="pendulum"``: one trained on 3-dimensional observations. Returns the
     model. Skips the calling test without stable-baselines3."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
-    from capsule_env.agents.training import make_env
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from capsule_env.agents.learning.training import make_env
 
     if env == "pendulum":
         import gymnasium as gym
@@ -635,7 +637,7 @@ else:
                 return Half(fh)
         return fh
     builtins.open = fake_open
-from capsule_env.train import main
+from capsule_env.agents.learning.train import main
 sys.exit(main(argv))
 """
 

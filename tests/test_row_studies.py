@@ -29,7 +29,7 @@ def _train_cli_run(folder: Path, seed: int) -> Path:
     file written by hand."""
     import yaml
 
-    from capsule_env.train import Args, train
+    from capsule_env.agents.learning.train import Args, train
 
     hp_file = folder / "tiny.yml"
     base = yaml.safe_load((REPO / "hyperparams" / "ppo.yml").read_text())

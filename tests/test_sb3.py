@@ -1,4 +1,4 @@
-"""The stable-baselines3 VecEnv (capsule_env.sb3): SB3's checker, the native vector env's
+"""The stable-baselines3 VecEnv (capsule_env.envs.sb3): SB3's checker, the native vector env's
 trajectories bit for bit, the env's own episode length, and the hostile-user cases of
 ``test_robustness.py`` that concern it. Skipped as a whole without stable-baselines3."""
 
@@ -18,9 +18,9 @@ pytest.importorskip("stable_baselines3", reason=NO_SB3)
 from stable_baselines3.common.env_checker import check_env  # noqa: E402
 
 import capsule_env  # noqa: E402, F401  (registers the env)
-from capsule_env.config import EnvConfig  # noqa: E402
+from capsule_env.engine.config import EnvConfig  # noqa: E402
 from capsule_env.envs import CapsuleSuspensionVectorEnv  # noqa: E402
-from capsule_env.sb3 import CapsuleSuspensionSB3VecEnv  # noqa: E402
+from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv  # noqa: E402
 
 pytestmark = pytest.mark.rl
 

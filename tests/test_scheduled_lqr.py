@@ -1,4 +1,4 @@
-"""The gain-scheduled clipped LQR (agents/scheduled_lqr.py) against independent facts: the
+"""The gain-scheduled clipped LQR (agents/controllers/scheduled_lqr.py) against independent facts: the
 fixed LQR where the plant does not change, a Riccati solve on plant matrices built here in
 other coordinates, closed-loop stability at every grid speed, linear interpolation."""
 
@@ -6,17 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from capsule_env.agents.lqr import ClippedOptimalController
-from capsule_env.agents.scheduled_lqr import SPEED_COLUMN, ScheduledLQRController
 from scipy.linalg import solve_continuous_are
 
-from capsule_env.config import MEASURED_NAMES
-from capsule_env.levitation import (
+from capsule_env.agents.controllers.lqr import ClippedOptimalController
+from capsule_env.agents.controllers.scheduled_lqr import SPEED_COLUMN, ScheduledLQRController
+from capsule_env.engine.config import MEASURED_NAMES
+from capsule_env.envelope.levitation import (
     eds_coil,
     levitation_damping_n_s_per_m,
     levitation_stiffness_n_per_m,
 )
-from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleParams
 
 WEIGHTS = {"q_stroke": 30.0, "q_levitation": 2.0e3, "r_force": 3.0e-9}
 KMH = 1.0 / 3.6

@@ -68,8 +68,8 @@ def test_cluster_bootstrap_is_the_bootstrap_of_the_clusters(sp):
 
 def _run_folder(tmp_path: Path, name: str, shipped: str) -> Path:
     """A train.py-like folder holding a copy of a shipped policy as its best_model."""
-    from capsule_env.agents.sb3_policy import PRETRAINED_DIR
-    from capsule_env.agents.ship import ship_policy
+    from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR
+    from capsule_env.agents.learning.ship import ship_policy
 
     run = tmp_path / name
     run.mkdir()
@@ -98,9 +98,8 @@ def test_a_shipped_policy_against_itself_is_kept(sp, tmp_path, capsys):
     assert "keep ppo-measured" in capsys.readouterr().out
     assert result["seeds"] == list(range(10)) and result["guideway_seed"] == 11
     # per episode, then averaged = evaluate's average over the same episodes of the bank
-    from capsule_env.agents.sb3_policy import load_policy
-
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.agents.learning.sb3_policy import load_policy
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
     from capsule_env.tasks import task_named
 
     kwargs = {**task_named("CapsuleRide-v0").kwargs, "guideway_seed": 11, "guideway_bank_size": 128}
@@ -137,7 +136,7 @@ def test_bad_input_is_one_line(sp, tmp_path, capsys, extra, message):
     argv = ["--runs", str(tmp_path / "run-a"), "--json", str(tmp_path / "x.json"), *extra]
     try:
         code = sp.main(argv)
-    except SystemExit as done:  # argparse's own errors (one line: capsule_env._cli)
+    except SystemExit as done:  # argparse's own errors (one line: capsule_env.common.cli)
         code = done.code
     assert code == 2
     err = capsys.readouterr().err

@@ -8,7 +8,8 @@ import argparse
 import numpy as np
 import pytest
 
-from capsule_env.vehicle import VehicleParams, frequency_response
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import frequency_response
 
 from conftest import load_script
 

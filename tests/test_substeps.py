@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import PLANT_DAMPERS, EnvConfig
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import PLANT_DAMPERS, EnvConfig
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS, substep_tables
 
 TOLERANCE = 0.005

@@ -155,9 +155,8 @@ def test_a_yaml_key_given_twice_is_refused_with_its_line(tmp_path, capsys):
 def test_the_controllers_env_arguments_are_what_a_gains_trial_runs(tmp_path):
     """The accepted env arguments change the env, not the law: a gains trial's rollout is the
     controller on its own env_kwargs plus the env.<key> overrides that are not among them."""
-    from capsule_env.agents.classical import make_controller
-
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     study = load_study(write_study(tmp_path, {"trials": [{"kind": "gains", "params": {
         **SKY, "env.speed_kmh": 600.0}}]}), tmp_path)  # fmt: skip
@@ -287,9 +286,8 @@ def test_replicates_get_distinct_independent_seeds(tmp_path):
 
 # ----------------------------------------------------------------------------- serial runs
 def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
-    from capsule_env.agents.classical import PassiveController, make_controller
-
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.agents.controllers.classical import PassiveController, make_controller
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     out = tmp_path / "out"
     study = write_study(tmp_path, {"name": "gains", "trials": [GAINS]})

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import capsule_env  # noqa: F401  (registers the tasks)
-from capsule_env.task_cards import load_results, task_cards
+from capsule_env.evaluation.task_cards import load_results, task_cards
 from capsule_env.tasks import TASKS, normalised_score, task_named
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -80,7 +80,7 @@ def test_best_classical_is_the_lowest_wk_of_the_laws_reading_the_same_signals():
 
 
 def test_cards_show_the_preview_horizon_each_row_reads():
-    # the preview laws read their own 1.0 s (agents/tuned_gains.json), the task gives 0.5 s
+    # the preview laws read their own 1.0 s (agents/controllers/tuned_gains.json), the task gives 0.5 s
     page = (ROOT / "docs" / "tasks.md").read_text()
     assert (
         "| `preview-mpc-biexp-meas` | best tuned classical law | measured + preview (1 s) |" in page
@@ -134,7 +134,7 @@ def test_each_card_says_which_law_to_use_with_the_results_figures():
 
 
 def test_readme_table_of_tasks_in_sync():
-    from capsule_env.task_cards import readme_table
+    from capsule_env.evaluation.task_cards import readme_table
 
     readme = (ROOT / "README.md").read_text()
     assert readme_table(load_results(ROOT / "docs" / "figures")) in readme

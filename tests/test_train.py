@@ -19,13 +19,13 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
-from capsule_env.agents import hyperparams, training  # noqa: E402
-from capsule_env.agents.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
-
-from capsule_env import (
-    evaluate,  # noqa: E402
+from capsule_env.agents.learning import (
+    hyperparams,  # noqa: E402
     train,  # noqa: E402
+    training,
 )
+from capsule_env.agents.learning.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
+from capsule_env.evaluation import evaluate  # noqa: E402
 
 pytestmark = pytest.mark.rl
 
@@ -384,14 +384,14 @@ def _copy_run(run: Path, tmp_path: Path) -> Path:
 def test_bare_resume_auto_continues_the_run_with_its_own_arguments(measured_run, tmp_path):
     import shlex
 
-    from capsule_env.config import EnvConfig
+    from capsule_env.engine.config import EnvConfig
 
     run, printed = measured_run
     out = _copy_run(run, tmp_path)
     # the printed command, as a user would paste it (in the folder it names)
     line = [x for x in printed.splitlines() if x.startswith("continue with: ")][0]
     words = shlex.split(line[len("continue with: ") :])
-    assert words[:3] == ["python", "-m", "capsule_env.train"]
+    assert words[:3] == ["python", "-m", "capsule_env.agents.learning.train"]
     assert words[3:] == ["--output-dir", str(run), "--resume", "auto", "--no-progress"]
     words[words.index(str(run))] = str(out)
     summary = train.train(train.parse_args(words[3:]))
@@ -411,7 +411,7 @@ def test_bare_resume_auto_continues_the_run_with_its_own_arguments(measured_run,
 
 
 def test_resume_of_a_run_folder_restores_the_same_arguments(measured_run, tmp_path):
-    from capsule_env.agents.training import prepare
+    from capsule_env.agents.learning.training import prepare
 
     out = _copy_run(measured_run[0], tmp_path)
     for argv in (["--resume", str(out)], ["--resume", str(out / "checkpoints" / "ckpt_000000001024.zip")]):  # fmt: skip
@@ -460,7 +460,7 @@ def test_resume_refuses_an_argument_that_differs_from_the_run(
 def test_resume_of_a_checkpoint_without_stored_arguments(measured_run, tmp_path):
     # a checkpoint of an earlier version: no "args" block; its env arguments, hyperparameters,
     # seed and vehicles are restored all the same
-    from capsule_env.agents.training import prepare
+    from capsule_env.agents.learning.training import prepare
 
     out = _copy_run(measured_run[0], tmp_path)
     meta_path = out / "checkpoints" / "ckpt_000000001024.json"
@@ -572,8 +572,8 @@ def test_the_reference_law_reads_what_the_policy_reads(monkeypatch):
     # issue 40: every run was compared with the ideal-sensor skyhook-cont-biexp; then a run
     # with a preview other than the preview task's was compared with a law without one, and a
     # 'sensors' or 'full_state' run with the clipped LQR, not the best law on its signals
-    from capsule_env.agents import classical_controllers, mpc_solver
-
+    from capsule_env.agents import classical_controllers
+    from capsule_env.agents.controllers import mpc_solver
     from capsule_env.tasks import TASKS
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda *a: True)

@@ -17,7 +17,7 @@ pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
 from test_train import ROOT, edited_yml, fast_args  # noqa: E402
 
-from capsule_env import train  # noqa: E402
+from capsule_env.agents.learning import train  # noqa: E402
 
 pytestmark = pytest.mark.rl
 
@@ -112,7 +112,7 @@ def test_an_evaluation_seed_out_of_range_is_one_line(seed, episodes, capsys):
 KILL_AFTER_FIRST_EVALUATION = """
 import os, signal, sys
 from stable_baselines3.common.callbacks import BaseCallback
-from capsule_env import train
+from capsule_env.agents.learning import train
 
 class Kill(BaseCallback):  # SIGKILL: no Ctrl-C checkpoint, no final save
     def _on_step(self):
@@ -185,7 +185,7 @@ def test_two_new_runs_started_at_once_into_one_folder(tiny_yml, tmp_path, monkey
     # both look at the folder before either makes it: the second to make it is refused
     import os
 
-    from capsule_env.agents import training
+    from capsule_env.agents.learning import training
 
     out = tmp_path / "run"
     real = training.make_run_folders

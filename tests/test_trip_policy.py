@@ -18,17 +18,17 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)
 
-from capsule_env.agents.run_args import restore_arguments  # noqa: E402
-from capsule_env.agents.sb3_policy import (  # noqa: E402
+import capsule_env  # noqa: E402, F401  (registers the tasks)
+from capsule_env.agents.learning import train
+from capsule_env.agents.learning.run_args import restore_arguments  # noqa: E402
+from capsule_env.agents.learning.sb3_policy import (  # noqa: E402
     PRETRAINED_DIR,
     SB3Policy,
     fits_condition,
     shipped_policy_paths,
 )
-from capsule_env.agents.training import prepare  # noqa: E402
-
-import capsule_env  # noqa: E402, F401  (registers the tasks)
-from capsule_env import evaluate, train  # noqa: E402
+from capsule_env.agents.learning.training import prepare  # noqa: E402
+from capsule_env.evaluation import evaluate  # noqa: E402
 from capsule_env.tasks import task_named  # noqa: E402
 
 pytestmark = pytest.mark.rl
@@ -158,9 +158,9 @@ def test_the_shipped_residual_on_the_trip_mpc_is_the_mpc_plus_a_bounded_correcti
     scale), checked against an independent MPC fed the same observations, on four trips; it
     corrects (the requests differ) and stays within the damper's range."""
     pytest.importorskip("daqp", reason="the MPC's QP solver (the mpc extra)")
-    from capsule_env.agents.classical import make_controller
-    from capsule_env.agents.residual import ResidualPolicy
-    from capsule_env.agents.sb3_policy import load_policy
+    from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.agents.learning.residual import ResidualPolicy
+    from capsule_env.agents.learning.sb3_policy import load_policy
 
     policy = load_policy(PRETRAINED_DIR / "residual-ppo-mpc-trip.zip")
     assert isinstance(policy, ResidualPolicy) and policy.meta["residual"]["law"] == "mpc-biexp-meas"

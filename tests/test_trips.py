@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from capsule_env.trips import (
+from capsule_env.envelope.trips import (
     TripParams,
     draw_window_start_s,
     trip_acceleration_m_s2,

@@ -1,4 +1,4 @@
-"""The gain search (agents/tuning.py), the shipped tuned gains and the Pareto figure."""
+"""The gain search (agents/controllers/tuning.py), the shipped tuned gains and the Pareto figure."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from capsule_env.agents import classical_controllers, make_controller
-from capsule_env.agents.classical import PAPER_FIXED
-from capsule_env.agents.search_space import SEARCH_SPACES
-from capsule_env.agents.tuned import TUNED_GAINS_PATH
-from capsule_env.agents.tuning import TuningSettings, evaluate_gains, main, tune
 
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED
+from capsule_env.agents import classical_controllers, make_controller
+from capsule_env.agents.controllers.classical import PAPER_FIXED
+from capsule_env.agents.controllers.tuned import TUNED_GAINS_PATH
+from capsule_env.agents.controllers.tuning import TuningSettings, evaluate_gains, main, tune
+from capsule_env.agents.learning.search_space import SEARCH_SPACES
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = dataclasses.replace(TuningSettings.quick(), episode_length_s=1.0)

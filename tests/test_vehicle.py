@@ -1,4 +1,4 @@
-"""Tests of capsule_env.vehicle against independent facts.
+"""Tests of capsule_env.vehicles.modes against independent facts.
 
 The 2-DOF plant of docs/model.md, section 2 is written out here by hand (equations of motion, the
 closed-form characteristic polynomial det(K - w^2 M) = 0) and the module's matrices, modes and
@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from capsule_env.vehicle import (
-    VehicleParams,
+from capsule_env.vehicles import VehicleParams
+from capsule_env.vehicles.modes import (
     frequency_response,
     modal_properties,
     natural_frequencies_hz,

@@ -13,9 +13,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from capsule_env.agents.lqr import lqr_gain
 
-from capsule_env.vehicle import VehicleParams, natural_frequencies_hz, state_space
+from capsule_env.agents.controllers.lqr import lqr_gain
 from capsule_env.vehicles import (
     DAMPER,
     DASHPOT,
@@ -25,6 +24,7 @@ from capsule_env.vehicles import (
     Element,
     Point,
     VehicleModel,
+    VehicleParams,
     absolute_model,
     mechanical_matrices,
     model_named,
@@ -34,6 +34,7 @@ from capsule_env.vehicles import (
     relative_model,
     unregister,
 )
+from capsule_env.vehicles.modes import natural_frequencies_hz, state_space
 from capsule_env.vehicles.quarter_car import MODEL as QUARTER_CAR
 
 P = VehicleParams(car_body_mass_kg=5500.0, levitation_damping_n_s_per_m=-700.0)
@@ -258,7 +259,9 @@ def test_the_env_names_a_vehicle_it_cannot_run():
             gym.make("CapsuleSuspension-v0", vehicle="seat_toy")
     finally:
         unregister("seat_toy")
-    with pytest.raises(ValueError, match="unknown vehicle .no_such_vehicle.; accepted values: quarter_car"):
+    with pytest.raises(
+        ValueError, match="unknown vehicle .no_such_vehicle.; accepted values: quarter_car"
+    ):
         gym.make("CapsuleSuspension-v0", vehicle="no_such_vehicle")
     with pytest.raises(ValueError, match="unknown key 'seat_mass_kg' in vehicle_params"):
         gym.make("CapsuleSuspension-v0", vehicle_params={"seat_mass_kg": 1.0})

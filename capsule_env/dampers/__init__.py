@@ -25,9 +25,6 @@ Adding a model: docs/howto-damper-model.md.
 
 from __future__ import annotations
 
-import warnings
-from typing import Any
-
 from capsule_env._jit import inlined, kernel_function
 from capsule_env.dampers.api import damper_force, make_damper
 from capsule_env.dampers.base import (
@@ -82,27 +79,3 @@ PASSIVE, REFERENCE, BOUC_WEN, TANH, BI_EXPONENTIAL = (
 DamperParams = LinearDamper | ReferenceDamper | BoucWenDamper | TanhDamper | BiExponentialDamper
 
 #: Names of the former single module that moved: where they live now.
-_MOVED = {
-    "spencer_force": "capsule_env.dampers.reference",
-    "spencer_inv_dashpots": "capsule_env.dampers.reference",
-    "bouc_wen_force": "capsule_env.dampers.compat",
-    "tanh_force": "capsule_env.dampers.compat",
-    "bi_exponential_force": "capsule_env.dampers.compat",
-    "damper_eval": "capsule_env.dampers.dispatch",
-    "hysteresis_params": "capsule_env.dampers.dispatch",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        module = _MOVED[name]
-        warnings.warn(
-            f"capsule_env.dampers.{name} moved to {module}.{name} (the damper models are one "
-            "module each since issue 26)",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        import importlib
-
-        return getattr(importlib.import_module(module), name)
-    raise AttributeError(f"module 'capsule_env.dampers' has no attribute {name!r}")

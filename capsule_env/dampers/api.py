@@ -7,11 +7,11 @@ from dataclasses import fields
 import numpy as np
 from numba import literally, njit
 
-from capsule_env._validation import check_array_in_range
+from capsule_env.common.validation import check_array_in_range
 from capsule_env.dampers.base import N_DAMPER_PARAMS, DamperParamsBase
 from capsule_env.dampers.dispatch import damper_eval, hysteresis_params
+from capsule_env.dampers.hysteresis import hysteresis_rate
 from capsule_env.dampers.registry import model_named
-from capsule_env.hysteresis import hysteresis_rate
 
 __all__ = ["make_damper", "damper_force"]
 

@@ -36,7 +36,7 @@ import numpy as np
 from numba import njit
 
 from capsule_env._jit import inlined, kernel_function
-from capsule_env._validation import check_finite, check_nonnegative, check_positive
+from capsule_env.common.validation import check_finite, check_nonnegative, check_positive
 
 __all__ = [
     "MAX_MODEL_PARAMS",

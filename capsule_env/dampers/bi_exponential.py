@@ -9,7 +9,7 @@ import numpy as np
 
 from capsule_env._fastmath import fast_exp
 from capsule_env._jit import inlined, kernel_function
-from capsule_env._validation import check_positive
+from capsule_env.common.validation import check_positive
 from capsule_env.dampers.base import (
     BRANCH_BLEND,
     DamperModel,
@@ -45,7 +45,7 @@ class BiExponentialDamper(DamperParamsBase):
     fixed-step integrator converges there.
     Default values: identified from the reference damper's loops by the paper's procedure
     (per branch and current fits; d = mean over currents; a, b, c refitted and made linear in
-    current; ``python -m capsule_env.identify --emit-defaults``), with the literal branch split
+    current; ``python -m capsule_env.identification.cli --emit-defaults``), with the literal branch split
     ``x >= 0`` / ``x < 0`` (``fit_bi_exponential(loops, branch_gap_m=0.0)``). Today's
     ``--emit-defaults`` leaves out the samples within ``branch_blend_m`` of ``x = 0`` (two of
     1000 per loop) and differs by up to 0.58 %; the defaults were kept (docs/model.md 6).

@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from capsule_env._jit import inlined, kernel_function
-from capsule_env._validation import check_positive
+from capsule_env.common.validation import check_positive
 from capsule_env.dampers.base import (
     DamperModel,
     DamperParamsBase,
@@ -34,7 +34,7 @@ class BoucWenDamper(DamperParamsBase):
 
     Default values: identified from the reference damper's loops (1 Hz, +-25 mm, 0-1.5 A) by
     nonlinear least squares in the A = 1 form (z in metres, yield displacement
-    ``1/sqrt(gamma + beta)``): ``python -m capsule_env.identify --emit-defaults`` regenerates
+    ``1/sqrt(gamma + beta)``): ``python -m capsule_env.identification.cli --emit-defaults`` regenerates
     them and ``tests/test_identification.py`` checks they agree. ``n`` is fixed at 2
     (closed-form hysteresis update).
     """

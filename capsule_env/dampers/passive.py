@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from capsule_env._jit import kernel_function
-from capsule_env._validation import check_nonnegative
+from capsule_env.common.validation import check_nonnegative
 from capsule_env.dampers.base import DamperModel, DamperParamsBase, slots
 
 __all__ = ["LinearDamper", "MODEL"]

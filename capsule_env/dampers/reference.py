@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from capsule_env._jit import kernel_function
-from capsule_env._validation import check_nonnegative, check_positive
+from capsule_env.common.validation import check_nonnegative, check_positive
 from capsule_env.dampers.base import (
     DamperModel,
     DamperParamsBase,

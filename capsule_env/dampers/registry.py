@@ -9,8 +9,8 @@ dispatch (:mod:`capsule_env.dampers.dispatch`), the substep rule, the inverses, 
 
 from __future__ import annotations
 
-from capsule_env._discover import modules_exporting_model
-from capsule_env._validation import check_choice
+from capsule_env.common.discover import modules_exporting_model
+from capsule_env.common.validation import check_choice
 from capsule_env.dampers.base import DamperModel
 
 __all__ = [
@@ -24,7 +24,7 @@ __all__ = [
 ]
 
 #: Modules of this package that are machinery, not models.
-_NOT_MODELS = frozenset({"base", "registry", "dispatch", "api", "compat"})
+_NOT_MODELS = frozenset({"base", "registry", "dispatch", "api", "hysteresis", "inverse", "rig"})
 
 #: Every model by name, in code order (the built-in ones, then registered ones).
 MODELS: dict[str, DamperModel] = {}

@@ -9,7 +9,7 @@ import numpy as np
 
 from capsule_env._fastmath import fast_tanh_nonneg
 from capsule_env._jit import inlined, kernel_function
-from capsule_env._validation import check_positive
+from capsule_env.common.validation import check_positive
 from capsule_env.dampers.base import (
     BRANCH_BLEND,
     DamperModel,
@@ -37,7 +37,7 @@ class TanhDamper(DamperParamsBase):
     x = 0, where a vehicle at rest starts, and no fixed-step integrator converges there.
 
     Default values: identified from the reference damper's loops (variable projection over
-    beta, delta; ``python -m capsule_env.identify --emit-defaults``).
+    beta, delta; ``python -m capsule_env.identification.cli --emit-defaults``).
     """
 
     c_a: float = 7712.4

@@ -1,7 +1,7 @@
 """CapsuleSuspension-v0: semi-active MR-damper secondary suspension of a Hyperloop capsule.
 
 The single environment and its native vector environment. Both are thin shells over
-:class:`capsule_env.batch.CapsuleBatch` (one compiled kernel for 1 or thousands of vehicles).
+:class:`capsule_env.engine.batch.CapsuleBatch` (one compiled kernel for 1 or thousands of vehicles).
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from capsule_env.batch import CapsuleBatch, vehicle_streams
-from capsule_env.config import EnvConfig, check_num_envs, check_seed, observation_bounds
+from capsule_env.engine.batch import CapsuleBatch, vehicle_streams
+from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed, observation_bounds
+from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
-from capsule_env.layout import SIGNAL_NAMES
-from capsule_env.render import render_vehicle
+from capsule_env.envs.render import render_vehicle
 
 __all__ = [
     "CapsuleSuspensionEnv",
@@ -212,7 +212,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     ## Arguments
 
     ``gymnasium.make("CapsuleSuspension-v0", **kwargs)`` with any field of
-    :class:`capsule_env.config.EnvConfig`, each validated (a bad value raises ``ValueError``
+    :class:`capsule_env.engine.config.EnvConfig`, each validated (a bad value raises ``ValueError``
     naming the argument and the accepted values):
 
     - ``action_mode``: ``"force"`` | ``"current"``.
@@ -246,11 +246,11 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       uniform factor on each of m_c, m_b, k_s, k_p), ``speed_range_kmh`` (low, high) and
       ``payload_range`` (low, high: a uniform change of the car body mass, as a fraction, e.g.
       ``(-0.3, 0.4)``).
-    - The operating envelope (:mod:`capsule_env.envelope`, docs/model.md section 13; each off by
+    - The operating envelope (:mod:`capsule_env.envelope.options`, docs/model.md section 13; each off by
       default): ``levitation`` (``"fixed"`` | ``"eds"``: the levitation's stiffness and damping
-      follow the speed, ``levitation_params`` :class:`capsule_env.levitation.EdsParams`
+      follow the speed, ``levitation_params`` :class:`capsule_env.envelope.levitation.EdsParams`
       fields), ``speed_profile`` (``"constant"`` | ``"trip"``: each episode a window of a trip
-      from lift-off to cruise and back, ``trip_params`` :class:`capsule_env.trips.TripParams`
+      from lift-off to cruise and back, ``trip_params`` :class:`capsule_env.envelope.trips.TripParams`
       fields), ``spans`` (``"none"`` | ``"continuous"`` | ``"simply_supported"``: the tube's
       sag between pylons and their settlement added to the guideway, ``span_params``
       :class:`capsule_env.guideway.spans.SpanParams` fields but ``shape``).
@@ -259,7 +259,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       200 by default, set per instance), so a video written by Gymnasium's ``RecordVideo`` (or
       SB3's ``VecVideoRecorder``) plays in real time.
 
-    An unknown argument raises :class:`capsule_env.config.UnexpectedArgumentError`, both a
+    An unknown argument raises :class:`capsule_env.engine.config.UnexpectedArgumentError`, both a
     ``TypeError`` worded as Python's (``... got an unexpected keyword argument 'frameskip'``,
     what TorchRL's ``GymEnv`` expects) and a ``ValueError``, listing the accepted names.
 
@@ -384,7 +384,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     ``reset(seed=[s_0, ..., s_{N-1}])`` gives vehicle ``n`` the stream of the single env seeded
     ``s_n``. ``info`` is a dict of arrays (one entry per vehicle, fresh arrays every step) with
     Gymnasium's ``_key`` masks. Actions: shape ``(num_envs, 1)`` (the action space) or
-    ``(num_envs,)``. Batches of 64 or more are split across threads (:mod:`capsule_env.kernels`).
+    ``(num_envs,)``. Batches of 64 or more are split across threads (:mod:`capsule_env.engine.kernels`).
 
     ``autoreset_mode`` (``gymnasium.vector.AutoresetMode`` or its string value, also through
     ``gymnasium.make_vec(..., vectorization_mode="vector_entry_point", autoreset_mode=...)``;

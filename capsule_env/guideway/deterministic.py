@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from capsule_env._validation import check_finite, check_nonnegative, check_positive
+from capsule_env.common.validation import check_finite, check_nonnegative, check_positive
 from capsule_env.guideway.sampling import positions
 
 __all__ = ["bump_profile", "sine_profile", "step_profile", "swept_sine_profile"]

@@ -7,7 +7,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_choice, check_finite, check_nonnegative, check_positive
+from capsule_env.common.units import kmh_to_m_s
+from capsule_env.common.validation import (
+    check_choice,
+    check_finite,
+    check_nonnegative,
+    check_positive,
+)
 from capsule_env.guideway.deterministic import (
     bump_profile,
     sine_profile,
@@ -15,7 +21,6 @@ from capsule_env.guideway.deterministic import (
     swept_sine_profile,
 )
 from capsule_env.guideway.random import FRA_CLASS6, FraPsdParams, random_profile
-from capsule_env.units import kmh_to_m_s
 
 __all__ = [
     "GUIDEWAY_KINDS",

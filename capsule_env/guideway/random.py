@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_nonnegative, check_positive
+from capsule_env.common.validation import check_nonnegative, check_positive
 from capsule_env.guideway.sampling import n_samples
 
 __all__ = ["FRA_CLASS6", "FraPsdParams", "fft_length", "fra_psd", "random_profile"]

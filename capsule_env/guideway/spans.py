@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_choice, check_in_range
+from capsule_env.common.validation import check_choice, check_in_range
 
 __all__ = ["SPAN_SHAPES", "SpanParams", "span_shape", "span_profile"]
 

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from capsule_env._validation import check_in_range, check_positive
+from capsule_env.common.validation import check_in_range, check_positive
 from capsule_env.dampers import BiExponentialDamper
 from capsule_env.identification.least_squares import line_fit, lstsq, velocity_scale
 from capsule_env.identification.loops import (

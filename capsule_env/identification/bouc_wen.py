@@ -8,7 +8,7 @@ damping, stiffness and ``alpha`` coefficients once ``z_y`` and the loop-shape ra
 ``(beta - gamma)/(beta + gamma)`` are fixed.
 
 The response is simulated with the exact closed-form ``n = 2`` hysteresis update
-(:func:`capsule_env.hysteresis.hysteresis_update`) on the loop's stroke samples, linear between
+(:func:`capsule_env.dampers.hysteresis.hysteresis_update`) on the loop's stroke samples, linear between
 samples (exact for a piecewise-monotone stroke, no ODE solver), from ``z = 0`` over one
 preceding period of the stroke, so that the fitted part is the steady response
 (:class:`BoucWenSequences`, also used by
@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from capsule_env.dampers import BoucWenDamper
-from capsule_env.hysteresis import hysteresis_update
+from capsule_env.dampers.hysteresis import hysteresis_update
 from capsule_env.identification.least_squares import lstsq, multistart_least_squares
 from capsule_env.identification.loops import (
     Loop,

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_in_range, check_positive
-from capsule_env.damper_rig import simulate_damper, sinusoidal_stroke
+from capsule_env.common.validation import check_in_range, check_positive
 from capsule_env.dampers import DamperParams, ReferenceDamper
+from capsule_env.dampers.rig import simulate_damper, sinusoidal_stroke
 
 __all__ = [
     "DEFAULT_CURRENTS_A",
@@ -122,7 +122,7 @@ def reference_loops(
 
     The stroke ``x = amplitude sin(2 pi f t)`` runs for ``cycles`` periods at each constant
     ``current`` (the model's internal states start at zero,
-    :func:`capsule_env.damper_rig.simulate_damper`); the last full period is kept, sampled at
+    :func:`capsule_env.dampers.rig.simulate_damper`); the last full period is kept, sampled at
     ``samples_per_cycle`` points over ``[0, T)`` (it starts at ``x = 0``, ``v > 0``).
 
     Parameters

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from scipy import io as sio
 
-from capsule_env._validation import check_in_range
+from capsule_env.common.validation import check_in_range
 from capsule_env.identification.loops import Loop
 
 __all__ = ["MAX_MEASURED_MAGNITUDE", "load_measured_loop", "measured_files"]

@@ -22,7 +22,7 @@ Errors about the physics (issue 40: a sign-flipped loop fitted a negative dampin
 fitted with an RMSE of 56 % of its peak, and the env took such parameters as its plant):
 
 - a loop whose force does not dissipate: its work per cycle below
-  :data:`~capsule_env.damper_rig.MIN_DISSIPATION_RATIO` of ``rms(F) rms(v) T`` (measured loops
+  :data:`~capsule_env.dampers.rig.MIN_DISSIPATION_RATIO` of ``rms(F) rms(v) T`` (measured loops
   0.85-0.96, noise about 0, a sign-flipped loop -0.96);
 - a fitted model whose predicted force on the loops does not dissipate;
 - no model fitting within :data:`MAX_FIT_RMSE_FRACTION` of the peak force (the measured loops'
@@ -203,7 +203,7 @@ MAX_FIT_RMSE_FRACTION = 0.25
 def check_dissipation(loops: Sequence[Loop], name: str) -> None:
     """``ValueError`` when a loop's force does not dissipate: no damper's force feeds energy
     into the stroke (a sign flipped when recorded) or is uncorrelated with it (noise)."""
-    from capsule_env.damper_rig import MIN_DISSIPATION_RATIO, dissipation_ratio
+    from capsule_env.dampers.rig import MIN_DISSIPATION_RATIO, dissipation_ratio
 
     for loop in loops:
         ratio = dissipation_ratio(loop.time_s, loop.force_n, loop.stroke_rate_m_s)
@@ -221,7 +221,7 @@ def check_fit_quality(result: IdentificationResult, name: str, allow_poor_fit: b
     """``ValueError`` when a fitted model's force on the loops does not dissipate, or when no
     model fits within :data:`MAX_FIT_RMSE_FRACTION` of the peak force (unless
     ``allow_poor_fit``: a research escape hatch, the figure still reported)."""
-    from capsule_env.damper_rig import MIN_DISSIPATION_RATIO, dissipation_ratio
+    from capsule_env.dampers.rig import MIN_DISSIPATION_RATIO, dissipation_ratio
     from capsule_env.identification.predict import predict_force
 
     for fit in result.models.values():

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from capsule_env.damper_rig import simulate_damper
 from capsule_env.dampers import BOUC_WEN, REFERENCE, DamperParams, damper_force
+from capsule_env.dampers.rig import simulate_damper
 from capsule_env.identification.bouc_wen import BoucWenSequences
 from capsule_env.identification.loops import Loop, warm_sequence
 
@@ -25,7 +25,7 @@ def predict_force(damper: DamperParams, loop: Loop, substeps: int = 4) -> np.nda
     :func:`capsule_env.dampers.damper_force`. Models with internal states are simulated from
     zero state over one preceding period of the stroke (the loop itself when periodic), so
     the prediction is the steady response: Bouc-Wen with the exact hysteresis update on the
-    stroke samples, the reference damper with :func:`capsule_env.damper_rig.simulate_damper`.
+    stroke samples, the reference damper with :func:`capsule_env.dampers.rig.simulate_damper`.
     """
     x, v, i = loop.stroke_m, loop.stroke_rate_m_s, np.full(loop.n_samples, loop.current_a)
     if damper.code == BOUC_WEN:

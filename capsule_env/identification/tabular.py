@@ -67,7 +67,7 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import savgol_filter
 
-from capsule_env._validation import check_in_range, check_positive
+from capsule_env.common.validation import check_in_range, check_positive
 from capsule_env.identification.loops import Loop
 from capsule_env.identification.measured import MAX_MEASURED_MAGNITUDE, load_measured_loop
 from capsule_env.identification.plausibility import (

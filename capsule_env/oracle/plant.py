@@ -3,7 +3,7 @@ adjoint gradient of the ride objective with respect to the applied coil current.
 
 :class:`OracleEpisodes` holds what each episode of the env is made of (vehicle, damper, route
 over the guideway bank, start state, substep tables), exactly as ``CapsuleBatch`` draws it at
-the reset, and steps it with the env's own compiled plant kernel (``capsule_env.kernels``):
+the reset, and steps it with the env's own compiled plant kernel (``capsule_env.engine.kernels``):
 
 - :meth:`OracleEpisodes.run` replays applied-current sequences open loop, many trajectories in
   one kernel call per control step;
@@ -29,11 +29,11 @@ import numpy as np
 from numba import njit
 
 from capsule_env import metrics
-from capsule_env.batch import CapsuleBatch
-from capsule_env.config import EnvConfig
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.kernels import PLANT, BatchedKernel
-from capsule_env.layout import (
+from capsule_env.engine.batch import CapsuleBatch
+from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.kernels import PLANT, BatchedKernel
+from capsule_env.engine.layout import (
     BODY_DISP,
     BODY_VEL,
     BOGIE_DISP,
@@ -227,14 +227,14 @@ def _tile(rows: np.ndarray, lanes: np.ndarray) -> np.ndarray:
 
 class OracleEpisodes:
     """The episodes an env runs for ``seeds`` (episode ``k``: the single env seeded
-    ``seeds[k]``, as :func:`capsule_env.evaluation.run_episodes` runs them), replayed open loop.
+    ``seeds[k]``, as :func:`capsule_env.evaluation.episodes.run_episodes` runs them), replayed open loop.
 
     Two substep rules: ``"env"``, the env's adaptive tables (what the evaluation measures), and
     ``"search"``, each episode's largest table entry at every current (no substep-count
     switching: the step map is smooth in the current, which finite differences need; it is
     the finer integration, within the tables' 0.5 % force accuracy of the env's).
 
-    Public attributes: ``config`` (:class:`~capsule_env.config.EnvConfig`), ``seeds``,
+    Public attributes: ``config`` (:class:`~capsule_env.engine.config.EnvConfig`), ``seeds``,
     ``n_episodes``, ``n_steps``, ``dt_s``, ``i_max`` (A), ``code`` (plant damper), ``columns``
     (:func:`active_state_columns`), ``state0`` (E, STATE_SIZE), ``damper_params``,
     ``vehicle_params``, ``env_tables`` and ``search_tables`` (E, bins).

@@ -15,15 +15,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import Bounds, minimize
 
-from capsule_env._validation import check_integer, check_nonnegative, check_positive
-from capsule_env.config import check_seed
-from capsule_env.evaluation import (
-    EVALUATION_GUIDEWAY_SEED,
-    RECORDED,
-    Rollout,
-    check_episode_length,
-)
-from capsule_env.layout import (
+from capsule_env.common.validation import check_integer, check_nonnegative, check_positive
+from capsule_env.engine.config import check_seed
+from capsule_env.engine.layout import (
     BODY_DISP,
     BODY_VEL,
     BOGIE_DISP,
@@ -32,6 +26,12 @@ from capsule_env.layout import (
     OUT_BODY_ACC,
     OUT_FORCE,
     OUT_GUIDEWAY,
+)
+from capsule_env.evaluation.episodes import (
+    EVALUATION_GUIDEWAY_SEED,
+    RECORDED,
+    Rollout,
+    check_episode_length,
 )
 from capsule_env.oracle.plant import OracleEpisodes, RideObjective, adjoint_gradient
 
@@ -76,7 +76,7 @@ class OracleResult:
     currents_a
         (E, T) the best applied-current sequence found (A).
     signals
-        ``capsule_env.evaluation.RECORDED`` signals of the best runs, (E, T) each
+        ``capsule_env.evaluation.episodes.RECORDED`` signals of the best runs, (E, T) each
         (``current_command_a`` is the applied current; ``desired_force_n`` is 0: no force is
         requested), as the env records them.
     wk_rms_body_acc_m_s2
@@ -131,8 +131,8 @@ class OracleResult:
 
     @property
     def rollout(self) -> Rollout:
-        """The best runs as a :class:`~capsule_env.evaluation.Rollout` (current mode), for
-        :func:`capsule_env.evaluation.episode_metrics` like any controller's."""
+        """The best runs as a :class:`~capsule_env.evaluation.episodes.Rollout` (current mode), for
+        :func:`capsule_env.evaluation.episodes.episode_metrics` like any controller's."""
         return Rollout(self.signals, self.dt_s, self.terminated.copy(), "current")
 
     @property
@@ -458,15 +458,15 @@ def clairvoyant_bound(
     env_kwargs
         The env's arguments (``setting``, ``damper``, ``vehicle_randomization``,
         ``control_rate_hz``...; ``guideway_seed`` defaults to
-        :data:`~capsule_env.evaluation.EVALUATION_GUIDEWAY_SEED`). Arguments that only shape the
+        :data:`~capsule_env.evaluation.episodes.EVALUATION_GUIDEWAY_SEED`). Arguments that only shape the
         controller's side (action mode, observation, noise, delay) change nothing here; the
         ``sim`` plant is the model ``inverse_model`` names (default Bi-exponential).
     seeds
         Episode ``k`` is the single env seeded ``seeds[k]`` (as
-        :func:`capsule_env.evaluation.run_episodes` runs ``seed + k``); default 1000..1009.
+        :func:`capsule_env.evaluation.episodes.run_episodes` runs ``seed + k``); default 1000..1009.
     episode_length_s
         Episode length (s): a number > 0, long enough for the metrics' spectra
-        (:func:`capsule_env.evaluation.check_episode_length`).
+        (:func:`capsule_env.evaluation.episodes.check_episode_length`).
     starts
         The search's starts: names of :data:`START_NAMES`, constant currents (A), or
         current arrays, (T,) or (E, T) (e.g. :func:`applied_currents` of a controller's
@@ -509,7 +509,7 @@ def clairvoyant_bound(
         spectra, ``max_iter=0``, an empty ``seeds``, an unknown start, an env argument the
         env refuses, ``env_kwargs`` setting ``episode_length_s`` or ``num_envs``); the message
         names the argument and its accepted range. An unknown env argument raises
-        :class:`~capsule_env._validation.UnexpectedArgumentError`, both a ``TypeError`` and a
+        :class:`~capsule_env.common.validation.UnexpectedArgumentError`, both a ``TypeError`` and a
         ``ValueError``.
     """
     options = {

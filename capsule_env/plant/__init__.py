@@ -8,7 +8,7 @@
   (:func:`simulate`).
 - :mod:`~capsule_env.plant.params`: the named structures the kernels take.
 
-The plant state's columns are ``capsule_env.layout.STATE_NAMES``.
+The plant state's columns are ``capsule_env.engine.layout.STATE_NAMES``.
 """
 
 from capsule_env.plant.block import block_constants, block_kernel_mode

@@ -24,9 +24,9 @@ from numba import njit
 
 from capsule_env._fastmath import BORROWED, FAST
 from capsule_env._jit import specialised
+from capsule_env.dampers.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.hysteresis import N_RICCATI_CONSTANTS, riccati_constants
-from capsule_env.layout import (
+from capsule_env.engine.layout import (
     COIL_CURRENT,
     COIL_TAU,
     DAMP_LEVITATION,

@@ -8,7 +8,7 @@
 ``F``: the damper force (N, > 0 resisting a positive stroke rate, acting as ``-F`` on the car
 body and ``+F`` on the bogie); ``F_lev``: the EDS levitation's restoring force on the bogie
 (the primary suspension; the paper's is undamped, ``c_p = 0``, its stiffness taken at the
-design speed; ``levitation="eds"`` makes both follow the speed, :mod:`capsule_env.levitation`).
+design speed; ``levitation="eds"`` makes both follow the speed, :mod:`capsule_env.envelope.levitation`).
 The damping term is compiled only into the kernels of plants that have it (the ``damped``
 flag): the paper's plant runs the arithmetic it always ran, bit for bit. Every RK4 stage
 of the plant (:mod:`capsule_env.plant.rk4`) and its outputs call :func:`accelerations`; a

@@ -1,5 +1,5 @@
 """The named structures the plant kernels take (as gymnax and Brax pass ``EnvParams``):
-each field an array with a documented layout (:mod:`capsule_env.layout`), one row per vehicle.
+each field an array with a documented layout (:mod:`capsule_env.engine.layout`), one row per vehicle.
 """
 
 from __future__ import annotations

@@ -38,12 +38,11 @@ from scipy.integrate import solve_ivp
 from capsule_env.dampers import DamperParams
 from capsule_env.dampers.dispatch import damper_eval
 from capsule_env.dampers.dispatch import hysteresis_params as _hysteresis_params
+from capsule_env.dampers.hysteresis import hysteresis_rate, saturation_level
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.hysteresis import hysteresis_rate, saturation_level
-from capsule_env.layout import COIL_TAU
+from capsule_env.engine.layout import COIL_TAU
 from capsule_env.plant.block import guideway_elevation
-from capsule_env.vehicle import VehicleParams
-from capsule_env.vehicles import absolute_model, model_of_params
+from capsule_env.vehicles import VehicleParams, absolute_model, model_of_params
 
 __all__ = ["ODE_STATE_NAMES", "VariableStepPlant", "simulate_variable_step"]
 
@@ -123,7 +122,7 @@ class VariableStepPlant:
     spacing_m : its sample spacing (m).
     speed_mps : the vehicle's speed (m/s); ``start_m`` its start on the profile (m);
         ``gain`` a scale of the profile (the env's route).
-    vehicle : the vehicle (default :class:`~capsule_env.vehicle.VehicleParams`).
+    vehicle : the vehicle (default :class:`~capsule_env.vehicles.modes.VehicleParams`).
     method, rtol, atol : the solver, its relative tolerance, and per-state absolute
         tolerances (None: ``rtol x`` the scales of the module doc).
     """

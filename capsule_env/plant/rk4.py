@@ -4,7 +4,7 @@ One substep ``h`` of classical RK4 on ``[z_c, z_c', z_b, z_b', y]`` (masses and 
 internal displacement), with
 
 - the stiff hysteretic variable ``z`` taken at every stage from the exact closed-form
-  Bouc-Wen update over the stage's deformation increment (:mod:`capsule_env.hysteresis`);
+  Bouc-Wen update over the stage's deformation increment (:mod:`capsule_env.dampers.hysteresis`);
 - the coil current following its command through the first-order lag, solved exactly
   (``e_half = exp(-h / (2 tau))`` per half substep; 0 without lag);
 - the guideway elevation at the start, middle and end of the substep given by the caller;
@@ -13,7 +13,7 @@ internal displacement), with
   profile when the substep lies between two samples).
 
 Everything is written without branches or library calls in the vectorised variants (the
-damper laws of :mod:`capsule_env.dampers`, :func:`~capsule_env.hysteresis.hysteresis_update_fast`),
+damper laws of :mod:`capsule_env.dampers`, :func:`~capsule_env.dampers.hysteresis.hysteresis_update_fast`),
 so that a loop over vehicles vectorises; the scalar kernel uses the general hysteresis update
 (Bouc-Wen's unloading branch needs tan/atan).
 
@@ -30,8 +30,8 @@ from __future__ import annotations
 
 from capsule_env._jit import kernel_function, specialised
 from capsule_env.dampers.dispatch import model_force, model_prepare
+from capsule_env.dampers.hysteresis import hysteresis_update, hysteresis_update_fast
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.hysteresis import hysteresis_update, hysteresis_update_fast
 from capsule_env.plant.equations import VEHICLE_LANE_NAMES, accelerations, levitation_force
 
 __all__ = [

@@ -13,7 +13,7 @@ import math
 
 from capsule_env._jit import specialised
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.layout import (
+from capsule_env.engine.layout import (
     BODY_DISP,
     BODY_VEL,
     BOGIE_DISP,

@@ -3,7 +3,7 @@
 :func:`step_batch` advances ``N`` vehicles by one control interval with the compiled kernels
 (the vectorised block kernel where the damper model allows, else the scalar one; on all cores
 for large batches); :func:`simulate` runs one vehicle open loop over a guideway profile and
-returns its time series. The env uses the same kernels (:mod:`capsule_env.kernels`).
+returns its time series. The env uses the same kernels (:mod:`capsule_env.engine.kernels`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from capsule_env.dampers import DamperParams
-from capsule_env.layout import (
+from capsule_env.engine.layout import (
     BODY_DISP,
     BODY_VEL,
     BOGIE_DISP,
@@ -26,7 +26,7 @@ from capsule_env.layout import (
 from capsule_env.plant.block import block_constants, block_kernel_mode, levitation_damped
 from capsule_env.plant.params import PlantParams, Route
 from capsule_env.plant.substeps import as_substep_table, substep_table
-from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleParams
 
 __all__ = ["initial_state", "make_plant_params", "step_batch", "simulate"]
 
@@ -87,7 +87,7 @@ def step_batch(
     -----
     All arrays must be C-contiguous float64 (int64 for ``route.profile``).
     """
-    from capsule_env.kernels import PLANT, BatchedKernel
+    from capsule_env.engine.kernels import PLANT, BatchedKernel
 
     mode = block_kernel_mode(damper_code, plant.damper, levitation_damped(plant.vehicle))
     BatchedKernel(PLANT, damper_code, mode, state.shape[0])(
@@ -118,7 +118,7 @@ def simulate(
     ``bogie_velocity_m_s``, ``stroke_m``, ``stroke_rate_m_s``, ``coil_current_a``,
     ``hysteretic_z_m`` and the ``layout.PLANT_OUTPUT_NAMES`` (NaN at t = 0).
     """
-    from capsule_env.kernels import PLANT, BatchedKernel
+    from capsule_env.engine.kernels import PLANT, BatchedKernel
 
     vehicle = vehicle or VehicleParams()
     n_steps = int(round(duration_s / dt_s))

@@ -15,7 +15,7 @@ import numpy as np
 
 from capsule_env.dampers.base import DamperParamsBase as DamperParams  # any registered model
 from capsule_env.dampers.registry import model_of_code
-from capsule_env.vehicle import VehicleParams
+from capsule_env.vehicles import VehicleParams
 from capsule_env.vehicles.linear import packed_matrices
 from capsule_env.vehicles.quarter_car import MODEL as QUARTER_CAR
 

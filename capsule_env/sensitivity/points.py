@@ -4,7 +4,7 @@ Each :class:`Point` changes one lost detail of the paper's comparison from today
 reproduction (the ``baseline`` point) and says why its value is plausible. A point holds, for
 each pair (``csdc``: on-off Skyhook through CSDC on the Bouc-Wen model; ``biexp``: through the
 Bi-exponential inverse), the env arguments and, where it is not the env's own inverse, the CSDC
-variant (:mod:`capsule_env.csdc_variants`) or the solver
+variant (:mod:`capsule_env.sensitivity.csdc_variants`) or the solver
 (:mod:`capsule_env.sensitivity.variable_step`). Nothing here is tuned on the evaluation seeds:
 every value is argued from the paper's text, the literature or this package's documented
 defaults, and every point is run whatever it gives.
@@ -35,7 +35,7 @@ from capsule_env.identification.constrained import (
 
 __all__ = ["Point", "SETTINGS_FACTORS", "fitted_models", "study_points"]
 
-#: The paper-reproduction Skyhook gain (N s/m), agents/skyhook.py's C_SKY.
+#: The paper-reproduction Skyhook gain (N s/m), agents/controllers/skyhook.py's C_SKY.
 C_MAX = 7.0e4
 #: The paper's Bouc-Wen / Bi-exponential RMSE ratio at 1.5 A (695.3 / 61.8).
 PAPER_RMSE_RATIO = PAPER_RMSE_N["bouc_wen"] / PAPER_RMSE_N["bi_exponential"]

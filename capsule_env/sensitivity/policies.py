@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.config import FULL_STATE_NAMES
+from capsule_env.engine.config import FULL_STATE_NAMES
 
 __all__ = ["ForceSkyhook", "PassivePolicy"]
 

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.csdc_variants import CSDCVariant, InverseSkyhook
 from capsule_env.dampers import LinearDamper, make_damper
-from capsule_env.evaluation import Rollout, episode_metrics, run_episodes
+from capsule_env.evaluation.episodes import Rollout, episode_metrics, run_episodes
+from capsule_env.sensitivity.csdc_variants import CSDCVariant, InverseSkyhook
 from capsule_env.sensitivity.points import Point
 from capsule_env.sensitivity.policies import ForceSkyhook, PassivePolicy
 from capsule_env.sensitivity.variable_step import variable_step_rollout

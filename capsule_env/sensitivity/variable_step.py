@@ -5,8 +5,8 @@ reset with the same seeds, and each vehicle's route (profile, start, speed, gain
 state are read from it; then every control step the controller reads the true states (the
 ``full_state`` set, as ``sim`` gives it), turns its force request into a current through the
 inverse, and :class:`~capsule_env.plant.reference_solver.VariableStepPlant` advances the plant
-with that current held. The result is a :class:`~capsule_env.evaluation.Rollout`, so that
-:func:`~capsule_env.evaluation.episode_metrics` scores it like an env rollout.
+with that current held. The result is a :class:`~capsule_env.evaluation.episodes.Rollout`, so that
+:func:`~capsule_env.evaluation.episodes.episode_metrics` scores it like an env rollout.
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.csdc_variants import CSDCVariant
 from capsule_env.dampers import BiExponentialDamper, BoucWenDamper, LinearDamper
+from capsule_env.dampers.inverse import bi_exponential_inverse
+from capsule_env.engine.layout import BODY_DISP
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
-from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, Rollout
-from capsule_env.inverse import bi_exponential_inverse
-from capsule_env.layout import BODY_DISP
+from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, Rollout
 from capsule_env.plant.reference_solver import VariableStepPlant
+from capsule_env.sensitivity.csdc_variants import CSDCVariant
 
 __all__ = ["variable_step_rollout"]
 

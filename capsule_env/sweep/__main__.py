@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from capsule_env._cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser
 from capsule_env.sweep import __doc__ as DOC
 from capsule_env.sweep.runner import (
     EXPERIMENT,

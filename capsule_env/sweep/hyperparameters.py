@@ -51,7 +51,7 @@ def _refuse(key: str, accepted: str, value: Any) -> None:
 
 
 def _check_schedule(key: str, value: Any) -> None:
-    from capsule_env.agents.hyperparams import algo_kwargs_from
+    from capsule_env.agents.learning.hyperparams import algo_kwargs_from
 
     accepted = "a number > 0 or a 'lin_<value>' schedule" + (" or null" * (key == "clip_range_vf"))
     if value is None and key == "clip_range_vf":
@@ -102,8 +102,8 @@ def check_hp_values(algo: str, base: dict[str, Any], given: dict[str, Any]) -> N
     """The study's ``hp.<key>`` values (``given``) for ``algo`` over the hyperparameter file's
     entry ``base``: each value checked (:func:`check_hp_value`), then the merged entry parsed
     as train.py parses it (schedules, ``policy_kwargs``, ``normalize``)."""
-    from capsule_env.agents.algorithms import algorithm_class
-    from capsule_env.agents.hyperparams import algo_kwargs_from, normalize_kwargs_from
+    from capsule_env.agents.learning.algorithms import algorithm_class
+    from capsule_env.agents.learning.hyperparams import algo_kwargs_from, normalize_kwargs_from
 
     # the class by name (sb3-contrib's TQC, CrossQ, RecurrentPPO are not in stable_baselines3)
     signature = inspect.signature(algorithm_class(algo).__init__)

@@ -14,11 +14,11 @@ study starts. The functions run the same with or without Ray.
   (``hyperparams.yml``) and train.py's output folder (``run/``: ``best_model.*``, ...) into its
   folder; a trial started again continues from train.py's newest checkpoint there. Metrics:
   the best held-out evaluation (validation bank 7) and the timesteps.
-- ``gains``: a classical controller (``capsule_env.agents.classical``) with the given gains
+- ``gains``: a classical controller (``capsule_env.agents.controllers.classical``) with the given gains
   (``gain.<name>``, numbers >= 0) on ``episodes`` episodes (seeds ``episode_seed ..``) of the
   guideway bank ``guideway_seed`` (default 0, the training bank, as
-  ``python -m capsule_env.agents.tuning``), through
-  :func:`capsule_env.evaluation.run_episodes` and :func:`~capsule_env.evaluation.
+  ``python -m capsule_env.agents.controllers.tuning``), through
+  :func:`capsule_env.evaluation.episodes.run_episodes` and :func:`~capsule_env.evaluation.episodes.
   episode_metrics` (the passive damper on the same episodes is the VRE reference). Every grid
   point runs the same episodes (common random numbers: the grid compares gains, not noise).
   ``env.<key>`` changes the env, never the law: the keys the controller fixes (its
@@ -52,7 +52,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-from capsule_env._cli import field_docs
+from capsule_env.common.cli import field_docs
 
 if TYPE_CHECKING:
     from capsule_env.sweep.study import Trial
@@ -155,7 +155,7 @@ def _number(value: Any, where: str, minimum: float | None = None, integer: bool 
 
 def _env_config(env_kwargs: dict[str, Any]) -> Any:
     """The env's configuration of ``env_kwargs`` (its own one-line errors name the key)."""
-    from capsule_env.config import EnvConfig
+    from capsule_env.engine.config import EnvConfig
 
     return EnvConfig.from_kwargs(**env_kwargs)
 
@@ -163,8 +163,8 @@ def _env_config(env_kwargs: dict[str, Any]) -> Any:
 def _env_config_at(env_kwargs: dict[str, Any], episode_length_s: float) -> Any:
     """The env's configuration of ``env_kwargs`` with the trial's episodes (a trip shorter
     than the env's default episode is valid at its own length); a refused length is the
-    length's own error (:func:`capsule_env.eval_condition.config_at_length`)."""
-    from capsule_env.eval_condition import config_at_length
+    length's own error (:func:`capsule_env.evaluation.condition.config_at_length`)."""
+    from capsule_env.evaluation.condition import config_at_length
 
     return config_at_length(env_kwargs, episode_length_s, "episode_length_s")
 
@@ -176,9 +176,9 @@ _TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env
 
 
 def train_module() -> ModuleType:
-    """:mod:`capsule_env.train` (what ``train.py`` and ``capsule-train`` run), imported on
+    """:mod:`capsule_env.agents.learning.train` (what ``train.py`` and ``capsule-train`` run), imported on
     first use (it needs the ``rl`` extra)."""
-    return importlib.import_module("capsule_env.train")
+    return importlib.import_module("capsule_env.agents.learning.train")
 
 
 def _train_unavailable() -> str | None:
@@ -195,8 +195,8 @@ def _train_keys() -> dict[str, str]:
 
 def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
     """The base hyperparameter file of a train trial and its entry."""
-    from capsule_env.agents.hyperparams import load_hyperparams
-    from capsule_env.agents.training import HYPERPARAMS_DIR
+    from capsule_env.agents.learning.hyperparams import load_hyperparams
+    from capsule_env.agents.learning.training import HYPERPARAMS_DIR
 
     algo = plain.get("algo", "ppo")
     path = Path(plain.get("hyperparams") or HYPERPARAMS_DIR / f"{algo}.yml").resolve()
@@ -204,8 +204,8 @@ def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
 
 
 def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
-    from capsule_env.agents.algorithms import algorithm_class
-    from capsule_env.agents.hyperparams import NOT_ALGORITHM_ARGUMENTS
+    from capsule_env.agents.learning.algorithms import algorithm_class
+    from capsule_env.agents.learning.hyperparams import NOT_ALGORITHM_ARGUMENTS
 
     signature = inspect.signature(algorithm_class(algo).__init__)
     taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
@@ -215,11 +215,11 @@ def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
 def check_train(params: dict[str, Any]) -> None:
     """A train trial's arguments: train.Args' values and ranges, the env arguments, the
     evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
-    from capsule_env.agents.hyperparams import resolve_env_kwargs
-    from capsule_env.agents.run_args import check_args
-    from capsule_env.agents.sb3_policy import ALGORITHMS
-    from capsule_env.agents.training import policy_env_kwargs
-    from capsule_env.evaluation import check_episode_length
+    from capsule_env.agents.learning.hyperparams import resolve_env_kwargs
+    from capsule_env.agents.learning.run_args import check_args
+    from capsule_env.agents.learning.sb3_policy import ALGORITHMS
+    from capsule_env.agents.learning.training import policy_env_kwargs
+    from capsule_env.evaluation.episodes import check_episode_length
     from capsule_env.sweep.hyperparameters import check_hp_values
 
     plain, groups = split_params(params)
@@ -265,8 +265,8 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     (resumed from its newest checkpoint when it has one)."""
     import yaml
 
-    from capsule_env.agents.hyperparams import ENV_ID
-    from capsule_env.safe_io import atomic_write_text
+    from capsule_env.agents.learning.hyperparams import ENV_ID
+    from capsule_env.common.safe_io import atomic_write_text
 
     plain, groups = split_params(trial.params)
     _, hp = _hyperparams(plain)
@@ -277,7 +277,7 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
     if resume is None and out.exists():  # this trial's own start, stopped before a checkpoint:
-        from capsule_env.agents.checkpoints import RunFolderLock
+        from capsule_env.agents.learning.checkpoints import RunFolderLock
 
         with RunFolderLock() as lock:  # not while a process still trains in it (ValueError)
             lock.acquire(out)
@@ -313,7 +313,7 @@ def run_train(trial: Trial) -> dict[str, Any]:
 #: Constructor arguments of the classical laws that are not gains.
 _NOT_GAINS = ("observation", "vehicle", "extra_units", "extra_given", "extra_fallback")
 _GAINS_KEYS = {
-    "controller": "a classical controller of capsule_env.agents.classical (required)",
+    "controller": "a classical controller of capsule_env.agents.controllers.classical (required)",
     "setting": "sim or hils (default hils)",
     "guideway_seed": "the guideway bank (default 0, the training bank)",
     "episodes": "episodes per trial (default 10)",
@@ -331,7 +331,7 @@ def _gains_settings(params: dict[str, Any]) -> tuple[dict, dict, dict]:
 
 def gain_names(controller: str) -> list[str]:
     """The gains the classical controller ``controller`` takes (its constructor's names)."""
-    from capsule_env.agents.classical import FACTORIES
+    from capsule_env.agents.controllers.classical import FACTORIES
 
     signature = inspect.signature(FACTORIES[controller])
     return [p for p in signature.parameters if p not in _NOT_GAINS]
@@ -349,7 +349,7 @@ _GAINS_OWN_ENV = {
 def _check_gain_values(name: str, gains: dict[str, Any]) -> None:
     """Every gain is one of the controller's, a number >= 0 (an integer where its default
     is one): damping coefficients, forces, currents, weights and counts are never negative."""
-    from capsule_env.agents.classical import FACTORIES
+    from capsule_env.agents.controllers.classical import FACTORIES
 
     parameters = inspect.signature(FACTORIES[name]).parameters
     accepted = gain_names(name)
@@ -381,8 +381,8 @@ def check_gains(params: dict[str, Any]) -> None:
     """A gains trial: a known controller, its gain names, numbers >= 0, env arguments that
     leave the controller's and the trial's own alone, a valid env and an episode long enough
     for the metrics."""
-    from capsule_env.agents.classical import FACTORIES, make_controller
-    from capsule_env.evaluation import check_episode_length
+    from capsule_env.agents.controllers.classical import FACTORIES, make_controller
+    from capsule_env.evaluation.episodes import check_episode_length
 
     settings, gains, env = _gains_settings(params)
     name = settings.get("controller")
@@ -403,10 +403,10 @@ def check_gains(params: dict[str, Any]) -> None:
 
 def run_gains(trial: Trial) -> dict[str, Any]:
     """The controller with the trial's gains and the passive damper on the same episodes;
-    returns :func:`~capsule_env.evaluation.episode_metrics` flattened (``vre_body_mode1_pct``,
+    returns :func:`~capsule_env.evaluation.episodes.episode_metrics` flattened (``vre_body_mode1_pct``,
     ... and the spread of the Wk-weighted RMS acceleration over the episodes)."""
-    from capsule_env.agents.classical import PassiveController, make_controller
-    from capsule_env.evaluation import episode_metrics, run_episodes
+    from capsule_env.agents.controllers.classical import PassiveController, make_controller
+    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     settings, gains, env = _gains_settings(trial.params)
     ctrl = make_controller(settings["controller"], **gains)
@@ -462,7 +462,7 @@ _ORACLE_OWN_ENV = {
 def check_oracle(params: dict[str, Any]) -> None:
     """An oracle trial: episode counts, search iterations, a valid env that leaves the trial's
     own arguments alone, and an episode long enough for the metrics."""
-    from capsule_env.evaluation import EVALUATION_GUIDEWAY_SEED, check_episode_length
+    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, check_episode_length
 
     settings, env = _oracle_settings(params)
     for key in env:

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from capsule_env.safe_io import atomic_write_text
+from capsule_env.common.safe_io import atomic_write_text
 from capsule_env.sweep.kinds import KINDS, SUMMARY_METRIC, flat_metrics
 from capsule_env.sweep.study import Study, StudyError, Trial
 

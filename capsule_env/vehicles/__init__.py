@@ -26,6 +26,7 @@ from capsule_env.vehicles.linear import (
     mechanical_matrices,
     relative_model,
 )
+from capsule_env.vehicles.quarter_car import VehicleParams
 from capsule_env.vehicles.registry import (
     BUILT_IN,
     MODELS,
@@ -48,6 +49,7 @@ __all__ = [
     "LinearModel",
     "Point",
     "VehicleModel",
+    "VehicleParams",
     "absolute_model",
     "mechanical_matrices",
     "model_named",

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capsule_env._validation import check_in_range
+from capsule_env.common.validation import check_in_range
 from capsule_env.vehicles.declaration import (
     DAMPER,
     DASHPOT,
@@ -66,7 +66,7 @@ class VehicleParams:
     levitation_damping_n_s_per_m : c_p, the levitation's damping on the bogie's velocity
         relative to the guideway (N s/m), default 0 (the paper's undamped primary suspension).
         An EDS levitation's electromagnetic damping is small and negative at high speed
-        (:mod:`capsule_env.levitation`; the env's ``levitation="eds"`` sets it per speed), hence
+        (:mod:`capsule_env.envelope.levitation`; the env's ``levitation="eds"`` sets it per speed), hence
         negative values are accepted; -2e4 to 2e4 N s/m.
 
     Notes

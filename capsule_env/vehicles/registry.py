@@ -3,13 +3,13 @@
 Adding a vehicle is one new module (``capsule_env/vehicles/<name>.py`` exporting a
 :class:`~capsule_env.vehicles.declaration.VehicleModel`), or :func:`register` for one declared
 elsewhere (a user's package, a test). ``gym.make(..., vehicle=name)`` selects one
-(:class:`capsule_env.config.EnvConfig`).
+(:class:`capsule_env.engine.config.EnvConfig`).
 """
 
 from __future__ import annotations
 
-from capsule_env._discover import modules_exporting_model
-from capsule_env._validation import check_choice
+from capsule_env.common.discover import modules_exporting_model
+from capsule_env.common.validation import check_choice
 from capsule_env.vehicles.declaration import VehicleModel
 
 __all__ = [
@@ -23,7 +23,7 @@ __all__ = [
 ]
 
 #: Modules of this package that are machinery, not vehicles.
-_NOT_MODELS = frozenset({"declaration", "linear", "registry", "compiled"})
+_NOT_MODELS = frozenset({"declaration", "linear", "registry", "compiled", "modes"})
 
 #: Every vehicle model by name (the built-in ones, then registered ones).
 MODELS: dict[str, VehicleModel] = {}

@@ -1,0 +1,139 @@
+"""The task cards of docs/tasks.md, generated from an evaluation's JSON file.
+
+``python -m capsule_env.evaluation.task_cards docs/tasks.md`` rewrites the block between the page's
+``<!-- generated: task cards -->`` markers, and the README's table of the tasks between its
+``<!-- generated: readme tasks -->`` markers, from ``docs/figures/evaluation.json`` (written by
+``evaluate.py --oracle --json``): per task, the Wk-weighted RMS car-body acceleration and the
+normalised score of the passive damper, the task's best tuned classical law, its shipped policy
+and the oracle, with what each reads.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from capsule_env.tasks import TASKS, Task, normalised_score
+
+__all__ = ["task_cards", "readme_table", "load_results", "sync_page"]
+
+
+def _reads(row: dict) -> str:
+    """What a results row reads: its observation, and its preview's horizon when it has one
+    (a preview law reads its own, which may be longer than the task's)."""
+    if not row["preview"]:
+        return str(row["observation"])
+    horizon_s = row.get("env_kwargs", {}).get("preview_horizon_s")
+    return row["observation"] + (f" + preview ({horizon_s:g} s)" if horizon_s else " + preview")
+
+
+def _card(task: Task, results: dict) -> list[str]:
+    controllers = results["settings"][task.setting]["controllers"]
+    needed = [task.best_classical, task.shipped_policy, "passive"]
+    missing = [name for name in needed if name and name not in controllers]
+    if missing:
+        raise ValueError(f"{task.results} has no row {', '.join(missing)} for {task.env_id} "
+                         "(an MPC row needs pip install 'capsule-env[mpc]' when it is made)")  # fmt: skip
+    wk = {name: controllers[name]["wk_rms_body_acc_m_s2"] for name in controllers}
+    has_oracle = "oracle" in wk
+    rows = [("passive", "passive damper")]
+    rows += [(task.best_classical, "best tuned classical law")]
+    if task.shipped_policy:
+        rows += [(task.shipped_policy, "shipped learned policy")]
+    if has_oracle:
+        rows += [("oracle", "clairvoyant search (a reference, not a law or a limit)")]
+    lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
+             f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
+             "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
+             "acceleration on guideway seeds "
+             f"{results['seeds'][0]}..{results['seeds'][1]} (`docs/figures/{task.results}`).",
+             f"- Use as the baseline: {task.use}",
+             ""]  # fmt: skip
+    if not has_oracle:
+        lines += ["No normalised score: the results file has no oracle row (`evaluate.py "
+                  "--oracle`), so the scale has no upper end.", ""]  # fmt: skip
+    lines += ["| controller | what it is | reads | Wk (m/s²) | normalised score |",
+              "|---|---|---|---|---|"]  # fmt: skip
+    for name, what in rows:
+        score = (
+            f"{normalised_score(wk[name], wk['passive'], wk['oracle']):.3f}"
+            if has_oracle
+            else "n/a"
+        )
+        lines.append(f"| `{name}` | {what} | {_reads(controllers[name])} | {wk[name]:.4f} | "
+                     f"{score} |")  # fmt: skip
+    return lines + [""]
+
+
+def load_results(folder: Path) -> dict[str, dict]:
+    """Every evaluation file the tasks' cards read (``Task.results``), by file name, from
+    ``folder`` (docs/figures)."""
+    return {t.results: json.loads((folder / t.results).read_text()) for t in TASKS}
+
+
+def task_cards(results: dict[str, dict]) -> str:
+    """The task cards as Markdown, reference scores from ``evaluate.py --json`` files'
+    contents by file name (:func:`load_results`; run with ``--oracle`` where the task allows)."""
+    lines: list[str] = []
+    for task in TASKS:
+        lines += _card(task, results[task.results])
+    return "\n".join(lines)
+
+
+def _readme_cell(wk: dict[str, float], name: str) -> str:
+    return f"{wk[name]:.4f} `{name}`" if name else "-"
+
+
+def readme_table(results: dict[str, dict]) -> str:
+    """The README's one table of the tasks: per task, the Wk (m/s²) of passive, the best tuned
+    classical law, the shipped policy and the oracle, from the same files as the cards."""
+    lines = ["| task | what it is | passive | best classical law | shipped policy | oracle |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for task in TASKS:
+        rows = results[task.results]["settings"][task.setting]["controllers"]
+        wk = {name: row["wk_rms_body_acc_m_s2"] for name, row in rows.items()}
+        oracle = f"{wk['oracle']:.4f}" if "oracle" in wk else "-"
+        lines.append(f"| `{task.env_id}` | {task.headline} | {wk['passive']:.4f} | "
+                     f"{_readme_cell(wk, task.best_classical)} | "
+                     f"{_readme_cell(wk, task.shipped_policy)} | {oracle} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+BEGIN, END = "<!-- generated: task cards -->", "<!-- end generated: task cards -->"
+README_BEGIN, README_END = (
+    "<!-- generated: readme tasks -->",
+    "<!-- end generated: readme tasks -->",
+)
+
+
+def _replace_block(page: Path, begin: str, end: str, block: str) -> bool:
+    text = page.read_text()
+    head, found, rest = text.partition(begin)
+    if not found or end not in rest:
+        raise ValueError(f"{page} has no block between {begin} and {end}")
+    _, _, tail = rest.partition(end)
+    new = f"{head}{begin}\n{block}\n{end}{tail}"
+    if new != text:
+        page.write_text(new)
+    return new != text
+
+
+def sync_page(page: Path, results_json: Path) -> bool:
+    """Rewrite the generated block of ``page`` (docs/tasks.md); True when it changed."""
+    cards = task_cards(load_results(results_json.parent))
+    return _replace_block(page, BEGIN, END, f"\n{cards}")
+
+
+def sync_readme(readme: Path, figures: Path) -> bool:
+    """Rewrite the README's generated table of the tasks from ``figures``; True when changed."""
+    return _replace_block(readme, README_BEGIN, README_END, readme_table(load_results(figures)))
+
+
+if __name__ == "__main__":  # python -m capsule_env.evaluation.task_cards docs/tasks.md [README.md]
+    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/tasks.md")
+    figures = target.parent / "figures"
+    print(("updated " if sync_page(target, figures / "evaluation.json") else "unchanged ")
+          + str(target))  # fmt: skip
+    readme = Path(sys.argv[2]) if len(sys.argv) > 2 else target.parent.parent / "README.md"
+    print(("updated " if sync_readme(readme, figures) else "unchanged ") + str(readme))
