@@ -53,6 +53,7 @@ class _Timed:
 def step_times(name: str, episodes: int, length_s: float) -> dict[str, Any]:
     """Per-step cost of law ``name`` on one vehicle (``episodes`` runs of ``length_s``)."""
     from capsule_env.agents.controllers.classical import make_controller
+
     from capsule_env.evaluation.episodes import run_episodes
 
     times: list[float] = []
@@ -77,6 +78,7 @@ def evaluation_time(episodes: int, length_s: float, names: list[str]) -> dict[st
     """Seconds of each controller's run (``hils``; ``names`` or [] for the default
     evaluation's classical controllers), and the totals with and without the MPC rows."""
     from capsule_env.agents.controllers.classical import make_controller
+
     from capsule_env.evaluation.episodes import run_episodes
     from capsule_env.evaluation.evaluate import DEFAULT_CONTROLLERS
 

@@ -46,9 +46,6 @@ from typing import Any
 import numba
 import numpy as np
 import torch
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnvWrapper, VecMonitor, VecNormalize
-
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.learning.algorithms import ALGORITHMS, ON_POLICY, algorithm_class
 from capsule_env.agents.learning.compiled import check_compile, compile_update
@@ -60,6 +57,9 @@ from capsule_env.agents.learning.hyperparams import (
 )
 from capsule_env.agents.learning.sb3_policy import SB3Policy
 from capsule_env.agents.learning.training import HYPERPARAMS_DIR, policy_env_kwargs
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnvWrapper, VecMonitor, VecNormalize
+
 from capsule_env.common.cli import ArgumentParser, parse_literal
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv

@@ -47,7 +47,7 @@ CASES_ENV = {
 def plant_cases() -> dict[str, np.ndarray]:
     """Open-loop plant runs, one per damper model, under a varying current."""
     from capsule_env import DAMPER_NAMES, make_damper, random_profile
-    from capsule_env.plant.simulate import simulate
+    from capsule_env.engine.simulate import simulate
 
     out = {}
     rng = np.random.default_rng(7)

@@ -42,6 +42,7 @@ __all__ = [
     "KERNEL_OPTIONS",
     "Bundle",
     "BundleType",
+    "bundle_constructor",
     "ForkGuard",
     "NumbaCacheWarning",
     "compiled_entry",
@@ -220,6 +221,31 @@ class Bundle(structref.StructRefProxy):
 
 
 structref.define_boxing(BundleType, Bundle)
+
+
+def bundle_constructor(name: str, field_names: tuple[str, ...]) -> Callable[..., Any]:
+    """A function ``name(*fields)`` that compiled code calls to make a :class:`Bundle` with
+    ``field_names`` from its arguments (the bundle's type follows the arguments' types).
+    Numba needs each field assigned by name: the implementation is written out once per
+    constructor here, so that no other module touches the ``StructRef`` machinery."""
+    args = ", ".join(field_names)
+    namespace: dict[str, Any] = {}
+    exec(f"def {name}({args}):\n    pass\n", namespace)  # noqa: S102  (the typing stub)
+    stub = namespace[name]
+    stub.__doc__ = f"A Bundle of {', '.join(field_names)} (compiled code only)."
+
+    def implementation(*fields: Any) -> Callable[..., Any]:
+        bundle_type = BundleType(list(zip(field_names, fields)))
+        body = "".join(f"    out.{f} = {f}\n" for f in field_names)
+        scope: dict[str, Any] = {"new": structref.new, "bundle_type": bundle_type}
+        exec(f"def impl({args}):\n    out = new(bundle_type)\n{body}    return out\n", scope)  # noqa: S102
+        return scope["impl"]
+
+    # numba matches the typing function's parameters to the implementation's, by name
+    typing: dict[str, Any] = {"implementation": implementation}
+    exec(f"def typer({args}):\n    return implementation({args})\n", typing)  # noqa: S102
+    overload(stub)(typing["typer"])
+    return stub
 
 
 # --------------------------------------------------------------------------- fork guard

@@ -6,8 +6,6 @@ import json
 
 import numpy as np
 import pytest
-
-from capsule_env import metrics
 from capsule_env.agents import (
     ClippedOptimalController,
     ConstantCurrentController,
@@ -17,6 +15,8 @@ from capsule_env.agents import (
     classical_controllers,
 )
 from capsule_env.agents.controllers.base import FULL
+
+from capsule_env import metrics
 from capsule_env.evaluation import evaluate
 from capsule_env.evaluation.episodes import (
     METRIC_UNITS,

@@ -10,11 +10,11 @@ import pytest
 
 pytest.importorskip("sb3_contrib")
 
-from test_train import edited_yml  # noqa: E402
-
 from capsule_env.agents.learning import train  # noqa: E402
 from capsule_env.agents.learning.algorithms import ALGORITHMS, ON_POLICY, algorithm_class  # noqa: E402
 from capsule_env.agents.learning.sb3_policy import SB3Policy  # noqa: E402
+from test_train import edited_yml  # noqa: E402
+
 from capsule_env.evaluation.episodes import run_episodes  # noqa: E402
 
 pytestmark = pytest.mark.rl

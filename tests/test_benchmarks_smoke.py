@@ -123,6 +123,7 @@ def test_bench_training_runs_one_algorithm_end_to_end(tmp_path):
     measured on the same episodes; the figures add up."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
     from capsule_env.agents import classical_controllers
+
     from capsule_env.evaluation.episodes import (
         VALIDATION_GUIDEWAY_SEED,
         episode_metrics,

@@ -17,12 +17,11 @@ pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)
 
 import torch  # noqa: E402
-from test_train import edited_yml, fast_args  # noqa: E402
-
 from capsule_env.agents.learning import train  # noqa: E402
 from capsule_env.agents.learning.compiled import check_compile, compile_update, is_compiled  # noqa: E402
 from capsule_env.agents.learning.run_args import continue_command  # noqa: E402
 from capsule_env.agents.learning.sb3_policy import SB3Policy  # noqa: E402
+from test_train import edited_yml, fast_args  # noqa: E402
 
 pytestmark = pytest.mark.rl
 

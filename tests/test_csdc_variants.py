@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from capsule_env.agents.controllers.classical import make_controller
+
 from capsule_env.dampers import BoucWenDamper
 from capsule_env.dampers.hysteresis import hysteresis_update
 from capsule_env.evaluation.episodes import episode_metrics, run_episodes

@@ -20,6 +20,7 @@ from capsule_env.engine.layout import (
     STIFF_LEVITATION,
     TIME,
 )
+from capsule_env.engine.simulate import simulate
 from capsule_env.envelope.levitation import (
     eds_coil,
     levitation_damping_n_s_per_m,
@@ -32,7 +33,6 @@ from capsule_env.envelope.trips import (
     trip_speed_m_s,
 )
 from capsule_env.guideway.spans import SpanParams, span_profile
-from capsule_env.plant.simulate import simulate
 from capsule_env.vehicles import VehicleParams
 from capsule_env.vehicles.modes import state_space
 

@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 
 from capsule_env.agents import classical_controllers
+
 from capsule_env.evaluation import evaluate
 from capsule_env.evaluation.table_key import DESCRIPTIONS
 

@@ -26,9 +26,9 @@ import capsule_env
 from capsule_env._jit import kernel_function
 from capsule_env.dampers import DamperModel, DamperParamsBase, damper_force, make_damper, registry
 from capsule_env.engine.layout import DAMPER_PARAM_NAMES
+from capsule_env.engine.simulate import simulate
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 from capsule_env.guideway import random_profile
-from capsule_env.plant import simulate
 
 PACKAGE = Path(capsule_env.__file__).parent
 TOY_NAME, TOY_CODE, C = "toy_linear", 90, 1.1e4
@@ -157,8 +157,24 @@ def test_layering_of_the_house():
     equations = {m for m in _imports(PACKAGE / "plant" / "equations.py") if "capsule_env" in m}
     assert equations <= {"capsule_env._jit"}  # the vehicle depends on no damper, no layout
     for path in PACKAGE.rglob("*.py"):  # numba's overload machinery only in _jit
-        if path.name not in ("_jit.py", "_fastmath.py", "kernels.py", "env_kernel.py"):
-            assert "numba.extending" not in _imports(path), path.relative_to(PACKAGE)
+        if path.name not in ("_jit.py", "_fastmath.py"):  # issue 41: the StructRef too
+            machinery = {m for m in _imports(path) if m.startswith(("numba.extending",
+                                                                    "numba.experimental"))}  # fmt: skip
+            assert not machinery, f"{path.relative_to(PACKAGE)} imports {sorted(machinery)}"
+
+
+def test_the_plant_imports_nothing_above_it():
+    """Issue 41: plant/simulate.py imported the kernel factory (inside its functions); the plant
+    now reads only the layer below it and the packed layouts' table, at any depth."""
+    above = ("capsule_env.engine", "capsule_env.envs", "capsule_env.evaluation",
+             "capsule_env.agents", "capsule_env.oracle", "capsule_env.envelope",
+             "capsule_env.sweep", "capsule_env.tasks")  # fmt: skip
+    for folder in ("plant", "vehicles", "dampers", "guideway"):
+        for path in sorted((PACKAGE / folder).glob("*.py")):
+            found = {m for m in _imports(path) if m.startswith(above)} - {
+                "capsule_env.engine.layout"
+            }
+            assert not found, f"{folder}/{path.name} imports {sorted(found)}"
 
 
 def test_every_builtin_model_is_one_module_with_its_model():

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from capsule_env.agents import (
     ADDController,
     ClippedOptimalController,
@@ -18,6 +17,7 @@ from capsule_env.agents import (
 from capsule_env.agents.controllers.base import MEAS
 from capsule_env.agents.controllers.lqr import lqr_gain
 from capsule_env.agents.learning.search_space import SEARCH_SPACES
+
 from capsule_env.engine.config import FULL_STATE_NAMES, MEASURED_NAMES
 from capsule_env.engine.observations import TRIP_COLUMN_NAMES
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.optimize import minimize
-
 from capsule_env.agents.controllers.mpc import MPCController
 from capsule_env.agents.controllers.mpc_qp import condense, prediction_model
 from capsule_env.agents.controllers.mpc_solver import BandQP, SolverOptions
 from capsule_env.agents.controllers.preview_lq import preview_lq_gains
+from scipy.optimize import minimize
+
 from capsule_env.engine.config import MEASURED_NAMES, EnvConfig
 from capsule_env.evaluation.episodes import run_episodes
 from capsule_env.vehicles import VehicleParams
@@ -205,6 +205,7 @@ def test_move_blocking_holds_the_moves() -> None:
 
 def test_evaluate_without_the_solver_drops_or_refuses_the_mpc_rows(monkeypatch, capsys) -> None:
     import capsule_env.agents.controllers.mpc_solver as mpc_solver
+
     from capsule_env.evaluation.evaluate import DEFAULT_CONTROLLERS, build_controllers
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
@@ -221,6 +222,7 @@ def test_without_the_solver_the_shipped_residual_on_the_mpc_is_left_out_or_refus
     pytest.importorskip("stable_baselines3")  # the rl extra (the dev extra installs it)
     import capsule_env.agents.controllers.mpc_solver as mpc_solver
     from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR, load_policy, shipped_policies
+
     from capsule_env.evaluation.evaluate import build_controllers
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda: False)
@@ -264,6 +266,7 @@ def test_wk_cost_filter_is_the_metric_weighting() -> None:
     """The cost's Wk filter is the metric's weighting without its band limits (0.4 Hz
     high-pass, 100 Hz low-pass): compared as complex responses with capsule_env.metrics."""
     from capsule_env.agents.controllers.mpc_qp import wk_state_space
+
     from capsule_env.metrics import wk_weighting
 
     a, b, c = wk_state_space()

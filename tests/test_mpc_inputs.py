@@ -9,10 +9,10 @@ import warnings
 
 import numpy as np
 import pytest
-
 from capsule_env.agents.controllers.mpc import MPCController
 from capsule_env.agents.controllers.mpc_qp import condense, prediction_model
 from capsule_env.agents.controllers.mpc_solver import BandQP, SolverOptions
+
 from capsule_env.engine.config import OBSERVATION_NAMES, EnvConfig
 from capsule_env.vehicles import VehicleParams
 

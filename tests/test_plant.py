@@ -28,6 +28,7 @@ from capsule_env.dampers.rig import simulate_damper
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD, PLANT, kernels
 from capsule_env.engine.layout import N_PLANT_OUTPUTS as N_OUTPUTS
 from capsule_env.engine.layout import STATE_SIZE
+from capsule_env.engine.simulate import simulate, step_batch
 from capsule_env.guideway import random_profile, sine_profile
 from capsule_env.plant import (
     Route,
@@ -35,8 +36,6 @@ from capsule_env.plant import (
     default_substeps,
     initial_state,
     make_plant_params,
-    simulate,
-    step_batch,
     stiffness_rates,
     substep_tables,
 )

@@ -91,6 +91,7 @@ def test_the_bound_is_095(pa, value, share):
 
 def test_its_wk_is_evaluations_on_the_same_episodes(pa):
     from capsule_env.agents import classical_controllers
+
     from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     law = classical_controllers()["lqr-clipped-biexp-meas"]
@@ -105,9 +106,9 @@ def test_its_wk_is_evaluations_on_the_same_episodes(pa):
 def test_entropy_coefficient_of_a_sac_model(pa):
     torch = pytest.importorskip("torch")
     pytest.importorskip("stable_baselines3")
+    from capsule_env.agents.learning.sb3_policy import SB3Policy
     from stable_baselines3 import PPO, SAC
 
-    from capsule_env.agents.learning.sb3_policy import SB3Policy
     from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
 
     env = CapsuleSuspensionSB3VecEnv(1, setting="hils", action_mode="force", observation="measured")

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from capsule_env.agents.learning.checkpoints import (
     checkpoint_problem,
     find_checkpoint,
@@ -202,9 +201,8 @@ def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0,
     normalisation statistics updated by ``env_steps`` steps of random actions (seeded by
     ``timesteps``)."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
-    from stable_baselines3 import PPO
-
     from capsule_env.agents.learning.training import make_env
+    from stable_baselines3 import PPO
 
     venv = make_env(2, 0, env_kwargs, {"norm_obs": True, "norm_reward": True})
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, seed=timesteps, device="cpu")
@@ -222,6 +220,7 @@ def _save_tiny(stem: Path, env_kwargs: dict, name: str, timesteps: int = 0,
 @pytest.mark.rl
 def test_a_dotted_policy_name_reads_its_own_metadata(tmp_path):
     from capsule_env.agents.learning.sb3_policy import SB3Policy
+
     from capsule_env.evaluation import evaluate
 
     _save_tiny(tmp_path / "cur.v1", POLICY_ENV, "cur-v1")
@@ -349,6 +348,7 @@ def test_a_renamed_intact_set_loads_and_acts_as_the_original(tmp_path):
 )  # fmt: skip
 def test_a_set_mixed_from_two_runs_is_refused_naming_the_role(tmp_path, capsys, mix, role, wrong):
     from capsule_env.agents.learning.sb3_policy import SB3Policy
+
     from capsule_env.evaluation import evaluate
 
     runs = _two_runs(tmp_path)
@@ -373,6 +373,7 @@ def test_metadata_of_the_earlier_format_is_checked_by_role_too(tmp_path):
     """Metadata written before the digests by role (``files``: by the file names of the save)
     still binds its set: each recorded file's role is its name's suffix."""
     from capsule_env.agents.learning.sb3_policy import SB3Policy
+
     from capsule_env.common.safe_io import file_digest
 
     runs = _two_runs(tmp_path)

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from capsule_env.agents.learning.sb3_policy import ALGORITHMS, SB3Policy, shipped_policy_paths
+
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 from capsule_env.evaluation import evaluate
 

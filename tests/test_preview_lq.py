@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.linalg import expm
-
 from capsule_env.agents.controllers.preview_lq import (
     plant_matrices,
     preview_lq_gains,
     preview_rises,
 )
+from scipy.linalg import expm
+
 from capsule_env.vehicles import VehicleParams
 
 DT = 0.005
@@ -182,6 +182,7 @@ def test_preview_helps_on_a_bump_with_the_same_weights():
     # semi-active damper makes no force before the stroke moves, so the two laws tie there.)
     from capsule_env.agents.controllers.lqr import ClippedOptimalController
     from capsule_env.agents.controllers.preview_lq import PreviewLQController
+
     from capsule_env.evaluation.episodes import run_episodes
 
     weights = {"q_stroke": 2.0, "q_levitation": 100.0, "r_force": 3e-8}

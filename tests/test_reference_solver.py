@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from capsule_env.dampers import BiExponentialDamper, BoucWenDamper, LinearDamper
+from capsule_env.engine.simulate import simulate
 from capsule_env.guideway import GuidewayParams, make_profile
 from capsule_env.plant.reference_solver import VariableStepPlant, simulate_variable_step
-from capsule_env.plant.simulate import simulate
 
 DURATION_S = 1.0
 

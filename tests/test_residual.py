@@ -7,8 +7,6 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-
-import capsule_env  # noqa: F401
 from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.controllers.classical import make_controller
 from capsule_env.agents.learning.residual import (
@@ -19,6 +17,8 @@ from capsule_env.agents.learning.residual import (
     combine_actions,
     zero_last_layer,
 )
+
+import capsule_env  # noqa: F401
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
 from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes
 
@@ -133,7 +133,6 @@ def test_zero_initialised_model_starts_from_the_law(algo):
     """Every algorithm of train.py --algo: after zero_last_layer its deterministic correction
     is exactly 0, so the residual policy starts as the law."""
     import torch
-
     from capsule_env.agents.learning.algorithms import algorithm_class
 
     if algo in ("tqc", "crossq", "recurrentppo"):

@@ -21,6 +21,7 @@ from capsule_env.agents.controllers.classical import make_controller  # noqa: E4
 from capsule_env.agents.learning import train  # noqa: E402
 from capsule_env.agents.learning.residual import ResidualPolicy, zero_last_layer  # noqa: E402
 from capsule_env.agents.learning.sb3_policy import SB3Policy, load_policy  # noqa: E402
+
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv  # noqa: E402
 
 pytestmark = pytest.mark.rl

@@ -28,8 +28,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from scipy import io as sio
-
 from capsule_env.agents.learning.checkpoints import (
     checkpoint_problem,
     latest_checkpoint,
@@ -37,6 +35,8 @@ from capsule_env.agents.learning.checkpoints import (
     saved_at,
 )
 from capsule_env.agents.learning.sb3_policy import SB3Policy
+from scipy import io as sio
+
 from capsule_env.common.safe_io import StagedFiles, atomic_write_text, check_writable_file
 from capsule_env.evaluation import evaluate
 from capsule_env.identification import cli as identify
@@ -89,10 +89,9 @@ def make_policy(stem: Path, name: str | None = "tiny", env: str = "capsule") -> 
     ``.json``); ``env="pendulum"``: one trained on 3-dimensional observations. Returns the
     model. Skips the calling test without stable-baselines3."""
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
+    from capsule_env.agents.learning.training import make_env
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from capsule_env.agents.learning.training import make_env
 
     if env == "pendulum":
         import gymnasium as gym

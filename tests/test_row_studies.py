@@ -28,7 +28,6 @@ def _train_cli_run(folder: Path, seed: int) -> Path:
     """A run trained by train.py's own entry point (not the sweep), with the hyperparameter
     file written by hand."""
     import yaml
-
     from capsule_env.agents.learning.train import Args, train
 
     hp_file = folder / "tiny.yml"

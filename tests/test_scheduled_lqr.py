@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.linalg import solve_continuous_are
-
 from capsule_env.agents.controllers.lqr import ClippedOptimalController
 from capsule_env.agents.controllers.scheduled_lqr import SPEED_COLUMN, ScheduledLQRController
+from scipy.linalg import solve_continuous_are
+
 from capsule_env.engine.config import MEASURED_NAMES
 from capsule_env.envelope.levitation import (
     eds_coil,

@@ -99,6 +99,7 @@ def test_a_shipped_policy_against_itself_is_kept(sp, tmp_path, capsys):
     assert result["seeds"] == list(range(10)) and result["guideway_seed"] == 11
     # per episode, then averaged = evaluate's average over the same episodes of the bank
     from capsule_env.agents.learning.sb3_policy import load_policy
+
     from capsule_env.evaluation.episodes import episode_metrics, run_episodes
     from capsule_env.tasks import task_named
 

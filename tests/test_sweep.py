@@ -156,6 +156,7 @@ def test_the_controllers_env_arguments_are_what_a_gains_trial_runs(tmp_path):
     """The accepted env arguments change the env, not the law: a gains trial's rollout is the
     controller on its own env_kwargs plus the env.<key> overrides that are not among them."""
     from capsule_env.agents.controllers.classical import make_controller
+
     from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     study = load_study(write_study(tmp_path, {"trials": [{"kind": "gains", "params": {
@@ -287,6 +288,7 @@ def test_replicates_get_distinct_independent_seeds(tmp_path):
 # ----------------------------------------------------------------------------- serial runs
 def test_serial_gain_grid_writes_the_table_and_figure(tmp_path, capsys):
     from capsule_env.agents.controllers.classical import PassiveController, make_controller
+
     from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     out = tmp_path / "out"

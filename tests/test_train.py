@@ -25,6 +25,7 @@ from capsule_env.agents.learning import (
     training,
 )
 from capsule_env.agents.learning.sb3_policy import ALGORITHMS, SB3Policy  # noqa: E402
+
 from capsule_env.evaluation import evaluate  # noqa: E402
 
 pytestmark = pytest.mark.rl
@@ -574,6 +575,7 @@ def test_the_reference_law_reads_what_the_policy_reads(monkeypatch):
     # 'sensors' or 'full_state' run with the clipped LQR, not the best law on its signals
     from capsule_env.agents import classical_controllers
     from capsule_env.agents.controllers import mpc_solver
+
     from capsule_env.tasks import TASKS
 
     monkeypatch.setattr(mpc_solver, "solver_available", lambda *a: True)

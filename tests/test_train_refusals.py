@@ -15,9 +15,8 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)  # the hyperparameter files
 
-from test_train import ROOT, edited_yml, fast_args  # noqa: E402
-
 from capsule_env.agents.learning import train  # noqa: E402
+from test_train import ROOT, edited_yml, fast_args  # noqa: E402
 
 pytestmark = pytest.mark.rl
 

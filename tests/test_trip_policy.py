@@ -18,7 +18,6 @@ from conftest import NO_SB3, NO_YAML
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytest.importorskip("yaml", reason=NO_YAML)
 
-import capsule_env  # noqa: E402, F401  (registers the tasks)
 from capsule_env.agents.learning import train
 from capsule_env.agents.learning.run_args import restore_arguments  # noqa: E402
 from capsule_env.agents.learning.sb3_policy import (  # noqa: E402
@@ -28,6 +27,8 @@ from capsule_env.agents.learning.sb3_policy import (  # noqa: E402
     shipped_policy_paths,
 )
 from capsule_env.agents.learning.training import prepare  # noqa: E402
+
+import capsule_env  # noqa: E402, F401  (registers the tasks)
 from capsule_env.evaluation import evaluate  # noqa: E402
 from capsule_env.tasks import task_named  # noqa: E402
 

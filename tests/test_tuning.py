@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from capsule_env.agents import classical_controllers, make_controller
 from capsule_env.agents.controllers.classical import PAPER_FIXED
 from capsule_env.agents.controllers.tuned import TUNED_GAINS_PATH
 from capsule_env.agents.controllers.tuning import TuningSettings, evaluate_gains, main, tune
 from capsule_env.agents.learning.search_space import SEARCH_SPACES
+
 from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,8 +13,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from capsule_env.agents.controllers.lqr import lqr_gain
+
 from capsule_env.vehicles import (
     DAMPER,
     DASHPOT,

@@ -29,7 +29,6 @@ from collections.abc import Callable
 from functools import partial
 
 import numpy as np
-
 from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.controllers.lqr import ClippedOptimalController
 from capsule_env.agents.controllers.mpc import MPCController

@@ -16,9 +16,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-
 from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.controllers.tuned import tuned_gains
+
 from capsule_env.engine.config import OBSERVATION_NAMES
 
 #: Each physical signal a law may read, per observation set: one column, or ``(a, b)`` for

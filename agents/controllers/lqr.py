@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import solve_continuous_are
 
-from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.vehicles import (
     SPRING,
     LinearModel,

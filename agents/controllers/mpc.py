@@ -49,7 +49,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-
 from capsule_env.agents.controllers.mpc_qp import (
     CondensedQP,
     band_edges,
@@ -70,6 +69,7 @@ from capsule_env.agents.controllers.preview_lq import (
 )
 from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.agents.controllers.tuned import tuned_gains
+
 from capsule_env.engine.config import EnvConfig
 from capsule_env.vehicles import VehicleParams
 

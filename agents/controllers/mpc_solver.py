@@ -36,9 +36,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy import sparse
-
 from capsule_env.agents.controllers.mpc_qp import CondensedQP, _edges
+from scipy import sparse
 
 __all__ = [
     "SolverOptions",

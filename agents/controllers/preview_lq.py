@@ -35,9 +35,9 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
+from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from scipy.linalg import expm, solve_discrete_are
 
-from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.vehicles import VehicleParams, model_of_params, relative_model
 
 __all__ = [

@@ -40,7 +40,6 @@ import math
 from typing import Any
 
 import numpy as np
-
 from capsule_env.agents.controllers.law import law_name
 from capsule_env.agents.controllers.lqr import (
     FALLBACK_WEIGHTS,
@@ -52,6 +51,7 @@ from capsule_env.agents.controllers.lqr import (
 )
 from capsule_env.agents.controllers.skyhook import DEFAULT_MAX_FORCE_N, ForceLaw
 from capsule_env.agents.controllers.tuned import tuned_gains
+
 from capsule_env.common.units import kmh_to_m_s
 from capsule_env.common.validation import check_choice, check_in_range
 from capsule_env.engine.config import OBSERVATION_NAMES

@@ -14,7 +14,6 @@ laws (:mod:`capsule_env.agents.controllers.two_state`) command the damper's two 
 from __future__ import annotations
 
 import numpy as np
-
 from capsule_env.agents.controllers.law import ClassicalLaw, law_name
 
 #: The paper-reproduction Skyhook gain (N s/m) [reconstructed, docs/model.md 11: about 0.7 of

@@ -32,11 +32,11 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-
-from capsule_env import metrics
 from capsule_env.agents.controllers.classical import make_controller
 from capsule_env.agents.controllers.tuned import TUNED_GAINS_PATH
 from capsule_env.agents.learning.search_space import SEARCH_SPACES, SearchSpace
+
+from capsule_env import metrics
 from capsule_env.common.cli import ArgumentParser
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.evaluation.episodes import Rollout, run_episodes

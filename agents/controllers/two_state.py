@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from capsule_env.agents.controllers.law import ClassicalLaw, law_name
 
 #: The damper's maximum coil current (A): the env's ``i_max`` (current mode maps

@@ -30,8 +30,8 @@ from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-
 from capsule_env.agents.controllers.base import Controller
+
 from capsule_env.envs._compat import AutoresetMode
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, CapsuleSuspensionVectorEnv
 

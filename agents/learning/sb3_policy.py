@@ -9,8 +9,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-import capsule_env
 from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.learning.algorithms import ALGORITHMS as ALGORITHM_CLASSES
 from capsule_env.agents.learning.algorithms import algorithm_class
@@ -20,6 +18,8 @@ from capsule_env.agents.learning.policy_files import (
     recorded_digests,
     sibling,
 )
+
+import capsule_env
 
 PRETRAINED_DIR = Path(capsule_env.__file__).resolve().parent / "pretrained"
 ALGORITHMS = tuple(ALGORITHM_CLASSES)

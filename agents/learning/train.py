@@ -33,9 +33,6 @@ from typing import Any, Literal
 
 import numba
 import torch
-from stable_baselines3.common.callbacks import CallbackList
-from stable_baselines3.common.utils import set_random_seed
-
 from capsule_env.agents.learning.algorithms import ON_POLICY
 from capsule_env.agents.learning.checkpoints import (
     RunFolderLock,
@@ -61,6 +58,8 @@ from capsule_env.agents.learning.training import (
     residual_of,
     run_seed_for,
 )
+from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.utils import set_random_seed
 
 
 @dataclass

@@ -43,8 +43,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
-
 from capsule_env.agents import PassiveController, classical_controllers
 from capsule_env.agents.learning.algorithms import ON_POLICY, algorithm_class
 from capsule_env.agents.learning.checkpoints import (
@@ -70,6 +68,8 @@ from capsule_env.agents.learning.run_args import (
     run_arguments,
 )
 from capsule_env.agents.learning.sb3_policy import SB3Policy
+from stable_baselines3.common.callbacks import BaseCallback
+
 from capsule_env.common.safe_io import append_line, check_creatable_dir, check_writable_dir
 from capsule_env.engine.config import EnvConfig
 from capsule_env.evaluation.episodes import (

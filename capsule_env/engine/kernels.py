@@ -1,7 +1,7 @@
 """The one kernel factory: compiled kernels for a damper model, serial and on all cores.
 
 Two kinds of kernel step a batch of vehicles by one control interval: the plant alone
-(:func:`capsule_env.plant.step_batch`) and the whole env step
+(:func:`capsule_env.engine.simulate.step_batch`) and the whole env step
 (:class:`capsule_env.engine.batch.CapsuleBatch`: commands, plant, sensors, reward). For each (kind,
 damper model, kernel mode, and for the env its command path, whether it previews the guideway,
 the envelope's flags and the sensing's: sensor noise, the reward's filter), :func:`kernels`
@@ -51,10 +51,8 @@ from typing import Any
 
 import numpy as np
 from numba import njit, prange
-from numba.experimental import structref
-from numba.extending import overload
 
-from capsule_env._jit import FORK_GUARD, Bundle, BundleType, compiled_entry, unique_symbol
+from capsule_env._jit import FORK_GUARD, Bundle, bundle_constructor, compiled_entry, unique_symbol
 from capsule_env.engine.env_kernel import (
     SENSE_ALL,
     SENSE_SCRATCH_SHAPE,
@@ -103,27 +101,8 @@ EnvArgs = Bundle
 _ENV_ARGS_FIELDS = ("params", "plant", "state", "obs", "reward", "terminated", "plant_out")
 
 
-def _new_env_args(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN202
-    """Typed and compiled by the overload below."""
-
-
-@overload(_new_env_args)
-def _new_env_args_impl(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN202
-    fields = (params, plant, state, obs, reward, terminated, plant_out)
-    env_args_type = BundleType(list(zip(_ENV_ARGS_FIELDS, fields)))
-
-    def impl(params, plant, state, obs, reward, terminated, plant_out):  # noqa: ANN001, ANN202
-        args = structref.new(env_args_type)
-        args.params = params
-        args.plant = plant
-        args.state = state
-        args.obs = obs
-        args.reward = reward
-        args.terminated = terminated
-        args.plant_out = plant_out
-        return args
-
-    return impl
+#: Makes an :data:`EnvArgs` in compiled code (:func:`capsule_env._jit.bundle_constructor`).
+_new_env_args = bundle_constructor("_new_env_args", _ENV_ARGS_FIELDS)
 
 
 @njit(cache=True, no_cfunc_wrapper=True)  # called from Python only

@@ -4,16 +4,18 @@
 - :mod:`~capsule_env.plant.block`: the vectorised block kernel.
 - :mod:`~capsule_env.plant.scalar`: the scalar reference kernel (every model and shape).
 - :mod:`~capsule_env.plant.substeps`: how many substeps each vehicle needs.
-- :mod:`~capsule_env.plant.simulate`: stepping a batch (:func:`step_batch`) and open-loop runs
-  (:func:`simulate`).
+- :mod:`~capsule_env.plant.build`: the structures of ``N`` vehicles (:func:`make_plant_params`,
+  :func:`initial_state`); :mod:`capsule_env.engine.simulate` steps them from Python
+  (:func:`~capsule_env.engine.simulate.step_batch`, open-loop runs:
+  :func:`~capsule_env.engine.simulate.simulate`).
 - :mod:`~capsule_env.plant.params`: the named structures the kernels take.
 
 The plant state's columns are ``capsule_env.engine.layout.STATE_NAMES``.
 """
 
 from capsule_env.plant.block import block_constants, block_kernel_mode
+from capsule_env.plant.build import initial_state, make_plant_params
 from capsule_env.plant.params import PlantParams, Route
-from capsule_env.plant.simulate import initial_state, make_plant_params, simulate, step_batch
 from capsule_env.plant.substeps import (
     DEFAULT_INPUT_RATE,
     MAX_AUTO_SUBSTEPS,
@@ -35,8 +37,6 @@ __all__ = [
     "default_substeps",
     "initial_state",
     "make_plant_params",
-    "simulate",
-    "step_batch",
     "stiffness_rates",
     "substep_table",
     "substep_tables",

@@ -210,7 +210,7 @@ def simulate_variable_step(
     rtol: float = 1e-3,
     atol: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
-    """Open-loop run of one vehicle, as :func:`capsule_env.plant.simulate.simulate` but
+    """Open-loop run of one vehicle, as :func:`capsule_env.engine.simulate.simulate` but
     integrated by ``solve_ivp``: the command (a scalar or one per control interval) held over
     each interval. Returns ``time_s`` and the columns ``car_body_displacement_m``,
     ``car_body_velocity_m_s``, ``bogie_displacement_m``, ``bogie_velocity_m_s``,

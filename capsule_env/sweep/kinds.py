@@ -52,7 +52,18 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
+from capsule_env.agents.controllers.classical import FACTORIES, PassiveController, make_controller
 from capsule_env.common.cli import field_docs
+from capsule_env.common.safe_io import atomic_write_text
+from capsule_env.engine.config import EnvConfig
+from capsule_env.evaluation.condition import config_at_length
+from capsule_env.evaluation.episodes import (
+    EVALUATION_GUIDEWAY_SEED,
+    check_episode_length,
+    episode_metrics,
+    run_episodes,
+)
+from capsule_env.sweep.hyperparameters import check_hp_values
 
 if TYPE_CHECKING:
     from capsule_env.sweep.study import Trial
@@ -155,7 +166,6 @@ def _number(value: Any, where: str, minimum: float | None = None, integer: bool 
 
 def _env_config(env_kwargs: dict[str, Any]) -> Any:
     """The env's configuration of ``env_kwargs`` (its own one-line errors name the key)."""
-    from capsule_env.engine.config import EnvConfig
 
     return EnvConfig.from_kwargs(**env_kwargs)
 
@@ -164,7 +174,6 @@ def _env_config_at(env_kwargs: dict[str, Any], episode_length_s: float) -> Any:
     """The env's configuration of ``env_kwargs`` with the trial's episodes (a trip shorter
     than the env's default episode is valid at its own length); a refused length is the
     length's own error (:func:`capsule_env.evaluation.condition.config_at_length`)."""
-    from capsule_env.evaluation.condition import config_at_length
 
     return config_at_length(env_kwargs, episode_length_s, "episode_length_s")
 
@@ -173,6 +182,13 @@ def _env_config_at(env_kwargs: dict[str, Any], episode_length_s: float) -> Any:
 #: train.Args fields a study does not set: the sweep chooses them per trial.
 _TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env_kwargs",
                  "explicit")  # fmt: skip
+
+
+def _learning(module: str) -> ModuleType:
+    """A module of :mod:`capsule_env.agents.learning`, imported on first use: the train kind
+    needs the ``rl`` extra (torch, SB3, PyYAML), the sweep's other kinds do not. The sweep's
+    only in-function imports across layers are these (and :func:`train_module`)."""
+    return importlib.import_module(f"capsule_env.agents.learning.{module}")
 
 
 def train_module() -> ModuleType:
@@ -195,8 +211,8 @@ def _train_keys() -> dict[str, str]:
 
 def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
     """The base hyperparameter file of a train trial and its entry."""
-    from capsule_env.agents.learning.hyperparams import load_hyperparams
-    from capsule_env.agents.learning.training import HYPERPARAMS_DIR
+    load_hyperparams = _learning("hyperparams").load_hyperparams
+    HYPERPARAMS_DIR = _learning("training").HYPERPARAMS_DIR
 
     algo = plain.get("algo", "ppo")
     path = Path(plain.get("hyperparams") or HYPERPARAMS_DIR / f"{algo}.yml").resolve()
@@ -204,8 +220,8 @@ def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
 
 
 def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
-    from capsule_env.agents.learning.algorithms import algorithm_class
-    from capsule_env.agents.learning.hyperparams import NOT_ALGORITHM_ARGUMENTS
+    algorithm_class = _learning("algorithms").algorithm_class
+    NOT_ALGORITHM_ARGUMENTS = _learning("hyperparams").NOT_ALGORITHM_ARGUMENTS
 
     signature = inspect.signature(algorithm_class(algo).__init__)
     taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
@@ -215,12 +231,10 @@ def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
 def check_train(params: dict[str, Any]) -> None:
     """A train trial's arguments: train.Args' values and ranges, the env arguments, the
     evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
-    from capsule_env.agents.learning.hyperparams import resolve_env_kwargs
-    from capsule_env.agents.learning.run_args import check_args
-    from capsule_env.agents.learning.sb3_policy import ALGORITHMS
-    from capsule_env.agents.learning.training import policy_env_kwargs
-    from capsule_env.evaluation.episodes import check_episode_length
-    from capsule_env.sweep.hyperparameters import check_hp_values
+    resolve_env_kwargs = _learning("hyperparams").resolve_env_kwargs
+    check_args = _learning("run_args").check_args
+    ALGORITHMS = _learning("sb3_policy").ALGORITHMS
+    policy_env_kwargs = _learning("training").policy_env_kwargs
 
     plain, groups = split_params(params)
     algo = plain.get("algo", "ppo")
@@ -265,8 +279,7 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     (resumed from its newest checkpoint when it has one)."""
     import yaml
 
-    from capsule_env.agents.learning.hyperparams import ENV_ID
-    from capsule_env.common.safe_io import atomic_write_text
+    ENV_ID = _learning("hyperparams").ENV_ID
 
     plain, groups = split_params(trial.params)
     _, hp = _hyperparams(plain)
@@ -277,7 +290,7 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
     if resume is None and out.exists():  # this trial's own start, stopped before a checkpoint:
-        from capsule_env.agents.learning.checkpoints import RunFolderLock
+        RunFolderLock = _learning("checkpoints").RunFolderLock
 
         with RunFolderLock() as lock:  # not while a process still trains in it (ValueError)
             lock.acquire(out)
@@ -331,7 +344,6 @@ def _gains_settings(params: dict[str, Any]) -> tuple[dict, dict, dict]:
 
 def gain_names(controller: str) -> list[str]:
     """The gains the classical controller ``controller`` takes (its constructor's names)."""
-    from capsule_env.agents.controllers.classical import FACTORIES
 
     signature = inspect.signature(FACTORIES[controller])
     return [p for p in signature.parameters if p not in _NOT_GAINS]
@@ -349,7 +361,6 @@ _GAINS_OWN_ENV = {
 def _check_gain_values(name: str, gains: dict[str, Any]) -> None:
     """Every gain is one of the controller's, a number >= 0 (an integer where its default
     is one): damping coefficients, forces, currents, weights and counts are never negative."""
-    from capsule_env.agents.controllers.classical import FACTORIES
 
     parameters = inspect.signature(FACTORIES[name]).parameters
     accepted = gain_names(name)
@@ -381,8 +392,6 @@ def check_gains(params: dict[str, Any]) -> None:
     """A gains trial: a known controller, its gain names, numbers >= 0, env arguments that
     leave the controller's and the trial's own alone, a valid env and an episode long enough
     for the metrics."""
-    from capsule_env.agents.controllers.classical import FACTORIES, make_controller
-    from capsule_env.evaluation.episodes import check_episode_length
 
     settings, gains, env = _gains_settings(params)
     name = settings.get("controller")
@@ -405,8 +414,6 @@ def run_gains(trial: Trial) -> dict[str, Any]:
     """The controller with the trial's gains and the passive damper on the same episodes;
     returns :func:`~capsule_env.evaluation.episodes.episode_metrics` flattened (``vre_body_mode1_pct``,
     ... and the spread of the Wk-weighted RMS acceleration over the episodes)."""
-    from capsule_env.agents.controllers.classical import PassiveController, make_controller
-    from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 
     settings, gains, env = _gains_settings(trial.params)
     ctrl = make_controller(settings["controller"], **gains)
@@ -462,7 +469,6 @@ _ORACLE_OWN_ENV = {
 def check_oracle(params: dict[str, Any]) -> None:
     """An oracle trial: episode counts, search iterations, a valid env that leaves the trial's
     own arguments alone, and an episode long enough for the metrics."""
-    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, check_episode_length
 
     settings, env = _oracle_settings(params)
     for key in env:

@@ -3,7 +3,8 @@
 :func:`step_batch` advances ``N`` vehicles by one control interval with the compiled kernels
 (the vectorised block kernel where the damper model allows, else the scalar one; on all cores
 for large batches); :func:`simulate` runs one vehicle open loop over a guideway profile and
-returns its time series. The env uses the same kernels (:mod:`capsule_env.engine.kernels`).
+returns its time series. The env uses the same kernels (:mod:`capsule_env.engine.kernels`):
+this module sits beside them, above the plant.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from capsule_env.dampers import DamperParams
+from capsule_env.engine.kernels import PLANT, BatchedKernel
 from capsule_env.engine.layout import (
     BODY_DISP,
     BODY_VEL,
@@ -23,42 +25,13 @@ from capsule_env.engine.layout import (
     STATE_SIZE,
     TIME,
 )
-from capsule_env.plant.block import block_constants, block_kernel_mode, levitation_damped
+from capsule_env.plant.block import block_kernel_mode, levitation_damped
+from capsule_env.plant.build import initial_state, make_plant_params
 from capsule_env.plant.params import PlantParams, Route
-from capsule_env.plant.substeps import as_substep_table, substep_table
+from capsule_env.plant.substeps import substep_table
 from capsule_env.vehicles import VehicleParams
 
-__all__ = ["initial_state", "make_plant_params", "step_batch", "simulate"]
-
-
-def initial_state(n: int = 1) -> np.ndarray:
-    """Plant at rest on a level guideway: an (n, STATE_SIZE) array of zeros."""
-    return np.zeros((n, STATE_SIZE))
-
-
-def make_plant_params(
-    damper_code: int,
-    damper_params: np.ndarray,
-    vehicle_params: np.ndarray,
-    substeps: int | np.ndarray,
-    profiles: np.ndarray,
-    spacing_m: float,
-    dt_s: float,
-    offsets: np.ndarray | None = None,
-) -> PlantParams:
-    """The :class:`PlantParams` of ``N`` vehicles (``N`` rows of packed damper and vehicle
-    parameters; ``substeps`` an int, one (bins,) table or (N, bins) tables), with the block
-    kernel's per-vehicle constants computed for the control interval ``dt_s``; ``offsets``:
-    (K, L) elevation added to the profiles after the routes' gains (None: none)."""
-    dp = np.ascontiguousarray(np.atleast_2d(damper_params), dtype=np.float64)
-    vp = np.ascontiguousarray(np.atleast_2d(vehicle_params), dtype=np.float64)
-    table = as_substep_table(substeps, dp.shape[0])
-    constants = block_constants(damper_code, dp, dt_s, table)
-    profiles = np.ascontiguousarray(np.atleast_2d(profiles), dtype=np.float64)
-    off = np.zeros((0, 0)) if offsets is None else np.ascontiguousarray(offsets, dtype=np.float64)
-    if off.size and off.shape != profiles.shape:
-        raise ValueError(f"offsets must have the profiles' shape {profiles.shape}, got {off.shape}")
-    return PlantParams(dp, vp, table, constants, profiles, float(spacing_m), off)
+__all__ = ["step_batch", "simulate"]
 
 
 def step_batch(
@@ -87,8 +60,6 @@ def step_batch(
     -----
     All arrays must be C-contiguous float64 (int64 for ``route.profile``).
     """
-    from capsule_env.engine.kernels import PLANT, BatchedKernel
-
     mode = block_kernel_mode(damper_code, plant.damper, levitation_damped(plant.vehicle))
     BatchedKernel(PLANT, damper_code, mode, state.shape[0])(
         plant, state, current_command_a, route, float(dt_s), out
@@ -118,8 +89,6 @@ def simulate(
     ``bogie_velocity_m_s``, ``stroke_m``, ``stroke_rate_m_s``, ``coil_current_a``,
     ``hysteretic_z_m`` and the ``layout.PLANT_OUTPUT_NAMES`` (NaN at t = 0).
     """
-    from capsule_env.engine.kernels import PLANT, BatchedKernel
-
     vehicle = vehicle or VehicleParams()
     n_steps = int(round(duration_s / dt_s))
     commands = np.broadcast_to(np.asarray(current_command_a, float), (n_steps,))
