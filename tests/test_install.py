@@ -85,7 +85,9 @@ def test_every_package_of_the_checkout_is_in_the_wheel(wheel):
     for init in (ROOT / "capsule_env").rglob("__init__.py"):
         rel = init.relative_to(ROOT).as_posix()
         assert rel in names, f"{rel} is not in the wheel"
-    assert "capsule_env/agents/__init__.py" in names
+    for init in (ROOT / "agents").rglob("__init__.py"):  # installed as capsule_env.agents
+        rel = "capsule_env/" + init.relative_to(ROOT).as_posix()
+        assert rel in names, f"{rel} is not in the wheel (issue 41: agents/controllers/ was not)"
     assert not any(n.startswith(("tests/", "benchmarks/", "experiments/", "docs/")) for n in names)
 
 
