@@ -134,14 +134,19 @@ def test_no_kernel_source_names_a_damper_model():
         assert not found, f"{path.relative_to(PACKAGE)} names {sorted(found)}"
 
 
-def _imports(path: Path, package: str | None = None) -> set[str]:
-    """Every module ``path`` imports, at any depth (in functions too): ``from m import x``,
-    ``import m``, ``from .m import x`` (resolved against ``package``, by default the file's own)
-    and ``importlib.import_module("m")`` with a literal name."""
+def _imports(path: Path, package: str | None = None, *, in_functions: bool = False) -> set[str]:
+    """Every module ``path`` imports, at any depth (in functions too; only there with
+    ``in_functions``): ``from m import x``, ``import m``, ``from .m import x`` (resolved against
+    ``package``, by default the file's own) and ``importlib.import_module("m")`` with a literal
+    name."""
     if package is None:
         package = ".".join(path.parent.relative_to(PACKAGE.parent).parts)
+    nodes = list(ast.walk(ast.parse(path.read_text())))
+    if in_functions:
+        functions = (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)
+        nodes = [n for f in nodes if isinstance(f, functions) for n in ast.walk(f)]
     found = set()
-    for n in ast.walk(ast.parse(path.read_text())):
+    for n in nodes:
         if isinstance(n, ast.ImportFrom):
             base = package.split(".")[: len(package.split(".")) - n.level + 1] if n.level else []
             found.add(".".join([*base, *([n.module] if n.module else [])]))
@@ -225,6 +230,35 @@ def test_the_plant_imports_nothing_above_it():
                 "capsule_env.engine.layout"
             }
             assert not found, f"{folder}/{path.name} imports {sorted(found)}"
+
+
+def test_the_sweep_reads_the_learning_modules_through_one_door():
+    """Issue 41: sweep/ imported agents' learning modules inside its functions (kinds.py and
+    hyperparameters.py) and the oracle by name. The learning modules (the ``rl`` extra) are
+    reached through sweep/_rl.py alone; the rest of the package is imported at module level,
+    but for ``study`` in kinds.py (study imports kinds: a cycle)."""
+    for path in sorted((PACKAGE / "sweep").glob("*.py")):
+        if path.name == "_rl.py":
+            continue
+        learning = {m for m in _imports(path) if m.startswith("capsule_env.agents.learning")}
+        assert not learning, f"sweep/{path.name} imports {sorted(learning)}"
+        inner = {m for m in _imports(path, in_functions=True) if m.startswith("capsule_env")}
+        allowed = {"capsule_env.sweep.study"} if path.name == "kinds.py" else set()
+        assert inner <= allowed, (
+            f"sweep/{path.name} imports {sorted(inner - allowed)} in a function"
+        )
+    # the reason for the door: the sweep, its gains and oracle kinds work without the rl extra
+    code = (
+        "import sys\n"
+        "sys.modules['capsule_env.agents.learning'] = None\n"  # as if torch/SB3 were absent
+        "from capsule_env.sweep import KINDS\n"
+        "KINDS['gains'].accepted_keys(); KINDS['oracle'].unavailable()\n"
+        "print(sorted(KINDS), 'torch' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["['gains',", "'oracle',", "'train']", "False"]
 
 
 def test_every_builtin_model_is_one_module_with_its_model():

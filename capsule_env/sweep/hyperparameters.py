@@ -22,6 +22,8 @@ import inspect
 import math
 from typing import Any
 
+from capsule_env.sweep._rl import learning
+
 #: Integer hyperparameters and their least value (RL-Zoo keys and SB3 arguments).
 INTEGER_MINIMUM = {
     "n_envs": 1, "n_steps": 1, "batch_size": 1, "n_epochs": 1, "buffer_size": 1,
@@ -51,8 +53,7 @@ def _refuse(key: str, accepted: str, value: Any) -> None:
 
 
 def _check_schedule(key: str, value: Any) -> None:
-    from capsule_env.agents.learning.hyperparams import algo_kwargs_from
-
+    algo_kwargs_from = learning("hyperparams").algo_kwargs_from
     accepted = "a number > 0 or a 'lin_<value>' schedule" + (" or null" * (key == "clip_range_vf"))
     if value is None and key == "clip_range_vf":
         return
@@ -102,17 +103,15 @@ def check_hp_values(algo: str, base: dict[str, Any], given: dict[str, Any]) -> N
     """The study's ``hp.<key>`` values (``given``) for ``algo`` over the hyperparameter file's
     entry ``base``: each value checked (:func:`check_hp_value`), then the merged entry parsed
     as train.py parses it (schedules, ``policy_kwargs``, ``normalize``)."""
-    from capsule_env.agents.learning.algorithms import algorithm_class
-    from capsule_env.agents.learning.hyperparams import algo_kwargs_from, normalize_kwargs_from
-
+    hyperparams = learning("hyperparams")
     # the class by name (sb3-contrib's TQC, CrossQ, RecurrentPPO are not in stable_baselines3)
-    signature = inspect.signature(algorithm_class(algo).__init__)
+    signature = inspect.signature(learning("algorithms").algorithm_class(algo).__init__)
     defaults = {name: p.default for name, p in signature.parameters.items()}
     for key, value in given.items():
         check_hp_value(key, value, defaults)
     merged = {**base, **given}
     try:
-        algo_kwargs_from(merged)
-        normalize_kwargs_from(merged)
+        hyperparams.algo_kwargs_from(merged)
+        hyperparams.normalize_kwargs_from(merged)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"hp.{' '.join(str(exc).split())}") from None

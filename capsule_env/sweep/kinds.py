@@ -25,9 +25,12 @@ study starts. The functions run the same with or without Ray.
   ``env_kwargs``, as evaluate.py runs it: action mode, observation, inverse model, ...) and
   the trial's own (``setting``, ``guideway_seed``, ``episode_length_s``, ``num_envs``) are
   refused.
-- ``oracle``: ``capsule_env.oracle.clairvoyant_bound(env_kwargs, seeds, episode_length_s)``
-  when that library is installed (the kind is refused, with the reason, otherwise);
+- ``oracle``: ``capsule_env.oracle.clairvoyant_bound(env_kwargs, seeds, episode_length_s)``;
   ``env.episode_length_s`` and ``env.num_envs`` are refused (the trial sets them).
+
+The train kind reads :mod:`capsule_env.agents.learning` (the ``rl`` extra) through
+:mod:`capsule_env.sweep._rl` only, on first use; the rest of the package is imported at the
+top (the rule is written there).
 
 Adding a kind is one function and one :func:`register_kind` call; on Ray, the workers must
 register it too (the trials look their kind up by name), e.g. with
@@ -49,7 +52,6 @@ import shutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 from capsule_env.agents.controllers.classical import FACTORIES, PassiveController, make_controller
@@ -63,6 +65,8 @@ from capsule_env.evaluation.episodes import (
     episode_metrics,
     run_episodes,
 )
+from capsule_env.oracle import clairvoyant_bound
+from capsule_env.sweep._rl import learning, train_module
 from capsule_env.sweep.hyperparameters import check_hp_values
 
 if TYPE_CHECKING:
@@ -184,19 +188,6 @@ _TRAIN_CHOSEN = ("seed", "output_dir", "name", "resume", "progress", "env", "env
                  "explicit")  # fmt: skip
 
 
-def _learning(module: str) -> ModuleType:
-    """A module of :mod:`capsule_env.agents.learning`, imported on first use: the train kind
-    needs the ``rl`` extra (torch, SB3, PyYAML), the sweep's other kinds do not. The sweep's
-    only in-function imports across layers are these (and :func:`train_module`)."""
-    return importlib.import_module(f"capsule_env.agents.learning.{module}")
-
-
-def train_module() -> ModuleType:
-    """:mod:`capsule_env.agents.learning.train` (what ``train.py`` and ``capsule-train`` run), imported on
-    first use (it needs the ``rl`` extra)."""
-    return importlib.import_module("capsule_env.agents.learning.train")
-
-
 def _train_unavailable() -> str | None:
     for module in ("stable_baselines3", "yaml"):
         if importlib.util.find_spec(module) is None:
@@ -211,8 +202,8 @@ def _train_keys() -> dict[str, str]:
 
 def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
     """The base hyperparameter file of a train trial and its entry."""
-    load_hyperparams = _learning("hyperparams").load_hyperparams
-    HYPERPARAMS_DIR = _learning("training").HYPERPARAMS_DIR
+    load_hyperparams = learning("hyperparams").load_hyperparams
+    HYPERPARAMS_DIR = learning("training").HYPERPARAMS_DIR
 
     algo = plain.get("algo", "ppo")
     path = Path(plain.get("hyperparams") or HYPERPARAMS_DIR / f"{algo}.yml").resolve()
@@ -220,8 +211,8 @@ def _hyperparams(plain: dict[str, Any]) -> tuple[Path, dict[str, Any]]:
 
 
 def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
-    algorithm_class = _learning("algorithms").algorithm_class
-    NOT_ALGORITHM_ARGUMENTS = _learning("hyperparams").NOT_ALGORITHM_ARGUMENTS
+    algorithm_class = learning("algorithms").algorithm_class
+    NOT_ALGORITHM_ARGUMENTS = learning("hyperparams").NOT_ALGORITHM_ARGUMENTS
 
     signature = inspect.signature(algorithm_class(algo).__init__)
     taken = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
@@ -231,10 +222,10 @@ def _hp_keys(algo: str, base: dict[str, Any]) -> set[str]:
 def check_train(params: dict[str, Any]) -> None:
     """A train trial's arguments: train.Args' values and ranges, the env arguments, the
     evaluation episode length and the ``hp.`` keys (the algorithm's arguments)."""
-    resolve_env_kwargs = _learning("hyperparams").resolve_env_kwargs
-    check_args = _learning("run_args").check_args
-    ALGORITHMS = _learning("sb3_policy").ALGORITHMS
-    policy_env_kwargs = _learning("training").policy_env_kwargs
+    resolve_env_kwargs = learning("hyperparams").resolve_env_kwargs
+    check_args = learning("run_args").check_args
+    ALGORITHMS = learning("sb3_policy").ALGORITHMS
+    policy_env_kwargs = learning("training").policy_env_kwargs
 
     plain, groups = split_params(params)
     algo = plain.get("algo", "ppo")
@@ -279,7 +270,7 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     (resumed from its newest checkpoint when it has one)."""
     import yaml
 
-    ENV_ID = _learning("hyperparams").ENV_ID
+    ENV_ID = learning("hyperparams").ENV_ID
 
     plain, groups = split_params(trial.params)
     _, hp = _hyperparams(plain)
@@ -290,7 +281,7 @@ def train_args(trial: Trial, folder: str | Path) -> Any:
     out = folder / "run"
     resume = "auto" if any((out / "checkpoints").glob("ckpt_*.zip")) else None
     if resume is None and out.exists():  # this trial's own start, stopped before a checkpoint:
-        RunFolderLock = _learning("checkpoints").RunFolderLock
+        RunFolderLock = learning("checkpoints").RunFolderLock
 
         with RunFolderLock() as lock:  # not while a process still trains in it (ValueError)
             lock.acquire(out)
@@ -441,18 +432,6 @@ _ORACLE_KEYS = {
 }
 
 
-def _oracle() -> Any:
-    return importlib.import_module("capsule_env.oracle").clairvoyant_bound
-
-
-def _oracle_unavailable() -> str | None:
-    try:
-        _oracle()
-    except (ImportError, AttributeError):
-        return "capsule_env.oracle.clairvoyant_bound is not in this installation"
-    return None
-
-
 def _oracle_settings(params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     plain, groups = split_params(params)
     defaults = {"episodes": 5, "episode_seed": 1000, "episode_length_s": 4.0, "max_iter": 150}
@@ -491,8 +470,8 @@ def run_oracle(trial: Trial) -> dict[str, Any]:
     settings, env = _oracle_settings(trial.params)
     first = settings["episode_seed"]
     seeds = list(range(first, first + settings["episodes"]))
-    result = _oracle()(env, seeds, float(settings["episode_length_s"]),
-                       max_iter=int(settings["max_iter"]))  # fmt: skip
+    result = clairvoyant_bound(env, seeds, float(settings["episode_length_s"]),
+                               max_iter=int(settings["max_iter"]))  # fmt: skip
     summary = result.summary()
     return {
         SUMMARY_METRIC: summary["wk_oracle_mean_m_s2"],
@@ -510,7 +489,7 @@ register_kind(Kind("gains", run_gains, _GAINS_KEYS,
                    {"gain.": "a gain of the controller", "env.": "an env argument"},
                    check_gains))  # fmt: skip
 register_kind(Kind("oracle", run_oracle, _ORACLE_KEYS, {"env.": "an env argument"},
-                   check_oracle, unavailable=_oracle_unavailable))  # fmt: skip
+                   check_oracle))  # fmt: skip
 
 
 def json_ready(value: Any) -> bool:
