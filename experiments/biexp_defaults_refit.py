@@ -20,8 +20,8 @@ import argparse
 from dataclasses import fields
 
 import numpy as np
-
 from capsule_env.agents import make_controller
+
 from capsule_env.dampers import BiExponentialDamper
 from capsule_env.evaluation.episodes import episode_metrics, run_episodes
 from capsule_env.identification import identify_reference

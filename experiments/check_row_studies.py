@@ -52,6 +52,7 @@ def planned(trial: Any, folder: Path) -> dict[str, Any]:
     """What the sweep would train for ``trial``: ``train.py``'s own plan (``prepare``) of the
     trial's arguments, in a scratch folder."""
     from capsule_env.agents.learning.training import prepare
+
     from capsule_env.sweep.kinds import train_args
 
     args = train_args(trial, folder)

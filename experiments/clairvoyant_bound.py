@@ -22,8 +22,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
 from capsule_env.agents import classical_controllers
+
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.engine.config import EnvConfig
 from capsule_env.evaluation.episodes import episode_metrics, run_episodes

@@ -148,6 +148,7 @@ def _machine() -> str:
 def _run_record(folder: Path, task: dict) -> dict:
     """One training run: evaluation-bank Wk of its best model, validation Wk, steps, wall."""
     from capsule_env.agents.learning.sb3_policy import load_policy
+
     from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
 
     best = json.loads((folder / "best_model.json").read_text())
@@ -386,6 +387,7 @@ def main(argv: list[str] | None = None) -> int:
     if groups is None:
         return 2
     from capsule_env.agents.learning.sb3_policy import use_one_torch_thread
+
     from capsule_env.common.safe_io import atomic_write_text
     from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, VALIDATION_GUIDEWAY_SEED
     from capsule_env.tasks import task_named

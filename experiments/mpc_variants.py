@@ -23,9 +23,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from capsule_env.agents.controllers.classical import make_controller
 
 from capsule_env import metrics
-from capsule_env.agents.controllers.classical import make_controller
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes
 

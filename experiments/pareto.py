@@ -33,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
 from capsule_env.agents.controllers.tuning import TuningSettings  # noqa: E402
 from capsule_env.agents.learning.search_space import SEARCH_SPACES  # noqa: E402
+
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file  # noqa: E402
 from capsule_env.evaluation.episodes import (  # noqa: E402
     EVALUATION_GUIDEWAY_SEED,

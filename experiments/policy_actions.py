@@ -141,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     from capsule_env.agents.learning.training import task_env_kwargs
+
     from capsule_env.common.safe_io import atomic_write_text, check_writable_file
     from capsule_env.evaluation.episodes import VALIDATION_GUIDEWAY_SEED
 

@@ -27,10 +27,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from capsule_env import metrics  # noqa: E402
 from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
 from capsule_env.agents.controllers.tuning import TuningSettings, tune  # noqa: E402
 from capsule_env.agents.learning import search_space  # noqa: E402
+
+from capsule_env import metrics  # noqa: E402
 from capsule_env.common.cli import ArgumentParser  # noqa: E402
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file  # noqa: E402
 from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, run_episodes  # noqa: E402

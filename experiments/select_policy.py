@@ -175,6 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"select_policy.py: error: {error}", file=sys.stderr)
         return 2
     from capsule_env.agents.learning.sb3_policy import use_one_torch_thread
+
     from capsule_env.common.safe_io import atomic_write_text
 
     use_one_torch_thread()
@@ -210,6 +211,7 @@ def _reads_the_task(own: dict, task: dict, setting: str, trained: bool) -> bool:
     :func:`fits_condition` (its training options), for a law its options other than
     :data:`READING_OPTIONS` leave the task's env as it is."""
     from capsule_env.agents.learning.sb3_policy import READING_OPTIONS, fits_condition
+
     from capsule_env.engine.config import EnvConfig
 
     condition = {**task, "setting": setting}
@@ -260,6 +262,7 @@ def load_inputs(args) -> dict:
         load_policy,
         shipped_policy_paths,
     )
+
     from capsule_env.common.safe_io import file_digest
     from capsule_env.tasks import task_named
 

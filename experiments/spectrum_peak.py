@@ -18,8 +18,8 @@ import argparse
 import sys
 
 import numpy as np
-
 from capsule_env.agents import make_controller
+
 from capsule_env.evaluation.episodes import run_episodes
 from capsule_env.metrics import amplitude_spectrum
 from capsule_env.vehicles import VehicleParams
