@@ -265,3 +265,52 @@ def test_the_env_names_a_vehicle_it_cannot_run():
         gym.make("CapsuleSuspension-v0", vehicle="no_such_vehicle")
     with pytest.raises(ValueError, match="unknown key 'seat_mass_kg' in vehicle_params"):
         gym.make("CapsuleSuspension-v0", vehicle_params={"seat_mass_kg": 1.0})
+
+
+# ------------------------------------------------------------------- a hostile user's cases
+def test_nothing_silently_wrong_in_a_declaration_or_its_numbers():
+    """Found by a review (issue 41): each of these gave wrong numbers without an error."""
+    with pytest.raises(ValueError, match="unknown parameter.*levitation_stiffnes_n_per_m"):
+        absolute_model(QUARTER_CAR, levitation_stiffnes_n_per_m=1e9)  # a typo
+    with pytest.raises(ValueError, match="damper slot 'ground'.*two points"):
+        dataclasses.replace(QUARTER_CAR, elements=(*QUARTER_CAR.elements,
+                            Element(DAMPER, "ground", "bogie", "guideway")))  # fmt: skip
+    with pytest.raises(ValueError, match="point and contact names must be unique"):
+        dataclasses.replace(QUARTER_CAR, contacts=(Contact("bogie"),))
+    with pytest.raises(ValueError, match="car_body_mass_kg must be a finite number > 0"):
+        absolute_model(QUARTER_CAR, car_body_mass_kg=0.0)
+    with pytest.raises(ValueError, match="levitation_stiffness_n_per_m must be finite"):
+        absolute_model(QUARTER_CAR, levitation_stiffness_n_per_m=float("nan"))
+    with pytest.raises(ValueError, match="slot_damping must be finite and >= 0"):
+        absolute_model(QUARTER_CAR, P, slot_damping=-1e4)
+
+
+def test_a_variant_sharing_the_parameter_class_is_not_mistaken_for_the_quarter_car():
+    springs = [e if e.name != "levitation_spring" else dataclasses.replace(
+        e, coefficient="secondary_stiffness_n_per_m") for e in QUARTER_CAR.elements]  # fmt: skip
+    register(QUARTER_CAR.with_name("qc_variant", elements=tuple(springs)))
+    try:
+        with pytest.raises(ValueError, match="read by vehicles declared differently"):
+            lqr_gain(VehicleParams(), q_stroke=1e3, q_levitation=1e3, r_force=1e-9)
+    finally:
+        unregister("qc_variant")
+
+
+def test_the_env_checks_the_form_at_the_parameters_given():
+    """A lever arm the compiled plant cannot follow is refused, not ignored."""
+    import gymnasium as gym
+
+    @dataclasses.dataclass(frozen=True)
+    class RatioParams(VehicleParams):
+        motion_ratio: float = 1.0
+
+    points = (QUARTER_CAR.points[0], Point("bogie", (("bogie_displacement_m", "motion_ratio"),)))
+    register(QUARTER_CAR.with_name("qc_ratio", params=RatioParams, points=points))
+    try:
+        env = gym.make("CapsuleSuspension-v0", vehicle="qc_ratio")  # at 1.0: the 1/4-car
+        env.close()
+        with pytest.raises(ValueError, match="vehicle 'qc_ratio'.*parameters given"):
+            gym.make("CapsuleSuspension-v0", vehicle="qc_ratio",
+                     vehicle_params={"motion_ratio": 2.0})  # fmt: skip
+    finally:
+        unregister("qc_ratio")

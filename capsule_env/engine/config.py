@@ -287,7 +287,10 @@ class EnvConfig:
     @property
     def vehicle_parameters(self) -> VehicleParams:
         """The vehicle's parameters: its model's defaults with ``vehicle_params`` applied."""
-        return _build("vehicle_params", self.vehicle_model.params, self.vehicle_params)
+        model = self.vehicle_model
+        params = _build("vehicle_params", model.params, self.vehicle_params)
+        check_compiled(model, params)
+        return params
 
     @property
     def packed_vehicle(self) -> np.ndarray:

@@ -147,8 +147,24 @@ class VehicleModel:
                 f"vehicle {self.name!r} reads {self.params.__name__}, got {type(params).__name__}"
             )
         out = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
+        unknown = sorted(set(overrides) - set(out))
+        if unknown:
+            raise ValueError(f"vehicle {self.name!r}: unknown parameter(s) {unknown}; accepted: "
+                             f"{', '.join(sorted(out))}")  # fmt: skip
         out.update({k: float(v) for k, v in overrides.items() if v is not None})
+        for c in self.coordinates:  # what the equations divide by, and the numbers they read
+            if not (np.isfinite(out[c.inertia]) and out[c.inertia] > 0.0):
+                raise ValueError(f"vehicle {self.name!r}: {c.inertia} must be a finite number "
+                                 f"> 0, got {out[c.inertia]!r}")  # fmt: skip
+        for name in self.packed_param_names + self._lever_arms():
+            if not np.isfinite(float(out[name])):
+                raise ValueError(f"vehicle {self.name!r}: {name} must be finite, got {out[name]!r}")
         return out
+
+    def _lever_arms(self) -> tuple[str, ...]:
+        """The parameters the geometry reads (lever arms, contact offsets)."""
+        terms = [c for p in self.points for _, c in p.terms] + [c.offset_m for c in self.contacts]
+        return tuple(c for c in terms if isinstance(c, str))
 
     def as_array(self, params: Any = None) -> np.ndarray:
         """``params`` (default: the defaults) packed in :attr:`packed_param_names` order."""
@@ -204,7 +220,7 @@ def _check_declaration(model: VehicleModel) -> None:
     contacts = [c.name for c in model.contacts]
     if not coords:
         raise ValueError(f"vehicle {model.name!r}: declare at least one coordinate")
-    for what, names in (("coordinate", coords), ("point", points), ("contact", contacts),
+    for what, names in (("coordinate", coords), ("point and contact", points + contacts),
                         ("element", [e.name for e in model.elements])):  # fmt: skip
         if len(set(names)) != len(names):
             raise ValueError(f"vehicle {model.name!r}: {what} names must be unique: {names}")
@@ -244,6 +260,9 @@ def _check_element(model: VehicleModel, e: Element, points: list, contacts: list
     if e.upper not in points or e.lower not in points + contacts:
         raise ValueError(f"vehicle {model.name!r}: element {e.name!r} joins {e.upper!r} and "
                          f"{e.lower!r}; upper must be a point, lower a point or a contact")  # fmt: skip
+    if e.kind == DAMPER and e.lower not in points:
+        raise ValueError(f"vehicle {model.name!r}: damper slot {e.name!r} must join two points "
+                         f"(a slot to the guideway, {e.lower!r}, is not supported)")  # fmt: skip
     if (e.kind == DAMPER) != (e.coefficient is None):
         raise ValueError(f"vehicle {model.name!r}: element {e.name!r}: a spring or dashpot "
                          "names its coefficient, a damper slot does not")  # fmt: skip

@@ -56,8 +56,8 @@ class LinearModel:
         rate (m/s) at each contact.
     c_acc, d_acc, e_acc, e_rate_acc : the comfort points' accelerations (m/s^2) from the state,
         the damper forces, the elevation and the rate.
-    stroke : (n_dampers, n): each damper slot's deflection (m) from the state (plus
-        ``stroke_e`` z_g in the absolute form with a slot to a contact; zero otherwise).
+    stroke : (n_dampers, n): each damper slot's deflection (m) from the state (a slot joins two
+        points, never the guideway).
     """
 
     state_names: tuple[str, ...]
@@ -143,11 +143,13 @@ def packed_matrices(
 
 def _slot_damping(model: VehicleModel, slot_damping: Sequence[float] | float) -> list[float]:
     n = len(model.dampers)
-    if np.isscalar(slot_damping):
-        return [float(slot_damping)] * n  # type: ignore[arg-type]
+    if np.ndim(slot_damping) == 0:
+        return _slot_damping(model, [float(slot_damping)] * n)  # type: ignore[arg-type]
     values = [float(v) for v in slot_damping]  # type: ignore[union-attr]
     if len(values) != n:
         raise ValueError(f"slot_damping: {n} values (one per damper slot), got {len(values)}")
+    if not all(np.isfinite(v) and v >= 0.0 for v in values):
+        raise ValueError(f"slot_damping must be finite and >= 0 N s/m, got {values}")
     return values
 
 

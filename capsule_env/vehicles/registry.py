@@ -8,6 +8,8 @@ elsewhere (a user's package, a test). ``gym.make(..., vehicle=name)`` selects on
 
 from __future__ import annotations
 
+import dataclasses
+
 from capsule_env.common.discover import modules_exporting_model
 from capsule_env.common.validation import check_choice
 from capsule_env.vehicles.declaration import VehicleModel
@@ -62,9 +64,16 @@ def model_of_params(params: object) -> VehicleModel:
     """The registered model whose parameter dataclass ``params`` is an instance of (the first
     registered, so a built-in before a copy under another name): what a reader given only
     parameters (``VehicleParams`` for the 1/4-car) derives its linear model from."""
-    for model in MODELS.values():
-        if type(params) is model.params:
-            return model
+    readers = [m for m in MODELS.values() if type(params) is m.params]
+    declarations = {dataclasses.replace(m, name="_") for m in readers}  # all but the name
+    if len(declarations) > 1:
+        raise ValueError(
+            f"{type(params).__name__} is read by vehicles declared differently "
+            f"({', '.join(m.name for m in readers)}): give each its own parameter class, or pass "
+            "the model to the linear-model functions (absolute_model, relative_model)"
+        )
+    if readers:
+        return readers[0]
     raise TypeError(f"no registered vehicle model reads {type(params).__name__}; "
                     f"registered: {', '.join(MODELS)}")  # fmt: skip
 
