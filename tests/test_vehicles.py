@@ -265,7 +265,8 @@ def test_the_env_names_a_vehicle_it_cannot_run():
     finally:
         unregister("seat_toy")
     with pytest.raises(
-        ValueError, match="unknown vehicle .no_such_vehicle.; accepted values: quarter_car"
+        ValueError,
+        match="unknown vehicle .no_such_vehicle.; accepted values: half_car, quarter_car",
     ):
         gym.make("CapsuleSuspension-v0", vehicle="no_such_vehicle")
     with pytest.raises(ValueError, match="unknown key 'seat_mass_kg' in vehicle_params"):

@@ -5,7 +5,9 @@
 - :mod:`~capsule_env.vehicles.linear`: the one linear model every controller reads;
 - :mod:`~capsule_env.vehicles.registry`: ``register``, ``unregister``, ``model_named``,
   ``names``;
-- :mod:`~capsule_env.vehicles.quarter_car`: the built-in ``quarter_car`` (today's plant).
+- :mod:`~capsule_env.vehicles.quarter_car`: the built-in ``quarter_car`` (today's plant);
+- :mod:`~capsule_env.vehicles.half_car`: the built-in ``half_car`` (car body heave and pitch on
+  two bogies, :class:`HalfCarParams`).
 
 A new vehicle is one module here exporting ``MODEL`` or one :func:`register` call.
 """
@@ -20,6 +22,7 @@ from capsule_env.vehicles.declaration import (
     Point,
     VehicleModel,
 )
+from capsule_env.vehicles.half_car import HalfCarParams
 from capsule_env.vehicles.linear import (
     LinearModel,
     absolute_model,
@@ -46,6 +49,7 @@ __all__ = [
     "Contact",
     "Coordinate",
     "Element",
+    "HalfCarParams",
     "LinearModel",
     "Point",
     "VehicleModel",
