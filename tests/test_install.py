@@ -16,7 +16,13 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPTS = {"capsule-evaluate", "capsule-train", "capsule-identify", "capsule-sweep"}
+SCRIPTS = {
+    "capsule-evaluate",
+    "capsule-train",
+    "capsule-identify",
+    "capsule-sweep",
+    "capsule-export",
+}
 
 
 @pytest.fixture(scope="module")
@@ -239,7 +245,12 @@ def test_a_writable_installation_warns_nothing(site, tmp_path):
 
 
 #: The top layer: the commands, which put the controllers and the env together.
-COMMANDS = ("evaluation/evaluate.py", "evaluation/tables.py", "sweep/")  # + evaluate.py's tables
+COMMANDS = (
+    "evaluation/evaluate.py",
+    "evaluation/tables.py",
+    "sweep/",
+    "export/",
+)  # + evaluate.py's tables
 #: Their modules, which nothing below them imports.
 UPPER = ("capsule_env.agents", "capsule_env.evaluation.evaluate", "capsule_env.evaluation.tables")
 
