@@ -255,13 +255,18 @@ def test_a_copy_of_the_quarter_car_under_another_name_runs_bit_identically():
         assert np.array_equal(base[key], copy[key]), key
 
 
-def test_the_env_names_a_vehicle_it_cannot_run():
+def test_the_env_runs_a_vehicle_of_another_form_or_names_what_cannot():
     import gymnasium as gym
 
+    from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+    from capsule_env.envs.declared_vehicle import DeclaredVehicleEnv
+
     register(_toy())
-    try:
+    try:  # the declared plant runs it; the quarter-car's vector env cannot, and says so
+        assert isinstance(gym.make("CapsuleSuspension-v0", vehicle="seat_toy").unwrapped,
+                          DeclaredVehicleEnv)  # fmt: skip
         with pytest.raises(ValueError, match="vehicle 'seat_toy'.*3 coordinates"):
-            gym.make("CapsuleSuspension-v0", vehicle="seat_toy")
+            CapsuleSuspensionVectorEnv(2, vehicle="seat_toy")
     finally:
         unregister("seat_toy")
     with pytest.raises(

@@ -86,7 +86,8 @@ class Controller:
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """SB3-compatible: ``(actions (N, 1) float32, state)`` for observations ``(N, d)``."""
+        """SB3-compatible: ``(actions (N, slots) float32, state)`` for observations ``(N, d)``
+        (one action per damper slot: 1 on the quarter-car)."""
         obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
-        action = np.asarray(self.act(obs), dtype=np.float32).reshape(obs.shape[0], 1)
+        action = np.asarray(self.act(obs), dtype=np.float32).reshape(obs.shape[0], -1)
         return np.clip(action, -1.0, 1.0), state

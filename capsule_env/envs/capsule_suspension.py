@@ -70,6 +70,21 @@ def _spec_with_length(spec: EnvSpec | None, config: EnvConfig) -> EnvSpec | None
     return dataclasses.replace(spec, max_episode_steps=config.max_episode_steps)
 
 
+class LengthSpec:
+    """The ``spec`` property of an env whose episode length is its own (``config``'s)."""
+
+    config: EnvConfig
+    _spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        return _spec_with_length(self._spec, self.config)
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = value
+
+
 class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     """Semi-active MR-damper control of a Hyperloop capsule's secondary suspension.
 
@@ -288,14 +303,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         self.action_space, self.observation_space = env_spaces(self.config)
         self._needs_reset = True
 
-    @property
-    def spec(self) -> EnvSpec | None:
-        return _spec_with_length(self._spec, self.config)
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        self._spec = value
-
+    spec = LengthSpec.spec
     _spec: EnvSpec | None = None
 
     @property

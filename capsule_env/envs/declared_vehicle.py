@@ -1,0 +1,198 @@
+"""Semi-active control of any declared vehicle: one action per damper slot.
+
+``gymnasium.make("CapsuleSuspension-v0", vehicle=name)`` gives this env when the vehicle named
+(a registered :class:`capsule_env.vehicles.VehicleModel`) is not of the quarter-car's form (a
+third body, a pitching car on two bogies); a vehicle of that form gets
+:class:`~capsule_env.envs.capsule_suspension.CapsuleSuspensionEnv` and its vectorised kernels.
+
+## Plant
+The vehicle's declaration, compiled by :mod:`capsule_env.plant.declared`: RK4 with the
+quarter-car's substep rule, the damper model in every slot (``damper``, ``damper_params``,
+``coil_time_constant_s`` as for the quarter-car), each guideway contact reading the profile at
+its own longitudinal offset.
+
+## Action
+``Box(-1, 1, (slots,))``: per damper slot, ``action_mode="current"`` maps ``[-1, 1]`` to
+``[0, i_max]``; ``"force"`` asks for ``action * max_force_n`` through the inverse model on the
+slot's stroke and stroke rate (an inverse in closed form; no CSDC here).
+
+## Observation
+``observation="full_state"`` (default here): the coordinates and their rates, each slot's
+stroke and stroke rate, each comfort point's acceleration, each contact's elevation;
+``"sensors"``: per slot its stroke, stroke rate and the accelerations of its two ends. Names
+with units: :attr:`DeclaredVehicleEnv.observation_names`. No sensor noise.
+
+## Reward
+:mod:`capsule_env.engine.declared_batch`: the quarter-car's terms, averaged over the comfort
+points and the slots; the episode terminates when any stroke passes ``stroke_limit_m``.
+
+## Options
+Those of ``CapsuleSuspension-v0`` that concern the damper, the guideway, the episode and the
+reward. The others (sensor noise, delay, preview, the envelope, domain randomisation, the
+velocity reward, the reward filter) are refused by name: they are not built for these
+vehicles yet.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import Env, spaces
+from gymnasium.envs.registration import EnvSpec
+from gymnasium.error import ResetNeeded
+
+from capsule_env.engine.config import EnvConfig, check_seed
+from capsule_env.engine.declared_batch import (
+    DECLARED_OBSERVATIONS,
+    DeclaredBatch,
+    inverse_is_algebraic,
+)
+from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, LengthSpec
+from capsule_env.vehicles import model_named, names
+from capsule_env.vehicles.compiled import runs_compiled
+
+__all__ = ["DeclaredVehicleEnv", "UNSUPPORTED_OPTIONS", "make_suspension_env"]
+
+#: Options of ``CapsuleSuspension-v0`` not built for declared vehicles, with the value each
+#: must keep (its default).
+UNSUPPORTED_OPTIONS: dict[str, Any] = {
+    "sensor_noise": (None, 0.0), "control_delay_steps": (None, 0), "preview_points": (0,),
+    "levitation": ("fixed",), "speed_profile": ("constant",), "spans": ("none",),
+    "payload_range": (None,), "vehicle_randomization": (0.0,), "speed_range_kmh": (None,),
+    "reward_velocity_weight": (0.0,), "reward_acceleration_filter": ("none",),
+    "setting": ("sim",),
+}  # fmt: skip
+
+
+class DeclaredVehicleEnv(Env[np.ndarray, np.ndarray]):
+    """A declared vehicle's semi-active suspension (module doc)."""
+
+    metadata = {"render_modes": [], "render_fps": 200}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode is not None:
+            raise ValueError(
+                f"render_mode must be None for a declared vehicle, got {render_mode!r}"
+            )
+        name = kwargs.pop("vehicle", "quarter_car")
+        vehicle_params = kwargs.pop("vehicle_params", {})
+        kwargs.setdefault("observation", "full_state")
+        _check_supported(name, kwargs, kwargs["observation"])
+        self.config = EnvConfig.from_kwargs("DeclaredVehicleEnv.__init__", ("render_mode",),
+                                            **kwargs)  # fmt: skip
+        if self.config.action_mode == "force" and not inverse_is_algebraic(
+            self.config.inverse_model
+        ):
+            raise ValueError(f"inverse_model {self.config.inverse_model!r} has no closed-form "
+                             "inverse: a declared vehicle's force mode needs one "
+                             "(e.g. 'bi_exponential'), or use action_mode='current'")  # fmt: skip
+        self.vehicle_model = model = model_named(name)
+        if not isinstance(vehicle_params, dict):
+            raise TypeError("vehicle_params must be a dict of parameter overrides")
+        self.vehicle_parameters = _params(model, vehicle_params)
+        self._batch = DeclaredBatch(self.config, model, self.vehicle_parameters)
+        n_slots = len(model.dampers)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n_slots,), dtype=np.float32)
+        self.observation_names = self._batch.observation_names()
+        dim = len(self.observation_names)
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32)
+        self.metadata = {**type(self).metadata, "render_fps": self.config.control_rate_hz}
+        self.render_mode = None
+        self._needs_reset = True
+
+    spec = LengthSpec.spec
+    _spec: EnvSpec | None = None
+
+    @property
+    def batch(self) -> DeclaredBatch:
+        """The underlying simulation (state, plant arrays, route)."""
+        return self._batch
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is not None:
+            check_seed("seed", seed)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
+        super().reset(seed=seed)
+        if seed is not None:
+            self._batch.seed(seed)
+        self._batch.reset(0)
+        self._needs_reset = False
+        sig = self._batch.signals(0)
+        return self._batch.observe(0, sig), self._info(sig, {})
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if self._needs_reset:
+            raise ResetNeeded(
+                "call reset() before step(): the episode has not started or has ended"
+            )
+        a = _checked_action(action, len(self.vehicle_model.dampers))
+        batch = self._batch
+        batch.step(0, a)
+        sig = batch.signals(0)
+        reward, terminated, costs = batch.reward(sig)
+        truncated = bool(batch.step_count[0] >= batch.max_steps)
+        self._needs_reset = terminated or truncated
+        return batch.observe(0, sig), reward, terminated, truncated, self._info(sig, costs)
+
+    @staticmethod
+    def _info(sig: dict[str, np.ndarray], costs: dict[str, float]) -> dict[str, Any]:
+        return {**sig, **costs}
+
+
+def _check_supported(name: str, kwargs: dict[str, Any], observation: str) -> None:
+    for key, accepted in UNSUPPORTED_OPTIONS.items():
+        if key in kwargs and kwargs[key] not in accepted:
+            raise ValueError(f"{key}={kwargs[key]!r} is not built for declared vehicles "
+                             f"(vehicle {name!r}); accepted: {accepted!r}")  # fmt: skip
+    if observation not in DECLARED_OBSERVATIONS:
+        raise ValueError(f"observation must be one of {DECLARED_OBSERVATIONS} for vehicle "
+                         f"{name!r}, got {observation!r}")  # fmt: skip
+
+
+def _params(model: Any, overrides: dict[str, Any]) -> Any:
+    known = {f for f in model.params.__dataclass_fields__}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown} in vehicle_params; accepted: "
+                         f"{', '.join(sorted(known))}")  # fmt: skip
+    return model.params(**overrides)
+
+
+def _checked_action(action: Any, n: int) -> np.ndarray:
+    try:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TypeError(f"action must be {n} numbers, got {type(action).__name__}") from None
+    if a.shape != (n,):
+        raise ValueError(f"action must have shape ({n},), got {np.shape(action)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("action must be finite")
+    return np.clip(a, -1.0, 1.0)
+
+
+def make_suspension_env(render_mode: str | None = None, **kwargs: Any) -> Env:
+    """``CapsuleSuspension-v0``'s entry point: the quarter-car env for a vehicle of its form
+    (the compiled, vectorised kernels), :class:`DeclaredVehicleEnv` for any other."""
+    name = kwargs.get("vehicle", "quarter_car")
+    if isinstance(name, str) and name in names() and not _runs_compiled(name, kwargs):
+        return DeclaredVehicleEnv(render_mode=render_mode, **kwargs)
+    return CapsuleSuspensionEnv(render_mode=render_mode, **kwargs)
+
+
+def _runs_compiled(name: str, kwargs: dict[str, Any]) -> bool:
+    """Whether the quarter-car's kernels run vehicle ``name``: its form at its defaults
+    (overrides are then the quarter-car env's to check, and to refuse by name if they change
+    the form); at the overrides for a vehicle of another form (a bad one is left for
+    :class:`DeclaredVehicleEnv` to name)."""
+    model = model_named(name)
+    if runs_compiled(model):
+        return True
+    try:
+        params = _params(model, dict(kwargs.get("vehicle_params") or {}))
+    except (ValueError, TypeError):
+        return False
+    return runs_compiled(model, params)
