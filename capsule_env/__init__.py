@@ -60,7 +60,7 @@ def _register() -> None:
         register(
             id="CapsuleSuspension-v0",
             entry_point="capsule_env.envs.declared_vehicle:make_suspension_env",
-            vector_entry_point="capsule_env.envs.capsule_suspension:CapsuleSuspensionVectorEnv",
+            vector_entry_point="capsule_env.envs.declared_vector:make_suspension_vector_env",
             # no max_episode_steps: the env ends its episodes itself after episode_length_s *
             # control_rate_hz steps, an argument (a fixed number here would override it)
         )

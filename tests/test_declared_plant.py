@@ -259,7 +259,7 @@ def test_the_declared_env_on_the_quarter_car_is_the_quarter_car_env(mode):
 
 
 def test_unsupported_options_are_refused_by_name(seat_toy):
-    for key, value in (("sensor_noise", 1.0), ("preview_points", 4), ("setting", "hils")):
+    for key, value in (("preview_points", 4), ("levitation", "eds"), ("spans", "continuous")):
         with pytest.raises(ValueError, match=key):
             gym.make("CapsuleSuspension-v0", vehicle="seat_toy", **{key: value})
     with pytest.raises(ValueError, match="observation"):
@@ -290,3 +290,35 @@ def test_the_clipped_lqr_runs_the_toy_through_the_env(seat_toy):
         action, _ = law.predict(obs)
         obs, reward, terminated, truncated, _ = env.step(action[0])
         assert np.isfinite(reward) and not terminated
+
+
+def test_the_vector_env_is_the_single_env_per_vehicle():
+    """``num_envs`` vehicles with ``seed=[s_0, s_1, s_2]`` are the single envs seeded ``s_n``,
+    step for step (the hils setting: Spencer's damper with its coil lag, sensor noise, a
+    one-step delay; the noise a hash of the vehicle's key, independent of its batch)."""
+    from capsule_env.envs.declared_vector import DeclaredVectorEnv
+
+    kwargs = {"vehicle": "half_car", "setting": "hils", "observation": "sensors",
+              "episode_length_s": 0.25}  # fmt: skip
+    seeds = [4, 9, 11]
+    vec = gym.make_vec("CapsuleSuspension-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                       **kwargs)  # fmt: skip
+    assert isinstance(vec.unwrapped, DeclaredVectorEnv)
+    assert vec.action_space.shape == (3, 2)
+    obs, _ = vec.reset(seed=seeds)
+    singles = [DeclaredVehicleEnv(**kwargs) for _ in seeds]
+    first = [env.reset(seed=s)[0] for env, s in zip(singles, seeds, strict=True)]
+    np.testing.assert_array_equal(obs, np.array(first))
+    rng = np.random.default_rng(0)
+    for _ in range(60):  # past the end of the first episodes (50 steps): the autoreset
+        act = rng.uniform(-1, 1, (3, 2)).astype(np.float32)
+        obs, reward, terminated, truncated, _ = vec.step(act)
+        for n, env in enumerate(singles):
+            if env._needs_reset:
+                o, _ = env.reset()
+                r, done = 0.0, (False, False)
+            else:
+                o, r, te, tr, _ = env.step(act[n])
+                done = (te, tr)
+            np.testing.assert_array_equal(obs[n], o)
+            assert reward[n] == r and (terminated[n], truncated[n]) == done

@@ -8,6 +8,11 @@ with the quarter-car's form meets the guideway the quarter-car env meets for the
 vehicle starts at rest in static equilibrium over its contacts' first elevations (``K q = K_g
 z_g``: every body at the guideway's elevation for one contact).
 
+Every step: the commands (current mode, or the inverse model on each slot's measured stroke and
+stroke rate), the control delay, one call of the compiled plant for the whole batch (on all
+cores from 64 vehicles), the sensors (each slot's :data:`SLOT_CHANNELS` with noise where the
+options ask). Each vehicle's numbers do not depend on its batch.
+
 The reward generalises the quarter-car's (``reward_velocity_weight`` and the reward filter are
 not offered)::
 
@@ -24,13 +29,18 @@ import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
+from capsule_env._jit import specialised
 from capsule_env.dampers.inverse import INVERSE_CODES, affine_in_current, invert_affine
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.engine.batch import vehicle_streams
 from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.env_kernel import gaussian_pair
+from capsule_env.engine.kernels import PARALLEL_THRESHOLD
+from capsule_env.engine.observations import NOISE_CHANNELS
 from capsule_env.guideway import make_profile, random_profile
-from capsule_env.plant.declared import declared_step
+from capsule_env.plant.declared import declared_step, declared_step_parallel
 from capsule_env.plant.declared_build import (
     declared_output_names,
     declared_plant,
@@ -41,12 +51,26 @@ from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS
 from capsule_env.vehicles.declaration import VehicleModel
 from capsule_env.vehicles.linear import absolute_model, mechanical_matrices
 
-__all__ = ["DeclaredBatch", "DECLARED_OBSERVATIONS"]
+_NOISE_STD = {c.name: c.std for c in NOISE_CHANNELS}
+
+__all__ = ["DeclaredBatch", "DECLARED_OBSERVATIONS", "SLOT_CHANNELS", "SLOT_NOISE_STD"]
+
+#: What each damper slot's sensors read: its stroke (LVDT), stroke rate, and the accelerations
+#: of its upper and lower ends (the car body's accelerometer over the bogie, the bogie's).
+SLOT_CHANNELS = ("stroke_m", "stroke_rate_m_s", "upper_acceleration_m_s2",
+                 "lower_acceleration_m_s2")  # fmt: skip
+N_SLOT_CHANNELS = len(SLOT_CHANNELS)
+#: Their noise at ``sensor_noise=1``: the quarter-car's channels of the same sensors
+#: (:data:`capsule_env.engine.observations.NOISE_CHANNELS`) [reconstructed].
+SLOT_NOISE_STD = np.array([
+    _NOISE_STD[name] for name in ("stroke_m", "stroke_rate_m_s", "car_body_acceleration_m_s2",
+                                  "bogie_acceleration_m_s2")
+])  # fmt: skip
 
 #: Observation sets of a declared vehicle: ``full_state`` (every coordinate and rate, each
 #: slot's stroke and stroke rate, each comfort point's acceleration and each contact's
-#: elevation) and ``sensors`` (each slot's stroke, stroke rate and the accelerations of its two
-#: ends: what a bogie's own sensors read). No noise.
+#: elevation; true values) and ``sensors`` (each slot's :data:`SLOT_CHANNELS`, with the sensor
+#: noise of the options, and its last current command: what a bogie's own sensors read).
 DECLARED_OBSERVATIONS = ("full_state", "sensors")
 
 
@@ -83,6 +107,13 @@ class DeclaredBatch:
         self.out = np.zeros((n, len(self.output_names)))
         self.command = np.zeros((n, self.n_slots))
         self.route = Route(np.zeros(n, np.int64), np.zeros(n), np.full(n, speed), np.ones(n))
+        self.requested = np.zeros((n, self.n_slots))
+        self.delay_steps = config.effective_control_delay_steps
+        self.delay = np.zeros((n, max(self.delay_steps, 1), self.n_slots))
+        self.noise_level = config.effective_sensor_noise
+        self.measured = np.zeros((n, self.n_slots * N_SLOT_CHANNELS))
+        self._noise_std = self.noise_level * np.tile(SLOT_NOISE_STD, self.n_slots)
+        self.noise_key = np.zeros(n, dtype=np.uint64)
         self.step_count = np.zeros(n, dtype=np.int64)
         self.rngs = vehicle_streams(None, n)
         self._geometry()
@@ -109,13 +140,19 @@ class DeclaredBatch:
     def seed(self, seed: Any) -> None:
         self.rngs = vehicle_streams(seed, self.num_envs)
 
-    def reset(self, n: int) -> None:
-        """A new episode for vehicle ``n`` (the quarter-car env's draws, in its order)."""
+    def reset(self, ids: Any = None) -> None:
+        """New episodes for vehicles ``ids`` (an index, indices, or None: all), each drawn as
+        the quarter-car env draws it (its draws, in its order)."""
+        ids = range(self.num_envs) if ids is None else np.atleast_1d(ids)
+        for n in ids:
+            self._reset_one(int(n))
+
+    def _reset_one(self, n: int) -> None:
         cfg, rng = self.config, self.rngs[n]
         k = int(rng.integers(self.profiles.shape[0]))
         u_offset, _ = rng.random(2)
         rng.uniform(-1.0, 1.0, 4)  # the quarter-car's vehicle randomisation draw (unused)
-        rng.integers(0, 2**63 - 1)  # its noise key (no noise here)
+        self.noise_key[n] = np.uint64(rng.integers(0, 2**63 - 1))
         spacing = self.guideway.spacing_m
         window = int(math.ceil(cfg.window_m / spacing)) + 1
         self.route.profile[n] = k
@@ -130,10 +167,11 @@ class DeclaredBatch:
         self.state[n] = 0.0
         zg = self._contact_elevations(n, 0.0)
         self.state[n, : self.n_coords] = self._equilibrium @ zg
-        self.command[n] = 0.0
+        self.command[n] = self.requested[n] = self.delay[n] = 0.0
         self.step_count[n] = 0
         self.out[n] = 0.0
         self.out[n, self.n_slots + self.n_coords :] = zg
+        self.measured[n] = 0.0  # at rest: no stroke, no acceleration
 
     def _contact_elevations(self, n: int, t: float) -> np.ndarray:
         pos = self.route.start_m[n] + self.route.speed_mps[n] * t + self.plant.contact_offsets_m[n]
@@ -141,87 +179,148 @@ class DeclaredBatch:
         return self.route.gain[n] * np.interp(pos, grid, self.profiles[self.route.profile[n]])
 
     # ------------------------------------------------------------------ stepping
-    def commands(self, n: int, action: np.ndarray) -> np.ndarray:
-        """Coil-current commands (A) of vehicle ``n`` for ``action`` in [-1, 1] per slot:
-        directly (current mode) or through the inverse model on each slot's true stroke and
-        stroke rate (force mode: the action times ``max_force_n`` is the force asked for)."""
+    def commands(self, actions: np.ndarray) -> np.ndarray:
+        """Coil-current commands (A), (N, slots), for actions in [-1, 1]: directly (current
+        mode) or through the inverse model on each slot's *measured* stroke and stroke rate
+        (force mode: the action times ``max_force_n`` is the force asked for)."""
         if self.config.action_mode == "current":
-            return 0.5 * (action + 1.0) * self.i_max
+            return 0.5 * (actions + 1.0) * self.i_max
         code = INVERSE_CODES[self.config.inverse_model]
-        p = self.inverse.as_array()
-        q, v = self.positions_rates(n)
-        out = np.empty(self.n_slots)
-        for s in range(self.n_slots):
-            x, xd = float(self.stroke_rows[s] @ q), float(self.stroke_rows[s] @ v)
-            f0, slope = affine_in_current(code, p, x, xd, 0.0)
-            out[s] = invert_affine(float(action[s]) * self.config.max_force_n, f0, slope, xd,
-                                   self.i_max)  # fmt: skip
+        meas = self.measured.reshape(self.num_envs, self.n_slots, N_SLOT_CHANNELS)
+        out = np.empty(actions.shape)
+        _invert(code, self.inverse.as_array(), actions * self.config.max_force_n,
+                np.ascontiguousarray(meas[:, :, 0]), np.ascontiguousarray(meas[:, :, 1]),
+                self.i_max, out)  # fmt: skip
         return out
 
-    def positions_rates(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        nc = self.n_coords
-        return self.state[n, :nc], self.state[n, nc : 2 * nc]
+    def step(self, actions: np.ndarray) -> None:
+        """Every vehicle by one control step: commands, the control delay, the plant, the
+        sensors."""
+        self.requested[:] = self.commands(actions)
+        delay = self.delay_steps
+        if delay:  # the command from ``delay`` steps ago is applied
+            self.command[:] = self.delay[:, 0]
+            self.delay[:, :-1] = self.delay[:, 1:]
+            self.delay[:, -1] = self.requested
+        else:
+            self.command[:] = self.requested
+        if self.num_envs >= PARALLEL_THRESHOLD:
+            declared_step_parallel(self.damper.code)(self.num_envs, self.plant, self.state,
+                                                     self.command, self.route, self.dt, self.out)  # fmt: skip
+        else:
+            declared_step(self.damper.code, 0, self.num_envs, self.plant, self.state,
+                          self.command, self.route, self.dt, self.out)  # fmt: skip
+        self.step_count += 1
+        self._measure()
 
-    def step(self, n: int, action: np.ndarray) -> None:
-        self.command[n] = self.commands(n, action)
-        declared_step(self.damper.code, n, n + 1, self.plant, self.state, self.command,
-                      self.route, self.dt, self.out)  # fmt: skip
-        self.step_count[n] += 1
+    def _measure(self) -> None:
+        """Each slot's stroke, stroke rate and end accelerations, with sensor noise (the
+        quarter-car's channels: stroke, stroke rate, car-body and bogie accelerometers)."""
+        n, ns = self.num_envs, self.n_slots
+        sig = self.signals()
+        ends = sig["slot_end_acceleration_m_s2"].reshape(n, ns, 2)
+        true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1]],
+                        axis=-1).reshape(n, -1)  # fmt: skip
+        if self.noise_level > 0.0:
+            normals = np.empty((n, true.shape[1] + 1))
+            _normals(self.noise_key, self.step_count, normals)
+            true = true + self._noise_std * normals[:, : true.shape[1]]
+        self.measured[:] = true
 
     # ------------------------------------------------------------------ signals
-    def signals(self, n: int) -> dict[str, np.ndarray]:
-        """The physical signals of vehicle ``n`` now, by name (arrays per slot or point)."""
+    def positions_rates(self) -> tuple[np.ndarray, np.ndarray]:
+        nc = self.n_coords
+        return self.state[:, :nc], self.state[:, nc : 2 * nc]
+
+    def signals(self) -> dict[str, np.ndarray]:
+        """The physical signals now, by name: (N, slots), (N, points) or (N, contacts)."""
         ns, nc = self.n_slots, self.n_coords
-        q, v = self.positions_rates(n)
-        acc = self.out[n, ns : ns + nc]
-        currents = self.state[n, 2 * nc + 2 :: 3][:ns]
+        q, v = self.positions_rates()
+        acc = self.out[:, ns : ns + nc]
+        base = 2 * nc
         return {
-            "stroke_m": self.stroke_rows @ q,
-            "stroke_rate_m_s": self.stroke_rows @ v,
-            "damper_force_n": self.out[n, :ns].copy(),
-            "coil_current_a": currents.copy(),
-            "current_command_a": self.command[n].copy(),
-            "comfort_acceleration_m_s2": self.comfort_rows @ acc,
-            "slot_end_acceleration_m_s2": self.end_rows @ acc,
-            "guideway_elevation_m": self.out[n, ns + nc :].copy(),
+            "stroke_m": _combine(q, self.stroke_rows),
+            "stroke_rate_m_s": _combine(v, self.stroke_rows),
+            "damper_force_n": self.out[:, :ns].copy(),
+            "coil_current_a": self.state[:, base + 2 : base + 3 * ns : 3].copy(),
+            "current_command_a": self.requested.copy(),
+            "comfort_acceleration_m_s2": _combine(acc, self.comfort_rows),
+            "slot_end_acceleration_m_s2": _combine(acc, self.end_rows),
+            "guideway_elevation_m": self.out[:, ns + nc :].copy(),
         }
 
-    def reward(self, sig: dict[str, np.ndarray]) -> tuple[float, bool, dict[str, float]]:
+    def reward(self, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict]:
+        """``(reward (N,), bump stop hit (N,), cost terms by name)`` (module doc)."""
         cfg = self.config
         acc = sig["comfort_acceleration_m_s2"] / cfg.acceleration_scale_m_s2
         stroke = sig["stroke_m"] / cfg.stroke_scale_m
         current = sig["coil_current_a"] / self.i_max if self.i_max > 0.0 else 0.0 * stroke
         costs = {
-            "cost_acceleration": cfg.reward_acceleration_weight * float(np.mean(acc * acc)),
-            "cost_stroke": cfg.reward_stroke_weight * float(np.mean(stroke * stroke)),
-            "cost_energy": cfg.reward_energy_weight * float(np.mean(current * current)),
+            "cost_acceleration": cfg.reward_acceleration_weight * np.mean(acc * acc, axis=1),
+            "cost_stroke": cfg.reward_stroke_weight * np.mean(stroke * stroke, axis=1),
+            "cost_energy": cfg.reward_energy_weight * np.mean(current * current, axis=1),
         }
-        hit = bool(np.any(np.abs(sig["stroke_m"]) > cfg.stroke_limit_m))
+        hit = np.any(np.abs(sig["stroke_m"]) > cfg.stroke_limit_m, axis=1)
         reward = -(costs["cost_acceleration"] + costs["cost_stroke"] + costs["cost_energy"])
-        return reward - (cfg.bump_stop_penalty if hit else 0.0), hit, costs
+        return reward - np.where(hit, cfg.bump_stop_penalty, 0.0), hit, costs
 
     def observation_names(self) -> tuple[str, ...]:
         m = self.model
         slots = [d.name for d in m.dampers]
         if self.config.observation == "sensors":
-            return tuple(f"{s}_{part}" for s in slots for part in (
-                "stroke_m", "stroke_rate_m_s", "upper_acceleration_m_s2",
-                "lower_acceleration_m_s2"))  # fmt: skip
+            return tuple(f"{s}_{part}" for s in slots for part in (*SLOT_CHANNELS,
+                         "last_current_command_a"))  # fmt: skip
         return (*m.state_names, *(f"{s}_stroke_m" for s in slots),
                 *(f"{s}_stroke_rate_m_s" for s in slots),
                 *(f"{p}_acceleration_m_s2" for p in m.comfort_points),
                 *(f"{c.name}_elevation_m" for c in m.contacts))  # fmt: skip
 
-    def observe(self, n: int, sig: dict[str, np.ndarray]) -> np.ndarray:
+    def observe(self, sig: dict[str, np.ndarray]) -> np.ndarray:
+        """The observations (N, d), float32 (``sensors``: the measurements, noisy where the
+        options say; ``full_state``: the true values)."""
+        n, ns = self.num_envs, self.n_slots
         if self.config.observation == "sensors":
-            ends = sig["slot_end_acceleration_m_s2"].reshape(self.n_slots, 2)
-            cols = np.column_stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends])
-            return cols.reshape(-1).astype(np.float32)
-        q, v = self.positions_rates(n)
-        qv = np.column_stack([q, v]).reshape(-1)
+            meas = self.measured.reshape(n, ns, N_SLOT_CHANNELS)
+            cols = np.concatenate([meas, self.requested[:, :, None]], axis=2)
+            return cols.reshape(n, -1).astype(np.float32)
+        q, v = self.positions_rates()
+        qv = np.stack([q, v], axis=2).reshape(n, -1)
         return np.concatenate([qv, sig["stroke_m"], sig["stroke_rate_m_s"],
                                sig["comfort_acceleration_m_s2"],
-                               sig["guideway_elevation_m"]]).astype(np.float32)  # fmt: skip
+                               sig["guideway_elevation_m"]], axis=1).astype(np.float32)  # fmt: skip
+
+
+def _combine(x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``x @ rows.T`` (N, R) summed coordinate by coordinate in order: a vehicle's numbers do
+    not depend on its batch (a BLAS product's summation order does)."""
+    out = np.zeros((x.shape[0], rows.shape[0]))
+    for j in range(rows.shape[1]):
+        out += x[:, j, None] * rows[None, :, j]
+    return out
+
+
+@njit(cache=True)
+def _normals(keys, steps, out):  # pragma: no cover - numba
+    """Standard normals per vehicle and channel from the counter-based hash of ``(key, step,
+    pair)`` (the quarter-car env's sensor noise: independent of the batch)."""
+    for n in range(out.shape[0]):
+        for pair in range(out.shape[1] // 2):
+            a, b = gaussian_pair(keys[n], steps[n], pair)
+            out[n, 2 * pair], out[n, 2 * pair + 1] = a, b
+
+
+@specialised("code")
+def _invert(code, p, force_n, stroke, rate, i_max, out):
+    """The inverse model's current for each requested force (closed form, semi-active)."""
+    c = code
+
+    def impl(code, p, force_n, stroke, rate, i_max, out):
+        for n in range(out.shape[0]):
+            for s in range(out.shape[1]):
+                f0, slope = affine_in_current(c, p, stroke[n, s], rate[n, s], 0.0)
+                out[n, s] = invert_affine(force_n[n, s], f0, slope, rate[n, s], i_max)
+
+    return impl
 
 
 def _bank(cfg: EnvConfig) -> np.ndarray:

@@ -18,19 +18,21 @@ slot's stroke and stroke rate (an inverse in closed form; no CSDC here).
 
 ## Observation
 ``observation="full_state"`` (default here): the coordinates and their rates, each slot's
-stroke and stroke rate, each comfort point's acceleration, each contact's elevation;
-``"sensors"``: per slot its stroke, stroke rate and the accelerations of its two ends. Names
-with units: :attr:`DeclaredVehicleEnv.observation_names`. No sensor noise.
+stroke and stroke rate, each comfort point's acceleration, each contact's elevation (true
+values); ``"sensors"``: per slot its stroke, stroke rate, the accelerations of its two ends
+(with the quarter-car's sensor noise per channel where ``sensor_noise`` or ``setting="hils"``
+asks) and its last current command. Names with units: :attr:`DeclaredVehicleEnv.observation_names`.
 
 ## Reward
 :mod:`capsule_env.engine.declared_batch`: the quarter-car's terms, averaged over the comfort
 points and the slots; the episode terminates when any stroke passes ``stroke_limit_m``.
 
 ## Options
-Those of ``CapsuleSuspension-v0`` that concern the damper, the guideway, the episode and the
-reward. The others (sensor noise, delay, preview, the envelope, domain randomisation, the
-velocity reward, the reward filter) are refused by name: they are not built for these
-vehicles yet.
+Those of ``CapsuleSuspension-v0`` that concern the damper (``setting="hils"``, the coil lag),
+the sensors' noise and the control delay, the guideway, the episode and the reward. The others
+(preview, the envelope, domain randomisation, the velocity reward, the reward filter) are
+refused by name: they are not built for these vehicles yet. The native batched version is
+:class:`capsule_env.envs.declared_vector.DeclaredVectorEnv`.
 """
 
 from __future__ import annotations
@@ -39,7 +41,6 @@ from typing import Any
 
 import numpy as np
 from gymnasium import Env, spaces
-from gymnasium.envs.registration import EnvSpec
 from gymnasium.error import ResetNeeded
 
 from capsule_env.engine.config import EnvConfig, check_seed
@@ -52,20 +53,52 @@ from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, LengthSpec
 from capsule_env.vehicles import model_named, names
 from capsule_env.vehicles.compiled import runs_compiled
 
-__all__ = ["DeclaredVehicleEnv", "UNSUPPORTED_OPTIONS", "make_suspension_env"]
+__all__ = [
+    "DeclaredVehicleEnv",
+    "UNSUPPORTED_OPTIONS",
+    "declared_setup",
+    "declared_spaces",
+    "make_suspension_env",
+    "runs_compiled_kwargs",
+]
 
-#: Options of ``CapsuleSuspension-v0`` not built for declared vehicles, with the value each
-#: must keep (its default).
+#: Options of ``CapsuleSuspension-v0`` not built for declared vehicles, with the values each
+#: accepts (its default).
 UNSUPPORTED_OPTIONS: dict[str, Any] = {
-    "sensor_noise": (None, 0.0), "control_delay_steps": (None, 0), "preview_points": (0,),
-    "levitation": ("fixed",), "speed_profile": ("constant",), "spans": ("none",),
-    "payload_range": (None,), "vehicle_randomization": (0.0,), "speed_range_kmh": (None,),
-    "reward_velocity_weight": (0.0,), "reward_acceleration_filter": ("none",),
-    "setting": ("sim",),
+    "preview_points": (0,), "levitation": ("fixed",), "speed_profile": ("constant",),
+    "spans": ("none",), "payload_range": (None,), "vehicle_randomization": (0.0,),
+    "speed_range_kmh": (None,), "reward_velocity_weight": (0.0,),
+    "reward_acceleration_filter": ("none",),
 }  # fmt: skip
 
 
-class DeclaredVehicleEnv(Env[np.ndarray, np.ndarray]):
+def declared_setup(owner: str, kwargs: dict[str, Any], num_envs: int = 1) -> DeclaredBatch:
+    """The checked options and the batch of ``num_envs`` vehicles of an env over a declared
+    vehicle (``kwargs``: the env's options, ``vehicle`` and ``vehicle_params`` among them)."""
+    kwargs = dict(kwargs)
+    name = kwargs.pop("vehicle", "quarter_car")
+    vehicle_params = kwargs.pop("vehicle_params", {})
+    kwargs.setdefault("observation", "full_state")
+    _check_supported(name, kwargs, kwargs["observation"])
+    config = EnvConfig.from_kwargs(owner, ("render_mode", "num_envs"), **kwargs)
+    if config.action_mode == "force" and not inverse_is_algebraic(config.inverse_model):
+        raise ValueError(f"inverse_model {config.inverse_model!r} has no closed-form inverse: "
+                         "a declared vehicle's force mode needs one (e.g. 'bi_exponential'), "
+                         "or use action_mode='current'")  # fmt: skip
+    model = model_named(name)
+    if not isinstance(vehicle_params, dict):
+        raise TypeError("vehicle_params must be a dict of parameter overrides")
+    return DeclaredBatch(config, model, _params(model, vehicle_params), num_envs)
+
+
+def declared_spaces(batch: DeclaredBatch) -> tuple[spaces.Box, spaces.Box]:
+    """``(action_space, observation_space)`` of one vehicle."""
+    dim = len(batch.observation_names())
+    return (spaces.Box(-1.0, 1.0, shape=(batch.n_slots,), dtype=np.float32),
+            spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32))  # fmt: skip
+
+
+class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
     """A declared vehicle's semi-active suspension (module doc)."""
 
     metadata = {"render_modes": [], "render_fps": 200}
@@ -75,34 +108,14 @@ class DeclaredVehicleEnv(Env[np.ndarray, np.ndarray]):
             raise ValueError(
                 f"render_mode must be None for a declared vehicle, got {render_mode!r}"
             )
-        name = kwargs.pop("vehicle", "quarter_car")
-        vehicle_params = kwargs.pop("vehicle_params", {})
-        kwargs.setdefault("observation", "full_state")
-        _check_supported(name, kwargs, kwargs["observation"])
-        self.config = EnvConfig.from_kwargs("DeclaredVehicleEnv.__init__", ("render_mode",),
-                                            **kwargs)  # fmt: skip
-        if self.config.action_mode == "force" and not inverse_is_algebraic(
-            self.config.inverse_model
-        ):
-            raise ValueError(f"inverse_model {self.config.inverse_model!r} has no closed-form "
-                             "inverse: a declared vehicle's force mode needs one "
-                             "(e.g. 'bi_exponential'), or use action_mode='current'")  # fmt: skip
-        self.vehicle_model = model = model_named(name)
-        if not isinstance(vehicle_params, dict):
-            raise TypeError("vehicle_params must be a dict of parameter overrides")
-        self.vehicle_parameters = _params(model, vehicle_params)
-        self._batch = DeclaredBatch(self.config, model, self.vehicle_parameters)
-        n_slots = len(model.dampers)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(n_slots,), dtype=np.float32)
-        self.observation_names = self._batch.observation_names()
-        dim = len(self.observation_names)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32)
+        self._batch = batch = declared_setup("DeclaredVehicleEnv.__init__", kwargs)
+        self.config, self.vehicle_model = batch.config, batch.model
+        self.vehicle_parameters = batch.params
+        self.action_space, self.observation_space = declared_spaces(batch)
+        self.observation_names = batch.observation_names()
         self.metadata = {**type(self).metadata, "render_fps": self.config.control_rate_hz}
         self.render_mode = None
         self._needs_reset = True
-
-    spec = LengthSpec.spec
-    _spec: EnvSpec | None = None
 
     @property
     def batch(self) -> DeclaredBatch:
@@ -119,28 +132,31 @@ class DeclaredVehicleEnv(Env[np.ndarray, np.ndarray]):
         super().reset(seed=seed)
         if seed is not None:
             self._batch.seed(seed)
-        self._batch.reset(0)
+        self._batch.reset()
         self._needs_reset = False
-        sig = self._batch.signals(0)
-        return self._batch.observe(0, sig), self._info(sig, {})
+        sig = self._batch.signals()
+        return self._batch.observe(sig)[0], _row(sig, 0)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._needs_reset:
             raise ResetNeeded(
                 "call reset() before step(): the episode has not started or has ended"
             )
-        a = _checked_action(action, len(self.vehicle_model.dampers))
+        a = _checked_action(action, self._batch.n_slots)
         batch = self._batch
-        batch.step(0, a)
-        sig = batch.signals(0)
-        reward, terminated, costs = batch.reward(sig)
+        batch.step(a[None, :])
+        sig = batch.signals()
+        reward, hit, costs = batch.reward(sig)
+        terminated = bool(hit[0])
         truncated = bool(batch.step_count[0] >= batch.max_steps)
         self._needs_reset = terminated or truncated
-        return batch.observe(0, sig), reward, terminated, truncated, self._info(sig, costs)
+        info = _row({**sig, **costs}, 0)
+        return batch.observe(sig)[0], float(reward[0]), terminated, truncated, info
 
-    @staticmethod
-    def _info(sig: dict[str, np.ndarray], costs: dict[str, float]) -> dict[str, Any]:
-        return {**sig, **costs}
+
+def _row(values: dict[str, np.ndarray], n: int) -> dict[str, Any]:
+    """Vehicle ``n``'s entries: arrays per slot or point, floats per vehicle."""
+    return {k: (v[n].copy() if v.ndim > 1 else float(v[n])) for k, v in values.items()}
 
 
 def _check_supported(name: str, kwargs: dict[str, Any], observation: str) -> None:
@@ -177,10 +193,16 @@ def _checked_action(action: Any, n: int) -> np.ndarray:
 def make_suspension_env(render_mode: str | None = None, **kwargs: Any) -> Env:
     """``CapsuleSuspension-v0``'s entry point: the quarter-car env for a vehicle of its form
     (the compiled, vectorised kernels), :class:`DeclaredVehicleEnv` for any other."""
+    if runs_compiled_kwargs(kwargs):
+        return CapsuleSuspensionEnv(render_mode=render_mode, **kwargs)
+    return DeclaredVehicleEnv(render_mode=render_mode, **kwargs)
+
+
+def runs_compiled_kwargs(kwargs: dict[str, Any]) -> bool:
+    """Whether env options ``kwargs`` name a vehicle the quarter-car's kernels run (an unknown
+    name too: the quarter-car env names it in its error)."""
     name = kwargs.get("vehicle", "quarter_car")
-    if isinstance(name, str) and name in names() and not _runs_compiled(name, kwargs):
-        return DeclaredVehicleEnv(render_mode=render_mode, **kwargs)
-    return CapsuleSuspensionEnv(render_mode=render_mode, **kwargs)
+    return not (isinstance(name, str) and name in names()) or _runs_compiled(name, kwargs)
 
 
 def _runs_compiled(name: str, kwargs: dict[str, Any]) -> bool:

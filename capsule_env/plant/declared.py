@@ -22,10 +22,12 @@ its own. Compiled once per damper model.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
+from capsule_env._fastmath import FAST
 from capsule_env._jit import specialised
 from capsule_env.dampers.base import COIL_TAU, I_MAX
 from capsule_env.dampers.dispatch import hysteresis_params, model_force, model_prepare
@@ -33,7 +35,7 @@ from capsule_env.dampers.hysteresis import hysteresis_update
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.plant.block import route_elevation, row_params
 
-__all__ = ["declared_step"]
+__all__ = ["declared_step", "declared_step_parallel", "CHUNK"]
 
 
 @njit(cache=True)
@@ -157,7 +159,8 @@ def _work(nc, ns, nk):
             np.empty((4, nk)), np.empty(ns), np.empty(1))  # fmt: skip
 
 
-@specialised("model")
+# With reference counting (numba's runtime): it allocates its work arrays, once per call.
+@specialised("model", **FAST)
 def declared_step(model, lo, hi, plant, x, i_cmd, route, dt, out):
     """Advance vehicles ``lo .. hi-1`` by ``dt`` (state ``x`` (N, S) in place, current commands
     ``i_cmd`` (N, slots), outputs ``out`` (N, slots + coordinates + contacts) written at the
@@ -215,3 +218,25 @@ def _store(x, n, nc, ns, x0, z, ic, t):
         x[n, base + 3 * s + 1] = x0[base + s]
         x[n, base + 3 * s + 2] = ic[s]
     x[n, base + 3 * ns] = t
+
+
+_PARALLEL: dict[int, Any] = {}
+#: Vehicles per work item of :func:`declared_step_parallel`.
+CHUNK = 32
+
+
+def declared_step_parallel(code: int) -> Any:
+    """``step(n, plant, x, i_cmd, route, dt, out)``: :func:`declared_step` of damper model
+    ``code`` over vehicles ``0 .. n-1`` in chunks of :data:`CHUNK` on all cores (numba
+    ``prange``). A vehicle's numbers do not depend on its chunk or thread."""
+    if code not in _PARALLEL:
+        model = code
+
+        @njit(parallel=True, cache=False)
+        def step(n, plant, x, i_cmd, route, dt, out):  # pragma: no cover - numba
+            for c in prange((n + CHUNK - 1) // CHUNK):
+                lo = c * CHUNK
+                declared_step(model, lo, min(lo + CHUNK, n), plant, x, i_cmd, route, dt, out)
+
+        _PARALLEL[code] = step
+    return _PARALLEL[code]

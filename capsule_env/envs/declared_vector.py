@@ -1,0 +1,108 @@
+"""Native batched env over a declared vehicle: ``num_envs`` vehicles, one compiled plant call
+a step (:class:`capsule_env.engine.declared_batch.DeclaredBatch`).
+
+Same dynamics, spaces, reward and options as
+:class:`capsule_env.envs.declared_vehicle.DeclaredVehicleEnv`, plus ``num_envs`` and
+``max_episode_steps`` (the earlier of it and the env's own length ends an episode). Autoreset in
+Gymnasium's ``NEXT_STEP`` mode (the step after an episode ends resets that vehicle and returns
+its first observation, reward 0, ``terminated = truncated = False``; its action is ignored).
+``reset(seed=s)`` gives the vehicles the streams ``SeedSequence(s).spawn(num_envs)`` (vehicle 0
+is the single env seeded ``s``); ``reset(seed=[s_0, ...])`` gives vehicle ``n`` the single
+env's stream of ``s_n``. ``info``: a dict of arrays, one row per vehicle.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
+from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces, runs_compiled_kwargs
+
+__all__ = ["DeclaredVectorEnv", "make_suspension_vector_env"]
+
+
+class DeclaredVectorEnv(VectorEnv):
+    """``num_envs`` vehicles of a declared vehicle (module doc)."""
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        autoreset_mode: Any = AutoresetMode.NEXT_STEP,
+        **kwargs: Any,
+    ) -> None:
+        if check_autoreset_mode(autoreset_mode) is not AutoresetMode.NEXT_STEP:
+            raise ValueError(f"autoreset_mode must be NEXT_STEP for a declared vehicle (the "
+                             f"others are not built for it yet), got {autoreset_mode!r}")  # fmt: skip
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        self._batch = batch = declared_setup("DeclaredVectorEnv.__init__", kwargs, self.num_envs)
+        if max_episode_steps is not None:
+            if isinstance(max_episode_steps, bool) or not isinstance(
+                max_episode_steps, int | np.integer
+            ) or max_episode_steps < 1:  # fmt: skip
+                raise ValueError(
+                    f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}"
+                )
+            batch.max_steps = min(batch.max_steps, int(max_episode_steps))
+        self.config = batch.config
+        self.single_action_space, self.single_observation_space = declared_spaces(batch)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.observation_names = batch.observation_names()
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+
+    @property
+    def batch(self) -> Any:
+        """The underlying simulation."""
+        return self._batch
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
+        if seed is not None:
+            self._batch.seed(seed)
+        self._batch.reset()
+        self._autoreset[:] = False
+        sig = self._batch.signals()
+        return self._batch.observe(sig), dict(sig)
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        batch = self._batch
+        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
+        if a.shape[1] != batch.n_slots:
+            raise ValueError(f"actions must have shape ({self.num_envs}, {batch.n_slots}), "
+                             f"got {np.shape(actions)}")  # fmt: skip
+        if not np.all(np.isfinite(a)):
+            raise ValueError("actions must be finite")
+        restart = self._autoreset.copy()
+        batch.step(np.clip(a, -1.0, 1.0))
+        sig = batch.signals()
+        reward, terminated, costs = batch.reward(sig)
+        truncated = batch.step_count >= batch.max_steps
+        if restart.any():  # NEXT_STEP: these vehicles start a new episode instead
+            batch.reset(np.flatnonzero(restart))
+            sig = batch.signals()
+            reward[restart], terminated[restart], truncated[restart] = 0.0, False, False
+        self._autoreset = terminated | truncated
+        obs = batch.observe(sig)
+        return obs, reward, terminated, truncated, {**sig, **costs}
+
+
+def make_suspension_vector_env(num_envs: int = 1, **kwargs: Any) -> VectorEnv:
+    """``CapsuleSuspension-v0``'s vector entry point: the quarter-car's native vector env for a
+    vehicle of its form, :class:`DeclaredVectorEnv` for any other."""
+    from capsule_env.envs.capsule_suspension import CapsuleSuspensionVectorEnv
+
+    if runs_compiled_kwargs(kwargs):
+        return CapsuleSuspensionVectorEnv(num_envs, **kwargs)
+    return DeclaredVectorEnv(num_envs, **kwargs)
