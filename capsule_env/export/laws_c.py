@@ -5,15 +5,15 @@
 and the force in double precision, the action rounded to float32, then clipped), for the laws
 whose action is a closed form of the current observation (no state, no solver):
 
-=========================================  ===============================================
-law (class)                                action
-=========================================  ===============================================
-Skyhook, on-off (``skyhook-*``)            ``F = c_max v`` if ``z_c' v > 0`` else ``c_min v``
-Skyhook, continuous (``skyhook-cont-*``)   ``F = c_sky z_c'`` if ``z_c' v > 0`` else 0
-hybrid Skyhook-groundhook (``hybrid-*``)   ``alpha F_sky + (1 - alpha) F_ground``
-clipped-optimal LQR (``lqr-clipped-*``)    ``F = -K x``, ``x = [stroke, z_c', gap, z_b']``
+==========================================  ===============================================
+law (class)                                 action
+==========================================  ===============================================
+Skyhook, on-off (``skyhook-*``)             ``F = c_max v`` if ``z_c' v > 0`` else ``c_min v``
+Skyhook, continuous (``skyhook-cont-*``)    ``F = c_sky z_c'`` if ``z_c' v > 0`` else 0
+hybrid Skyhook-groundhook (``hybrid-*``)    ``alpha F_sky + (1 - alpha) F_ground``
+clipped-optimal LQR (``lqr-clipped-*``)     ``F = -K x``, ``x = [stroke, z_c', gap, z_b']``
 two-state Skyhook, ADD, SH-ADD (``-meas``)  ``i_on`` where the law is hard, else 0 A
-=========================================  ===============================================
+==========================================  ===============================================
 
 (force laws: ``a = F / max_force_n``; two-state laws, current mode: ``a = 2 i_on / i_max - 1``
 or -1). The gain-scheduled LQR, the preview LQ law and the MPC are not written (a schedule,
