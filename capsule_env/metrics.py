@@ -28,6 +28,8 @@ __all__ = [
     "vibration_reduction_effect",
     "wk_weighting",
     "wk_weighted_rms",
+    "we_weighting",
+    "we_weighted_rms",
     "EN12299_WINDOW_S",
     "wb_weighting",
     "mean_comfort_vertical",
@@ -121,6 +123,31 @@ def wk_weighted_rms(acceleration_m_s2: np.ndarray, dt_s: float) -> np.ndarray:
     n = a.shape[-1]
     spectrum = np.fft.rfft(a - a.mean(axis=-1, keepdims=True), axis=-1)
     weighted = spectrum * np.abs(wk_weighting(np.fft.rfftfreq(n, dt_s)))
+    return rms(np.fft.irfft(weighted, n=n, axis=-1))
+
+
+def we_weighting(frequencies_hz: np.ndarray) -> np.ndarray:
+    """Complex ISO 2631-1 We weighting (rotational vibration, Table 3 and Annex A): the band
+    limiting of :func:`wk_weighting` (f1 = 0.4 Hz, f2 = 100 Hz, Q = 1/sqrt 2) and the
+    acceleration-velocity transition f3 = f4 = 1 Hz, Q4 = 0.63; no upward step."""
+    f = np.asarray(frequencies_hz, dtype=float)
+    s = 2j * np.pi * f
+    w2, w3, w4 = (2.0 * np.pi * x for x in (100.0, 1.0, 1.0))
+    q = 1.0 / np.sqrt(2.0)
+    high_pass = s**2 / _second_order(s, 0.4, q)
+    low_pass = w2**2 / _second_order(s, 100.0, q)
+    transition = (1.0 + s / w3) / (1.0 + s / (0.63 * w4) + (s / w4) ** 2)
+    return high_pass * low_pass * transition
+
+
+def we_weighted_rms(acceleration_rad_s2: np.ndarray, dt_s: float) -> np.ndarray:
+    """RMS of the We-weighted angular acceleration (rad/s^2), as :func:`wk_weighted_rms`
+    (ISO 2631-1 multiplies it by k = 0.40 for pitch at a seated person's seat surface)."""
+    dt_s = check_positive("dt_s", dt_s)
+    a = np.asarray(acceleration_rad_s2, dtype=float)
+    n = a.shape[-1]
+    spectrum = np.fft.rfft(a - a.mean(axis=-1, keepdims=True), axis=-1)
+    weighted = spectrum * np.abs(we_weighting(np.fft.rfftfreq(n, dt_s)))
     return rms(np.fft.irfft(weighted, n=n, axis=-1))
 
 

@@ -39,6 +39,7 @@ from typing import Any
 __all__ = [
     "Task",
     "TASKS",
+    "DECLARED_TASKS",
     "register_tasks",
     "task_named",
     "normalised_score",
@@ -131,8 +132,28 @@ TASKS: tuple[Task, ...] = (
          headline="the ride task across a trip: EDS levitation against speed, spans, payload"),
 )  # fmt: skip
 
+#: Tasks over a declared vehicle of another form than the 1/4-car's: their env is
+#: ``DeclaredVehicleEnv`` (``DeclaredVectorEnv`` batched), their evaluation
+#: :mod:`capsule_env.evaluation.half_car` (``docs/half-car.md``); the quarter-car tasks' tools
+#: (``evaluate.py``, the cards of ``docs/tasks.md``) do not run them yet.
+DECLARED_TASKS: tuple[Task, ...] = (
+    Task("CapsuleHalfRide-v0",
+         "The half-car capsule on the ride task: car body heave and pitch on two bogies, two "
+         "MR dampers (action shape (2,)), the hils plant (Spencer's damper with its coil lag, "
+         "sensor noise, one control step of delay), 810 km/h, the random guideway; the rear "
+         "bogie meets the front's guideway (a + b) / v = 89 ms later.",
+         "per bogie: stroke, stroke rate, the accelerations over and of the bogie, the "
+         "levitation gap, the on-board velocity estimates and the last current command "
+         "(observation='measured')",
+         {"vehicle": "half_car", "setting": "hils", "observation": "measured"}, "hils",
+         "lqr-clipped-biexp-meas", "", "evaluation-CapsuleHalfRide-v0.json",
+         headline="the half-car capsule: pitch, two bogies, two dampers (`hils`, measured)"),
+)  # fmt: skip
+
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"
 VECTOR_ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionVectorEnv"
+DECLARED_ENTRY_POINT = "capsule_env.envs.declared_vehicle:make_suspension_env"
+DECLARED_VECTOR_ENTRY_POINT = "capsule_env.envs.declared_vector:make_suspension_vector_env"
 
 
 def task_named(env_id: str) -> Task:
@@ -153,6 +174,10 @@ def register_tasks() -> None:
         if task.env_id not in registry:
             register(id=task.env_id, entry_point=ENTRY_POINT,
                      vector_entry_point=VECTOR_ENTRY_POINT, kwargs=dict(task.kwargs))  # fmt: skip
+    for task in DECLARED_TASKS:
+        if task.env_id not in registry:
+            register(id=task.env_id, entry_point=DECLARED_ENTRY_POINT,
+                     vector_entry_point=DECLARED_VECTOR_ENTRY_POINT, kwargs=dict(task.kwargs))  # fmt: skip
 
 
 def normalised_score(wk_m_s2: float, passive_m_s2: float, oracle_m_s2: float) -> float:

@@ -263,7 +263,7 @@ def test_unsupported_options_are_refused_by_name(seat_toy):
         with pytest.raises(ValueError, match=key):
             gym.make("CapsuleSuspension-v0", vehicle="seat_toy", **{key: value})
     with pytest.raises(ValueError, match="observation"):
-        gym.make("CapsuleSuspension-v0", vehicle="seat_toy", observation="measured")
+        gym.make("CapsuleSuspension-v0", vehicle="seat_toy", observation="bogus")
     with pytest.raises(ValueError, match="seat_mass_kg|bogus"):
         gym.make("CapsuleSuspension-v0", vehicle="seat_toy", vehicle_params={"bogus": 1.0})
     env = gym.make("CapsuleSuspension-v0", vehicle="seat_toy")

@@ -48,30 +48,36 @@ from capsule_env.plant.declared_build import (
 )
 from capsule_env.plant.params import Route
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS
-from capsule_env.vehicles.declaration import VehicleModel
+from capsule_env.vehicles.declaration import SPRING, VehicleModel
 from capsule_env.vehicles.linear import absolute_model, mechanical_matrices
 
 _NOISE_STD = {c.name: c.std for c in NOISE_CHANNELS}
 
 __all__ = ["DeclaredBatch", "DECLARED_OBSERVATIONS", "SLOT_CHANNELS", "SLOT_NOISE_STD"]
 
-#: What each damper slot's sensors read: its stroke (LVDT), stroke rate, and the accelerations
-#: of its upper and lower ends (the car body's accelerometer over the bogie, the bogie's).
+#: What each damper slot's sensors read: its stroke (LVDT), stroke rate, the accelerations of
+#: its upper and lower ends (the car body's accelerometer over the bogie, the bogie's), and the
+#: gap of the spring from its lower end to the guideway (the levitation gap sensor; 0 where the
+#: lower end stands on none).
 SLOT_CHANNELS = ("stroke_m", "stroke_rate_m_s", "upper_acceleration_m_s2",
-                 "lower_acceleration_m_s2")  # fmt: skip
+                 "lower_acceleration_m_s2", "gap_m")  # fmt: skip
 N_SLOT_CHANNELS = len(SLOT_CHANNELS)
 #: Their noise at ``sensor_noise=1``: the quarter-car's channels of the same sensors
 #: (:data:`capsule_env.engine.observations.NOISE_CHANNELS`) [reconstructed].
 SLOT_NOISE_STD = np.array([
     _NOISE_STD[name] for name in ("stroke_m", "stroke_rate_m_s", "car_body_acceleration_m_s2",
-                                  "bogie_acceleration_m_s2")
+                                  "bogie_acceleration_m_s2", "levitation_gap_m")
 ])  # fmt: skip
 
 #: Observation sets of a declared vehicle: ``full_state`` (every coordinate and rate, each
 #: slot's stroke and stroke rate, each comfort point's acceleration and each contact's
-#: elevation; true values) and ``sensors`` (each slot's :data:`SLOT_CHANNELS`, with the sensor
-#: noise of the options, and its last current command: what a bogie's own sensors read).
-DECLARED_OBSERVATIONS = ("full_state", "sensors")
+#: elevation; true values), ``sensors`` (each slot's stroke, stroke rate and end accelerations,
+#: with the sensor noise of the options, and its last current command) and ``measured``
+#: (``sensors`` plus each slot's gap and the on-board estimates of its two ends' absolute
+#: velocities from their accelerometers: the quarter-car's ``measured`` per bogie).
+DECLARED_OBSERVATIONS = ("full_state", "sensors", "measured")
+#: Columns per slot of ``measured``, after the :data:`SLOT_CHANNELS`.
+ESTIMATE_CHANNELS = ("upper_velocity_estimate_m_s", "lower_velocity_estimate_m_s")
 
 
 class DeclaredBatch:
@@ -113,6 +119,9 @@ class DeclaredBatch:
         self.noise_level = config.effective_sensor_noise
         self.measured = np.zeros((n, self.n_slots * N_SLOT_CHANNELS))
         self._noise_std = self.noise_level * np.tile(SLOT_NOISE_STD, self.n_slots)
+        self.estimates = np.zeros((n, self.n_slots, 2))  # upper and lower velocity estimates
+        self._estimator_state = np.zeros((n, self.n_slots, 2, 2))
+        self._estimator = config.velocity_estimator_coefficients()
         self.noise_key = np.zeros(n, dtype=np.uint64)
         self.step_count = np.zeros(n, dtype=np.int64)
         self.rngs = vehicle_streams(None, n)
@@ -130,6 +139,7 @@ class DeclaredBatch:
         m, k, _ = mechanical_matrices(model, self.params)
         k_g = lin.e[1::2] * np.diag(m)[:, None]  # lin.e: K_g over the inertias
         self._equilibrium = np.linalg.solve(k, k_g)  # q at rest = this @ z_g
+        self.gap_rows, self.gap_contacts = _gap_rows(model, values, self.n_slots, self.n_coords)
         # a contact behind the reference point reads the bank from its first sample on
         offsets = self.plant.contact_offsets_m
         self._lead_m = max(0.0, -float(offsets.min(initial=0.0)))
@@ -171,7 +181,8 @@ class DeclaredBatch:
         self.step_count[n] = 0
         self.out[n] = 0.0
         self.out[n, self.n_slots + self.n_coords :] = zg
-        self.measured[n] = 0.0  # at rest: no stroke, no acceleration
+        self.measured[n] = 0.0  # at rest: no stroke, no acceleration, no gap change
+        self.estimates[n] = self._estimator_state[n] = 0.0
 
     def _contact_elevations(self, n: int, t: float) -> np.ndarray:
         pos = self.route.start_m[n] + self.route.speed_mps[n] * t + self.plant.contact_offsets_m[n]
@@ -219,13 +230,25 @@ class DeclaredBatch:
         n, ns = self.num_envs, self.n_slots
         sig = self.signals()
         ends = sig["slot_end_acceleration_m_s2"].reshape(n, ns, 2)
-        true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1]],
-                        axis=-1).reshape(n, -1)  # fmt: skip
+        true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1],
+                         sig["gap_m"]], axis=-1).reshape(n, -1)  # fmt: skip
         if self.noise_level > 0.0:
             normals = np.empty((n, true.shape[1] + 1))
             _normals(self.noise_key, self.step_count, normals)
             true = true + self._noise_std * normals[:, : true.shape[1]]
         self.measured[:] = true
+        self._estimate(true.reshape(n, ns, N_SLOT_CHANNELS)[:, :, 2:4])
+
+    def _estimate(self, acc: np.ndarray) -> None:
+        """The on-board velocity estimates from the measured accelerations (N, slots, 2): the
+        quarter-car's estimator (``EnvConfig.velocity_estimator_coefficients``, transposed
+        direct form II) on each accelerometer."""
+        b0, b1, b2, a1, a2 = self._estimator
+        s1, s2 = self._estimator_state[..., 0], self._estimator_state[..., 1]
+        y = b0 * acc + s1
+        s1[...] = b1 * acc - a1 * y + s2
+        s2[...] = b2 * acc - a2 * y
+        self.estimates[:] = y
 
     # ------------------------------------------------------------------ signals
     def positions_rates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -247,6 +270,8 @@ class DeclaredBatch:
             "comfort_acceleration_m_s2": _combine(acc, self.comfort_rows),
             "slot_end_acceleration_m_s2": _combine(acc, self.end_rows),
             "guideway_elevation_m": self.out[:, ns + nc :].copy(),
+            "gap_m": _combine(q, self.gap_rows)
+            - _combine(self.out[:, ns + nc :], self.gap_contacts),
         }
 
     def reward(self, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -268,8 +293,11 @@ class DeclaredBatch:
         m = self.model
         slots = [d.name for d in m.dampers]
         if self.config.observation == "sensors":
-            return tuple(f"{s}_{part}" for s in slots for part in (*SLOT_CHANNELS,
+            return tuple(f"{s}_{part}" for s in slots for part in (*SLOT_CHANNELS[:4],
                          "last_current_command_a"))  # fmt: skip
+        if self.config.observation == "measured":
+            return tuple(f"{s}_{part}" for s in slots for part in (*SLOT_CHANNELS,
+                         *ESTIMATE_CHANNELS, "last_current_command_a"))  # fmt: skip
         return (*m.state_names, *(f"{s}_stroke_m" for s in slots),
                 *(f"{s}_stroke_rate_m_s" for s in slots),
                 *(f"{p}_acceleration_m_s2" for p in m.comfort_points),
@@ -279,15 +307,31 @@ class DeclaredBatch:
         """The observations (N, d), float32 (``sensors``: the measurements, noisy where the
         options say; ``full_state``: the true values)."""
         n, ns = self.num_envs, self.n_slots
-        if self.config.observation == "sensors":
+        if self.config.observation in ("sensors", "measured"):
             meas = self.measured.reshape(n, ns, N_SLOT_CHANNELS)
-            cols = np.concatenate([meas, self.requested[:, :, None]], axis=2)
+            parts = [meas[:, :, :4]]
+            if self.config.observation == "measured":
+                parts += [meas[:, :, 4:], self.estimates]
+            cols = np.concatenate([*parts, self.requested[:, :, None]], axis=2)
             return cols.reshape(n, -1).astype(np.float32)
         q, v = self.positions_rates()
         qv = np.stack([q, v], axis=2).reshape(n, -1)
         return np.concatenate([qv, sig["stroke_m"], sig["stroke_rate_m_s"],
                                sig["comfort_acceleration_m_s2"],
                                sig["guideway_elevation_m"]], axis=1).astype(np.float32)  # fmt: skip
+
+
+def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):
+    """Each slot's gap: the deflection ``J q - g z_g`` of a spring from its lower point to a
+    contact (zero rows where there is none)."""
+    contacts = {c.name for c in model.contacts}
+    rows, ground = np.zeros((n_slots, n_coords)), np.zeros((n_slots, len(contacts)))
+    for s, slot in enumerate(model.dampers):
+        for e in model.elements:
+            if e.kind == SPRING and e.upper == slot.lower and e.lower in contacts:
+                rows[s], ground[s] = model.element_rows(e, values)
+                break
+    return rows, ground
 
 
 def _combine(x: np.ndarray, rows: np.ndarray) -> np.ndarray:

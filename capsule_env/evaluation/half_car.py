@@ -1,0 +1,184 @@
+"""Evaluate controllers on the half-car task ``CapsuleHalfRide-v0`` (a declared vehicle).
+
+The comfort metric: the ISO 2631-1 Wk-weighted RMS vertical acceleration of the car body's floor
+at three points, over the front bogie, at the centre of mass and over the rear bogie (Wk: the
+weighting for vertical vibration of a seated or standing person, as on the quarter-car tasks);
+the headline ``wk_rms_body_acc_m_s2`` is their mean, the name the quarter-car tasks' evaluation
+uses, so tables compare across tasks. Beside it: the pitch acceleration's We-weighted RMS
+(rad/s^2; ISO 2631-1's weighting for rotational vibration; the standard's factor k = 0.40 for
+pitch at a seat surface is not applied), ``pitch = (a_front - a_rear) / (a + b)``.
+
+Episodes: the evaluation bank (``guideway_seed`` 2026), episode seeds 1000.. (the quarter-car
+tasks'); the coupled law's weights are tuned on the training bank (``guideway_seed`` 0, episode
+seeds 0..9). Intervals: 95 % bootstrap over the episodes (paired for ratios), seeded.
+
+    python -m capsule_env.evaluation.half_car --out docs/figures/evaluation-CapsuleHalfRide-v0.json
+
+``--tune`` re-tunes the coupled law's weights (about a minute); ``--oracle-iterations N`` adds
+the oracle (started from the best law's own currents, so never worse than it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import sys
+import tempfile
+from typing import Any
+
+import numpy as np
+
+from capsule_env.envs.declared_vector import DeclaredVectorEnv
+from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
+
+__all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "evaluate", "main"]
+
+#: ``CapsuleHalfRide-v0``'s options (``capsule_env.tasks.DECLARED_TASKS``).
+TASK_KWARGS: dict[str, Any] = {"vehicle": "half_car", "setting": "hils", "observation": "measured"}
+EVALUATION_GUIDEWAY_SEED, TRAINING_GUIDEWAY_SEED = 2026, 0
+#: The coupled law's weights when not re-tuned: ``--tune``'s result (``docs/half-car.md``).
+TUNED_COUPLED = {"q_stroke": 1.0, "q_levitation": 100.0, "r_force": 3e-8}
+_GRID = {"q_stroke": (0.1, 1.0, 10.0, 100.0), "q_levitation": (10.0, 100.0, 1000.0),
+         "r_force": (1e-8, 3e-8, 1e-7, 3e-7)}  # fmt: skip
+
+
+def rollout(policy: Any, seeds: list[int], guideway_seed: int, length_s: float = 10.0) -> dict:
+    """``policy`` (``predict(obs) -> (actions, state)``, or None: the passive damper) on the
+    episodes ``seeds``: the comfort points' accelerations (E, 3, T), the applied currents
+    (E, T, slots), the strokes' largest magnitude (E,) and whether each ended at the bump stop."""
+    kwargs = dict(TASK_KWARGS, **(policy.env_kwargs if policy is not None else {}))
+    if policy is None:
+        kwargs["damper"] = "passive"
+    env = DeclaredVectorEnv(len(seeds), guideway_seed=guideway_seed, episode_length_s=length_s,
+                            **{k: v for k, v in kwargs.items() if k != "vehicle_params"})  # fmt: skip
+    obs, _ = env.reset(seed=[int(s) for s in seeds])
+    steps = env.batch.max_steps
+    acc, currents = [], []
+    stroke = np.zeros(len(seeds))
+    ended = np.zeros(len(seeds), dtype=bool)
+    for _ in range(steps):
+        actions = (
+            np.zeros((len(seeds), env.batch.n_slots)) if policy is None else policy.predict(obs)[0]
+        )
+        obs, _, terminated, _, info = env.step(actions)
+        acc.append(info["comfort_acceleration_m_s2"])
+        currents.append(env.batch.command.copy())
+        stroke = np.maximum(stroke, np.abs(info["stroke_m"]).max(axis=1))
+        ended |= terminated
+    values = env.batch.values
+    return {"acc": np.stack(acc, axis=2), "currents": np.stack(currents, axis=1),
+            "max_stroke_m": stroke, "terminated": ended, "dt_s": env.batch.dt,
+            "wheelbase_m": values["front_bogie_position_m"] - values["rear_bogie_position_m"]}  # fmt: skip
+
+
+def episode_metrics(roll: dict) -> dict[str, np.ndarray]:
+    """Per episode: Wk at each floor point, their mean (the headline), the pitch's We."""
+    wk = wk_weighted_rms(roll["acc"], roll["dt_s"])  # (E, 3)
+    pitch = (roll["acc"][:, 0] - roll["acc"][:, 2]) / roll["wheelbase_m"]
+    return {"wk_rms_body_acc_m_s2": wk.mean(axis=1), "wk_front_m_s2": wk[:, 0],
+            "wk_centre_m_s2": wk[:, 1], "wk_rear_m_s2": wk[:, 2],
+            "we_rms_pitch_rad_s2": we_weighted_rms(pitch, roll["dt_s"]),
+            "max_stroke_m": roll["max_stroke_m"],
+            "terminated": roll["terminated"].astype(float)}  # fmt: skip
+
+
+def _interval(x: np.ndarray, seed: int = 0, reps: int = 10_000) -> list[float]:
+    """95 % bootstrap interval of the mean over episodes."""
+    rng = np.random.default_rng(seed)
+    means = x[rng.integers(0, len(x), (reps, len(x)))].mean(axis=1)
+    return [float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))]
+
+
+def _ratio_interval(x: np.ndarray, y: np.ndarray, seed: int = 0, reps: int = 10_000) -> list:
+    """95 % paired bootstrap interval of ``mean(x) / mean(y)`` over the same episodes."""
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(x), (reps, len(x)))
+    ratios = x[idx].mean(axis=1) / y[idx].mean(axis=1)
+    return [float(np.quantile(ratios, 0.025)), float(np.quantile(ratios, 0.975))]
+
+
+def tune_coupled(seeds: list[int] | None = None, length_s: float = 10.0) -> dict[str, float]:
+    """The coupled clipped LQR's weights with the lowest mean headline Wk on the training bank
+    (a grid over :data:`_GRID`)."""
+    from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
+
+    seeds = list(range(10)) if seeds is None else seeds
+    best, best_wk = dict(TUNED_COUPLED), np.inf
+    for values in itertools.product(*_GRID.values()):
+        weights = dict(zip(_GRID, values, strict=True))
+        law = DeclaredClippedLQR("half_car", observation="measured", **weights)
+        wk = float(episode_metrics(rollout(law, seeds, TRAINING_GUIDEWAY_SEED, length_s))[
+            "wk_rms_body_acc_m_s2"].mean())  # fmt: skip
+        if wk < best_wk:
+            best, best_wk = weights, wk
+    return best
+
+
+def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int = 0) -> dict:
+    """Every row's metrics (means and intervals over the episodes ``seeds``)."""
+    from capsule_env.agents.controllers.declared_lqr import (
+        DeclaredClippedLQR,
+        IndependentClippedLQR,
+    )
+
+    laws = {"passive": None, "lqr-clipped-biexp-meas": IndependentClippedLQR(),
+            "lqr-coupled-biexp-meas": DeclaredClippedLQR("half_car", observation="measured",
+                                                         **coupled)}  # fmt: skip
+    rolls = {name: rollout(law, seeds, EVALUATION_GUIDEWAY_SEED) for name, law in laws.items()}
+    metrics = {name: episode_metrics(r) for name, r in rolls.items()}
+    if oracle_iterations:
+        metrics["oracle"] = _oracle(seeds, rolls, metrics, oracle_iterations)
+    reference = metrics["lqr-clipped-biexp-meas"]["wk_rms_body_acc_m_s2"]
+    rows = {}
+    for name, m in metrics.items():
+        head = m["wk_rms_body_acc_m_s2"]
+        rows[name] = {k: float(np.mean(v)) for k, v in m.items()}
+        rows[name]["wk_rms_body_acc_m_s2_ci95"] = _interval(head)
+        rows[name]["ratio_to_independent_lqr"] = float(head.mean() / reference.mean())
+        rows[name]["ratio_to_independent_lqr_ci95"] = _ratio_interval(head, reference)
+        rows[name]["per_episode_wk_m_s2"] = head.tolist()
+    return rows
+
+
+def _oracle(seeds: list[int], rolls: dict, metrics: dict, iterations: int) -> dict:
+    """The oracle's metrics, started from the best law's own applied currents."""
+    from capsule_env.oracle.declared import declared_oracle
+
+    laws = [n for n in rolls if n != "passive"]
+    best = min(laws, key=lambda n: metrics[n]["wk_rms_body_acc_m_s2"].mean())
+    kwargs = dict(TASK_KWARGS, guideway_seed=EVALUATION_GUIDEWAY_SEED)
+    result = declared_oracle(kwargs, seeds, starts=[rolls[best]["currents"]],
+                             max_iterations=iterations)  # fmt: skip
+    return {"wk_rms_body_acc_m_s2": result.wk_m_s2}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="", help="JSON file to write (atomically)")
+    p.add_argument("--episodes", type=int, default=10, help="evaluation episodes (>= 2)")
+    p.add_argument("--tune", action="store_true", help="re-tune the coupled law's weights")
+    p.add_argument("--oracle-iterations", type=int, default=0, help="L-BFGS-B iterations (0: none)")
+    args = p.parse_args(argv)
+    if args.episodes < 2 or args.oracle_iterations < 0:
+        print("error: --episodes must be >= 2 and --oracle-iterations >= 0", file=sys.stderr)
+        return 2
+    coupled = tune_coupled() if args.tune else dict(TUNED_COUPLED)
+    seeds = list(range(1000, 1000 + args.episodes))
+    result = {"task": "CapsuleHalfRide-v0", "episodes": seeds, "guideway_seed":
+              EVALUATION_GUIDEWAY_SEED, "coupled_weights": coupled,
+              "command": "python -m capsule_env.evaluation.half_car " + " ".join(argv or sys.argv[1:]),
+              "rows": evaluate(seeds, coupled, args.oracle_iterations)}  # fmt: skip
+    text = json.dumps(result, indent=1)
+    if args.out:
+        folder = os.path.dirname(os.path.abspath(args.out))
+        with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
+            f.write(text)
+        os.replace(f.name, args.out)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
