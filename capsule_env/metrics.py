@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from capsule_env.common.validation import check_positive
@@ -118,11 +120,16 @@ def wk_weighting(frequencies_hz: np.ndarray) -> np.ndarray:
 def wk_weighted_rms(acceleration_m_s2: np.ndarray, dt_s: float) -> np.ndarray:
     """RMS of the Wk-weighted acceleration (m/s^2), weighting applied per FFT line (exact for
     the analog filter up to the Nyquist frequency; periodic extension of the record)."""
+    return _weighted_rms(acceleration_m_s2, dt_s, wk_weighting)
+
+
+def _weighted_rms(signal: np.ndarray, dt_s: float, weighting: Any) -> np.ndarray:
+    """RMS of ``signal`` weighted per FFT line by ``|weighting(f)|`` (mean removed)."""
     dt_s = check_positive("dt_s", dt_s)
-    a = np.asarray(acceleration_m_s2, dtype=float)
+    a = np.asarray(signal, dtype=float)
     n = a.shape[-1]
     spectrum = np.fft.rfft(a - a.mean(axis=-1, keepdims=True), axis=-1)
-    weighted = spectrum * np.abs(wk_weighting(np.fft.rfftfreq(n, dt_s)))
+    weighted = spectrum * np.abs(weighting(np.fft.rfftfreq(n, dt_s)))
     return rms(np.fft.irfft(weighted, n=n, axis=-1))
 
 
@@ -143,12 +150,7 @@ def we_weighting(frequencies_hz: np.ndarray) -> np.ndarray:
 def we_weighted_rms(acceleration_rad_s2: np.ndarray, dt_s: float) -> np.ndarray:
     """RMS of the We-weighted angular acceleration (rad/s^2), as :func:`wk_weighted_rms`
     (ISO 2631-1 multiplies it by k = 0.40 for pitch at a seated person's seat surface)."""
-    dt_s = check_positive("dt_s", dt_s)
-    a = np.asarray(acceleration_rad_s2, dtype=float)
-    n = a.shape[-1]
-    spectrum = np.fft.rfft(a - a.mean(axis=-1, keepdims=True), axis=-1)
-    weighted = spectrum * np.abs(we_weighting(np.fft.rfftfreq(n, dt_s)))
-    return rms(np.fft.irfft(weighted, n=n, axis=-1))
+    return _weighted_rms(acceleration_rad_s2, dt_s, we_weighting)
 
 
 def wk_analog_zpk() -> tuple[np.ndarray, np.ndarray, float]:
