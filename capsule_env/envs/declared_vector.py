@@ -78,10 +78,15 @@ class DeclaredVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         batch = self._batch
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
-        if a.shape[1] != batch.n_slots:
-            raise ValueError(f"actions must have shape ({self.num_envs}, {batch.n_slots}), "
-                             f"got {np.shape(actions)}")  # fmt: skip
+        shape = (self.num_envs, batch.n_slots)
+        try:
+            a = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise TypeError(f"actions must be numbers of shape {shape}, "
+                            f"got {type(actions).__name__}") from None  # fmt: skip
+        if a.shape != shape and not (batch.n_slots == 1 and a.shape == shape[:1]):
+            raise ValueError(f"actions must have shape {shape}, got {a.shape}")
+        a = a.reshape(shape)
         if not np.all(np.isfinite(a)):
             raise ValueError("actions must be finite")
         restart = self._autoreset.copy()

@@ -179,12 +179,15 @@ def _params(model: Any, overrides: dict[str, Any]) -> Any:
 
 
 def _checked_action(action: Any, n: int) -> np.ndarray:
+    """The action of shape ``(n,)`` (a number too where ``n`` is 1), finite, clipped to [-1, 1];
+    any other shape is refused, not reshaped (a batch of one is a mistake here)."""
     try:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise TypeError(f"action must be {n} numbers, got {type(action).__name__}") from None
-    if a.shape != (n,):
-        raise ValueError(f"action must have shape ({n},), got {np.shape(action)}")
+    if a.shape != (n,) and not (n == 1 and a.shape == ()):
+        raise ValueError(f"action must have shape ({n},), got {a.shape}")
+    a = a.reshape(n)
     if not np.all(np.isfinite(a)):
         raise ValueError("action must be finite")
     return np.clip(a, -1.0, 1.0)
