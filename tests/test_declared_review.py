@@ -6,6 +6,9 @@
   kernels (:func:`capsule_env.engine.simulate.simulate`) on the guideway each contact meets.
 - Passivity: a passive damper in both slots, no guideway input: the mechanical energy
   ``v' M v / 2 + q' K q / 2`` (Newton's matrices) never increases from one step to the next.
+- The guideway under every contact: a deterministic profile to the episode's end (the front
+  contact runs a wheelbase ahead of the rear one), a random one scaled to ``peak_m`` over what
+  all the contacts meet.
 - Wrong input is refused, not reshaped: an action of another shape than the action space's.
 """
 
@@ -88,6 +91,47 @@ def test_a_passive_half_car_without_guideway_input_never_gains_energy():
     steps = np.diff(energies)
     assert np.all(steps <= 1e-12 * energies[0])  # observed: every step loses >= 4e-6 of E0
     assert energies[-1] < 0.5 * energies[0]  # and it does dissipate
+
+
+def _elevations(env: DeclaredVehicleEnv, seed: int) -> np.ndarray:
+    """Each contact's guideway elevation at reset and after each step of an episode (T+1, 2)."""
+    _, info = env.reset(seed=seed)
+    z = [info["guideway_elevation_m"]]
+    while True:
+        _, _, terminated, truncated, info = env.step(np.zeros(2))
+        z.append(info["guideway_elevation_m"])
+        if terminated or truncated:
+            return np.array(z)
+
+
+def test_the_front_contact_meets_a_sine_guideway_to_the_end_of_the_episode():
+    """A sine guideway (8 mm, 1.3 Hz at the running speed: docs/model.md 3): under the rear
+    contact a sinusoid ``c1 sin(w t) + c2 cos(w t)`` (fitted), and under the front one the same
+    a wheelbase ``(a + b) / v`` earlier, for the whole episode (linear interpolation between
+    samples 0.25 m apart: 1e-5 of the amplitude). It was held at the profile's last sample
+    for the episode's last 0.1 s: the profile ended a wheelbase too early for the front."""
+    geometry = {"front_bogie_position_m": 11.25, "rear_bogie_position_m": -11.25}
+    env = DeclaredVehicleEnv(**SHORT, vehicle_params=geometry, guideway="sine",
+                             action_mode="current")  # fmt: skip
+    z = _elevations(env, seed=0)
+    peak, w, tau = 0.008, 2 * np.pi * 1.3, 22.5 / 225.0  # docs/model.md 3; (a + b) / v
+    t = np.arange(z.shape[0]) * 0.005
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    coef = np.linalg.lstsq(basis, z[:, 1], rcond=None)[0]
+    assert np.hypot(*coef) == pytest.approx(peak, rel=1e-3)
+    np.testing.assert_allclose(z[:, 1], basis @ coef, rtol=0, atol=1e-3 * peak)
+    ahead = np.column_stack([np.sin(w * (t + tau)), np.cos(w * (t + tau))]) @ coef
+    np.testing.assert_allclose(z[:, 0], ahead, rtol=0, atol=1e-3 * peak)
+
+
+def test_every_episode_peaks_at_peak_m_under_every_contact():
+    """docs/model.md 3.4: each episode's guideway is scaled so that its peak is ``peak_m``;
+    the half-car's contacts meet 20 m more of it than the rear one alone (the front bogie's
+    lead). It peaked at up to 1.46 peak_m under the front bogie (seed 8 of these)."""
+    env = DeclaredVehicleEnv(**SHORT, guideway_params={"peak_m": 0.005}, action_mode="current")
+    peaks = np.array([np.abs(_elevations(env, seed)).max() for seed in range(12)])
+    assert np.all(peaks <= 0.005 * (1.0 + 1e-9))
+    assert peaks.max() >= 0.999 * 0.005  # scaled to it, not below it
 
 
 @pytest.mark.parametrize("shape", [(2, 1), (1, 2), (4,), ()])

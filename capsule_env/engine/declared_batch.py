@@ -95,7 +95,8 @@ class DeclaredBatch:
         self.max_steps = config.max_episode_steps
         self.guideway = config.guideway_spec
         self.n_slots, self.n_coords = len(model.dampers), len(model.coordinates)
-        self.profiles = _bank(config)
+        offsets_m = model.contact_offsets_m(params)  # the contacts' stretch of guideway
+        self.profiles = _bank(config, float(np.ptp(np.r_[offsets_m, 0.0])))
         speed = config.speed_m_s
         rate = float(np.asarray(config.input_rate_rad_s(speed)).reshape(-1)[0])
         self.plant = declared_plant(model, [self.values] * self.num_envs, self.damper,
@@ -169,7 +170,7 @@ class DeclaredBatch:
         if self.guideway.kind == "random":
             j0 = int(u_offset * (self.profiles.shape[1] - window - self._length_samples))
             self.route.start_m[n] = j0 * spacing + self._lead_m
-            seg = self.profiles[k, j0 : j0 + window]
+            seg = self.profiles[k, j0 : j0 + window + self._length_samples]  # every contact's
             peak = self.guideway.peak_m
             self.route.gain[n] = 1.0 if peak is None else peak / np.max(np.abs(seg))
         else:
@@ -367,8 +368,10 @@ def _invert(code, p, force_n, stroke, rate, i_max, out):
     return impl
 
 
-def _bank(cfg: EnvConfig) -> np.ndarray:
-    """The guideway bank: ``CapsuleBatch``'s (the same seeds, lengths and spectra)."""
+def _bank(cfg: EnvConfig, span_m: float = 0.0) -> np.ndarray:
+    """The guideway bank: ``CapsuleBatch``'s (the same seeds, lengths and spectra); a
+    deterministic profile continued ``span_m`` further (the stretch between the rearmost and
+    the foremost contact, which the foremost meets beyond the reference point's window)."""
     gw = cfg.guideway_spec
     if gw.kind == "random":
         seeds = np.random.SeedSequence(cfg.guideway_seed).generate_state(cfg.guideway_bank_size)
@@ -377,7 +380,7 @@ def _bank(cfg: EnvConfig) -> np.ndarray:
                                max_wavelength_m=gw.max_wavelength_m, psd=gw.psd)
                 for s in seeds]  # fmt: skip
         return np.ascontiguousarray(np.stack(bank))
-    profile = make_profile(gw, cfg.window_m / cfg.speed_m_s, extend_m=0.0)
+    profile = make_profile(gw, cfg.window_m / cfg.speed_m_s, extend_m=span_m)
     return np.ascontiguousarray(profile[None, :])
 
 
