@@ -29,7 +29,7 @@ from scipy.optimize import minimize
 from capsule_env.engine.declared_batch import DeclaredBatch
 from capsule_env.envs.declared_vehicle import DeclaredVehicleEnv
 from capsule_env.oracle.plant import FD_RELATIVE_STEP, RideObjective
-from capsule_env.plant.declared import declared_step
+from capsule_env.plant.declared import declared_step, declared_step_parallel
 from capsule_env.plant.declared_build import DeclaredPlant
 from capsule_env.plant.params import Route
 
@@ -145,8 +145,9 @@ class DeclaredEpisodes:
         route = _tile_route(self.batch.route, rows)
         x = np.ascontiguousarray(x.reshape(T * copies, -1))
         out = np.zeros((T * copies, outs.shape[1]))
-        declared_step(self.batch.damper.code, 0, T * copies, plant, x,
-                      np.ascontiguousarray(cmd.reshape(T * copies, m)), route, self.dt_s, out)  # fmt: skip
+        declared_step_parallel(self.batch.damper.code)(
+            T * copies, plant, x, np.ascontiguousarray(cmd.reshape(T * copies, m)), route,
+            self.dt_s, out)  # fmt: skip
         ns, nc = self.n_slots, self.n_coords
         d_next = x.reshape(T, copies, -1)[:, :, cols] - states[1:, None, cols]
         acc = out[:, ns : ns + nc].reshape(T, copies, nc) - outs[:, None, ns : ns + nc]
