@@ -9,7 +9,8 @@
 - The guideway under every contact: a deterministic profile to the episode's end (the front
   contact runs a wheelbase ahead of the rear one), a random one scaled to ``peak_m`` over what
   all the contacts meet.
-- Wrong input is refused, not reshaped: an action of another shape than the action space's.
+- Wrong input is refused, not reshaped: an action of another shape than the action space's;
+  a clipped LQR whose ``env_kwargs`` would give it an env it cannot read.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
+from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
 
 from capsule_env.engine.layout import STATE_SIZE
 from capsule_env.engine.simulate import simulate
@@ -148,3 +150,14 @@ def test_the_vector_env_refuses_actions_of_another_shape(shape):
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"actions must have shape \(2, 2\)"):
         env.step(np.zeros(shape, dtype=np.float32))
+
+
+@pytest.mark.parametrize("observation", ["full_state", "measured"])
+def test_the_declared_lqr_refuses_a_vehicle_that_gym_make_runs_compiled(observation):
+    """``gym.make(ENV_ID, **law.env_kwargs)`` gives the 1/4-car's form the compiled env, whose
+    ``full_state`` is ``z_c, v_c, z_b, v_b, z_g, a_c, a_b, stroke, ...`` (docs/env.md): the law
+    read column 7 (the stroke there) as the guideway's elevation, silently."""
+    env = gym.make(ENV_ID, observation="full_state", episode_length_s=0.5)
+    assert not isinstance(env.unwrapped, DeclaredVehicleEnv)  # the layout the law misread
+    with pytest.raises(ValueError, match="quarter_car.*lqr-clipped"):
+        DeclaredClippedLQR("quarter_car", observation=observation)

@@ -9,7 +9,9 @@ far as the damper can (the clipping).
 
 Signals read: the ``full_state`` observation of
 :class:`capsule_env.envs.declared_vehicle.DeclaredVehicleEnv` (every coordinate and rate, each
-contact's guideway elevation): ideal sensors, as the quarter-car's ``lqr-clipped-*``.
+contact's guideway elevation): ideal sensors, as the quarter-car's ``lqr-clipped-*``. A vehicle
+of the quarter-car's form is refused (``gym.make`` runs it on the compiled env, whose
+observations are laid out otherwise): its law is the quarter-car's ``lqr-clipped-*``.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.controllers.lqr import FALLBACK_WEIGHTS, lqr_gain
 
 from capsule_env.vehicles import model_named
+from capsule_env.vehicles.compiled import runs_compiled
 from capsule_env.vehicles.declaration import SPRING
 
 __all__ = ["DeclaredClippedLQR", "IndependentClippedLQR"]
@@ -47,6 +50,11 @@ class DeclaredClippedLQR(Controller):
             raise ValueError(f"observation must be 'full_state' or 'measured', got {observation!r}")
         self.model = model = model_named(vehicle)
         self.params = model.params(**(vehicle_params or {}))
+        if runs_compiled(model, self.params):  # gym.make gives it the compiled env's layout
+            raise ValueError(f"vehicle {vehicle!r} has the quarter-car's form: gym.make runs it "
+                             "on the compiled env, whose observations this law does not read; "
+                             "use the quarter-car's clipped LQR (make_controller("
+                             "'lqr-clipped-biexp' or 'lqr-clipped-biexp-meas'))")  # fmt: skip
         if not (q_stroke >= 0 and q_levitation >= 0 and r_force > 0):
             raise ValueError("q_stroke and q_levitation must be >= 0 and r_force > 0")
         if not max_force_n > 0:
