@@ -69,3 +69,17 @@ def test_the_oracle_replays_the_env_and_is_never_worse_than_its_start():
     assert result.wk_m_s2[0] <= result.start_wk_m_s2[0].min()
     assert result.currents.shape == (1, ep.n_steps, 1)
     assert np.all((result.currents >= 0) & (result.currents <= ep.i_max))
+
+
+def test_the_oracle_keeps_within_the_bump_stop_and_says_so():
+    """The chosen sequence's largest stroke is reported (the replay's), and it stays within the
+    bump stop when a candidate does (7.5 mm here; without the limit the best reaches 7.3 mm)."""
+    kwargs = dict(KWARGS, stroke_limit_m=0.0075)
+    result = declared_oracle(kwargs, [8], max_iterations=10)
+    ep = DeclaredEpisodes(kwargs, [8])
+    states, _ = ep.run(np.array([0]), result.currents)
+    stroke = np.abs(ep.strokes(states)).max()
+    assert stroke == pytest.approx(result.max_stroke_m[0], rel=1e-12)
+    assert stroke <= 0.0075
+    with pytest.raises(ValueError, match="starts"):
+        declared_oracle(KWARGS, [8], starts=[np.zeros((2, 3))])

@@ -208,11 +208,15 @@ def adjoint_gradient_multi(jac_x, jac_u, acc_x, acc_u, d_acc, d_state) -> np.nda
 @dataclass
 class DeclaredOracleResult:
     """Per episode: the best applied currents (E, T, slots) and their mean comfort-point Wk
-    (m/s^2) re-measured with the adaptive substeps, and every start's figure (E, starts)."""
+    (m/s^2) re-measured with the adaptive substeps, every start's figure (E, starts), and the
+    best sequence's largest stroke (m). A sequence that passes the bump stop
+    (``stroke_limit_m``, where the env would end the episode) is chosen only when no
+    candidate of that episode stays within it."""
 
     currents: np.ndarray
     wk_m_s2: np.ndarray
     start_wk_m_s2: np.ndarray
+    max_stroke_m: np.ndarray
 
 
 def declared_oracle(
@@ -227,20 +231,33 @@ def declared_oracle(
     ep = DeclaredEpisodes(env_kwargs, seeds)
     shape = (len(seeds), ep.n_steps, ep.n_slots)
     candidates = [np.zeros(shape), np.full(shape, 0.1 * ep.i_max), *(starts or [])]
+    if int(max_iterations) < 0:
+        raise ValueError(f"max_iterations must be >= 0, got {max_iterations!r}")
     best = np.zeros(shape)
-    best_wk = np.full(len(seeds), np.inf)
+    best_wk, best_stroke = np.full(len(seeds), np.inf), np.full(len(seeds), np.inf)
     start_wk = np.zeros((len(seeds), len(candidates)))
     lanes = np.arange(len(seeds))
+    limit = ep.objective.max_stroke_m
     for j, start in enumerate(candidates):
-        start = np.clip(np.asarray(start, dtype=float).reshape(shape), 0.0, ep.i_max)
+        if np.shape(start) != shape:
+            raise ValueError(f"starts[{j}] must have shape {shape}, got {np.shape(start)}")
+        start = np.clip(np.asarray(start, dtype=float), 0.0, ep.i_max)
         found = np.array([_search(ep, k, start[k], max_iterations) for k in lanes])
-        for cand in (start, found):  # the start itself counts: never worse than it
+        for cand, is_start in ((start, True), (found, False)):  # the start counts too
             states, outs = ep.run(lanes, cand)
             _, wk = ep.value(states, outs)
-            better = wk < best_wk
-            best[better], best_wk[better] = cand[better], wk[better]
-        start_wk[:, j] = ep.value(*ep.run(lanes, start))[1]
-    return DeclaredOracleResult(best, best_wk, start_wk)
+            stroke = np.abs(ep.strokes(states)).max(axis=(1, 2))
+            # within the bump stop first, then the lowest Wk
+            better = (stroke <= limit) & ((best_stroke > limit) | (wk < best_wk))
+            better |= (stroke > limit) & (best_stroke > limit) & (wk < best_wk)
+            best[better], best_wk[better], best_stroke[better] = (
+                cand[better],
+                wk[better],
+                stroke[better],
+            )
+            if is_start:
+                start_wk[:, j] = wk
+    return DeclaredOracleResult(best, best_wk, start_wk, best_stroke)
 
 
 def _search(ep: DeclaredEpisodes, k: int, start: np.ndarray, max_iterations: int) -> np.ndarray:
