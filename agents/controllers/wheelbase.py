@@ -30,6 +30,7 @@ from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
 from capsule_env.agents.controllers.lqr import state_weights
 from scipy.linalg import expm, solve_discrete_are
 
+from capsule_env.common.units import kmh_to_m_s
 from capsule_env.vehicles import model_named, relative_model
 
 __all__ = ["WheelbaseGains", "wheelbase_gains", "WheelbasePreviewLQ", "WheelbaseExactPreviewLQ"]
@@ -114,7 +115,7 @@ class WheelbasePreviewLQ(Controller):
         self.name = "wheelbase-lq-biexp-meas" if preview else "lq-discrete-biexp-meas"
         self.state_law = DeclaredClippedLQR(vehicle, None, q_stroke, q_levitation, r_force,
                                             observation="measured")  # fmt: skip
-        self.gains_ = wheelbase_gains(vehicle, dt_s, speed_kmh / 3.6, q_stroke, q_levitation,
+        self.gains_ = wheelbase_gains(vehicle, dt_s, kmh_to_m_s(speed_kmh), q_stroke, q_levitation,
                                       r_force, delay_steps, preview)  # fmt: skip
         self.dt_s, self.max_force_n = float(dt_s), float(max_force_n)
         self.env_kwargs = {"vehicle": vehicle, "action_mode": "force", "observation": "measured",
