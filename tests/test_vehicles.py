@@ -325,3 +325,31 @@ def test_the_env_checks_the_form_at_the_parameters_given():
                      vehicle_params={"motion_ratio": 2.0})  # fmt: skip
     finally:
         unregister("qc_ratio")
+
+
+def test_a_declaration_or_a_call_of_the_wrong_type_is_named():
+    """Found by a review (issue 41): these gave raw errors or nothing at all."""
+    from capsule_env.agents.controllers.lqr import lqr_gain
+
+    from capsule_env.engine import observations
+
+    body, bogie = QUARTER_CAR.coordinates
+    with pytest.raises(ValueError, match="joins 'car_body' to itself"):
+        dataclasses.replace(QUARTER_CAR, elements=(*QUARTER_CAR.elements, Element(
+            SPRING, "loop", "car_body", "car_body", "secondary_stiffness_n_per_m")))  # fmt: skip
+    with pytest.raises(ValueError, match="coordinate and rate names must be unique"):
+        dataclasses.replace(QUARTER_CAR, coordinates=(body, dataclasses.replace(
+            bogie, rate_name=body.rate_name)))  # fmt: skip
+    with pytest.raises(ValueError, match="unit must be one of"):
+        dataclasses.replace(QUARTER_CAR, coordinates=(dataclasses.replace(body, unit="ft"), bogie))
+    with pytest.raises(TypeError, match="coefficient must name a parameter"):
+        dataclasses.replace(QUARTER_CAR, elements=(Element(SPRING, "s", "car_body", "bogie", 5.0),
+                                                   *QUARTER_CAR.elements[1:]))  # fmt: skip
+    with pytest.raises(TypeError, match="model must be a VehicleModel"):
+        absolute_model("quarter_car")
+    with pytest.raises(TypeError, match="q_stroke must be a number"):
+        lqr_gain(P, "1", 1.0, 1e-9)
+    with pytest.raises(ValueError, match="r_force must be finite and > 0"):
+        lqr_gain(P, 1.0, 1.0, -1e-9)
+    with pytest.raises(ValueError, match="observation must be one of"):
+        observations.columns("bogus")

@@ -53,6 +53,7 @@ def lqr_gain(
     levitation) between the bogie and the guideway: ``m_b z_b'' = k_s (z_c - z_b) + F - k_p (z_b - z_g) - c_p (z_b' - z_g')``,
     the guideway's velocity a disturbance. The gain-scheduled law
     (:mod:`capsule_env.agents.controllers.scheduled_lqr`) gives the EDS values at each speed."""
+    _check_weights(q_stroke=q_stroke, q_levitation=q_levitation, r_force=r_force)
     model = model_of_params(vehicle)
     scheduled = {LEVITATION_STIFFNESS: levitation_stiffness_n_per_m,
                  LEVITATION_DAMPING: levitation_damping_n_s_per_m}  # fmt: skip
@@ -65,6 +66,18 @@ def lqr_gain(
     p = solve_continuous_are(a, b, q, r, s=n)
     gain = np.linalg.solve(r, b.T @ p + n.T)
     return gain[0] if gain.shape[0] == 1 else gain
+
+
+def _check_weights(**weights: object) -> None:
+    """``TypeError``/``ValueError`` naming a weight that is not a finite number, ``>= 0`` (the
+    state weights) or ``> 0`` (``r_force``)."""
+    for name, value in weights.items():
+        if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+            raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+        low_ok = value > 0 if name == "r_force" else value >= 0
+        if not (np.isfinite(value) and low_ok):
+            bound = "> 0" if name == "r_force" else ">= 0"
+            raise ValueError(f"{name} must be finite and {bound}, got {value!r}")
 
 
 def state_weights(

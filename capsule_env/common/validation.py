@@ -103,8 +103,9 @@ def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
     """Raise unless ``value`` is one of ``choices`` (``TypeError`` if it is not a string)."""
     choices = tuple(choices)
     if not isinstance(value, str):
+        shown = repr(value) if len(repr(value)) <= 60 else f"a {type(value).__name__}"
         raise TypeError(
-            f"{name} must be one of {', '.join(choices)} (a string), got {value!r} "
+            f"{name} must be one of {', '.join(choices)} (a string), got {shown} "
             f"({type(value).__name__})"
         )
     if value not in choices:

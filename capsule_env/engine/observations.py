@@ -343,6 +343,9 @@ def _groups(trip: bool, preview_points: int) -> tuple[tuple[str, tuple[Column, .
 
 def columns(observation: str, trip: bool = False, preview_points: int = 0) -> tuple[str, ...]:
     """Every column of an observation, in order: the set's, the trip's, the preview's."""
+    if observation not in OBSERVATION_NAMES:
+        raise ValueError(f"observation must be one of {', '.join(OBSERVATION_NAMES)}, "
+                         f"got {observation!r}")  # fmt: skip
     appended = tuple(c.name for _, group in _groups(trip, preview_points) for c in group)
     return OBSERVATION_NAMES[observation] + appended
 

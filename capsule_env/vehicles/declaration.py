@@ -49,6 +49,8 @@ __all__ = [
 
 #: Element kinds.
 SPRING, DASHPOT, DAMPER = "spring", "dashpot", "damper"
+#: Units of a coordinate: a displacement or an angle.
+UNITS = ("m", "rad")
 
 
 @dataclass(frozen=True)
@@ -211,19 +213,14 @@ def _value(coefficient: float | str, values: dict[str, float]) -> float:
 def _check_declaration(model: VehicleModel) -> None:
     """One clear ``ValueError`` for a declaration that names what it does not declare."""
     if not isinstance(model.name, str) or not model.name:
-        raise ValueError("a vehicle model needs a non-empty name")
+        raise ValueError(f"a vehicle model needs a non-empty name (a string), got {model.name!r}")
     if not dataclasses.is_dataclass(model.params):
         raise TypeError(f"vehicle {model.name!r}: params must be a dataclass type")
     fields = {f.name for f in dataclasses.fields(model.params)}
     coords = [c.name for c in model.coordinates]
     points = [p.name for p in model.points]
     contacts = [c.name for c in model.contacts]
-    if not coords:
-        raise ValueError(f"vehicle {model.name!r}: declare at least one coordinate")
-    for what, names in (("coordinate", coords), ("point and contact", points + contacts),
-                        ("element", [e.name for e in model.elements])):  # fmt: skip
-        if len(set(names)) != len(names):
-            raise ValueError(f"vehicle {model.name!r}: {what} names must be unique: {names}")
+    _check_names(model, coords, points, contacts)
 
     def need(name: object, where: str) -> None:
         if isinstance(name, str) and name not in fields:
@@ -244,6 +241,21 @@ def _check_declaration(model: VehicleModel) -> None:
         raise ValueError(f"vehicle {model.name!r}: comfort points {missing} are not points")
 
 
+def _check_names(model: VehicleModel, coords: list, points: list, contacts: list) -> None:
+    """At least one coordinate, each in metres or radians; every name used once."""
+    if not coords:
+        raise ValueError(f"vehicle {model.name!r}: declare at least one coordinate")
+    for c in model.coordinates:
+        if c.unit not in UNITS:
+            raise ValueError(f"vehicle {model.name!r}: coordinate {c.name!r} unit must be one of "
+                             f"{UNITS}, got {c.unit!r}")  # fmt: skip
+    for what, names in (("coordinate and rate", coords + [c.rate_name for c in model.coordinates]),
+                        ("point and contact", points + contacts),
+                        ("element", [e.name for e in model.elements])):  # fmt: skip
+        if len(set(names)) != len(names):
+            raise ValueError(f"vehicle {model.name!r}: {what} names must be unique: {names}")
+
+
 def _check_points(model: VehicleModel, coords: list, need) -> None:
     for p in model.points:
         for coordinate, coefficient in p.terms:
@@ -257,6 +269,14 @@ def _check_element(model: VehicleModel, e: Element, points: list, contacts: list
     if e.kind not in (SPRING, DASHPOT, DAMPER):
         raise ValueError(f"vehicle {model.name!r}: element {e.name!r} kind must be one of "
                          f"{SPRING!r}, {DASHPOT!r}, {DAMPER!r}, got {e.kind!r}")  # fmt: skip
+    if e.upper == e.lower:
+        raise ValueError(f"vehicle {model.name!r}: element {e.name!r} joins {e.upper!r} to "
+                         "itself")  # fmt: skip
+    for field_name in ("coefficient", "passive"):
+        value = getattr(e, field_name)
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"vehicle {model.name!r}: element {e.name!r} {field_name} must name "
+                            f"a parameter (a string), got {value!r}")  # fmt: skip
     if e.upper not in points or e.lower not in points + contacts:
         raise ValueError(f"vehicle {model.name!r}: element {e.name!r} joins {e.upper!r} and "
                          f"{e.lower!r}; upper must be a point, lower a point or a contact")  # fmt: skip

@@ -99,11 +99,18 @@ def _matrices(model: VehicleModel, values: dict[str, float], slot_damping: Seque
     return k, c, k_g, c_g, slots
 
 
+def _check_model(model: Any) -> None:
+    if not isinstance(model, VehicleModel):
+        raise TypeError(f"model must be a VehicleModel (capsule_env.vehicles.model_named(name)), "
+                        f"got {type(model).__name__}")  # fmt: skip
+
+
 def mechanical_matrices(
     model: VehicleModel, params: Any = None, **overrides: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(M, K, C)``: the mass, stiffness and damping matrices over the coordinates, with the
     guideway held fixed and the damper slots open (their forces are inputs)."""
+    _check_model(model)
     values = model.values(params, **overrides)
     k, c, _, _, _ = _matrices(model, values, [0.0] * len(model.dampers))
     return np.diag([float(values[co.inertia]) for co in model.coordinates]), k, c
@@ -177,6 +184,7 @@ def absolute_model(
     """The absolute form (module doc). ``slot_damping``: a linear damper (N s/m) in each
     damper slot (the passive baseline; 0: the slot's force is an input); ``overrides``:
     parameter values taking precedence over ``params`` (e.g. a scheduled levitation)."""
+    _check_model(model)
     values = model.values(params, **overrides)
     k, c, k_g, c_g, slots = _matrices(model, values, _slot_damping(model, slot_damping))
     n = len(model.coordinates)
@@ -213,6 +221,7 @@ def relative_model(
 ) -> LinearModel:  # fmt: skip
     """The relative form (module doc): needs ``relative_positions`` naming one spring per
     coordinate, together every spring of the vehicle, their deflections independent."""
+    _check_model(model)
     values = model.values(params, **overrides)
     springs = {e.name: e for e in model.elements if e.kind == SPRING}
     n = len(model.coordinates)
