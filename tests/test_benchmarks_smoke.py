@@ -224,3 +224,22 @@ def test_bench_compile_times_both_and_checks_its_arithmetic(tmp_path):
         assert result.returncode == 2
         assert len(result.stderr.strip().splitlines()) == 1, result.stderr
         assert "bench_compile.py: error: --" in result.stderr
+
+
+@pytest.mark.slow
+def test_bench_half_car_quick_runs():
+    """The half-car benchmark runs both envs and both plants and reports their ratio."""
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    )
+    result = subprocess.run([sys.executable, "benchmarks/bench_half_car.py", "--quick",
+                             "--num-envs", "64"], cwd=ROOT, env=env, capture_output=True,
+                            text=True)  # fmt: skip
+    assert result.returncode == 0, result.stderr[-3000:]
+    lines = result.stdout.splitlines()
+    rates = {line[:32].strip(): float(line[32:]) for line in lines[2:6]}
+    assert set(rates) == {"CapsuleRide-v0 env", "CapsuleHalfRide-v0 env",
+                          "declared plant, quarter_car", "declared plant, half_car"}  # fmt: skip
+    ratio = float(lines[6].split(":")[1].split()[0])
+    expected = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleRide-v0 env"]
+    assert abs(ratio - expected) <= 0.0005 + 1e-3 * expected  # printed to 3 decimals
