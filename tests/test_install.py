@@ -248,11 +248,14 @@ def test_a_writable_installation_warns_nothing(site, tmp_path):
 COMMANDS = (
     "evaluation/evaluate.py",
     "evaluation/tables.py",
+    "evaluation/half_car.py",  # the half-car task's evaluation (a command) and its figure
+    "evaluation/half_car_figure.py",
     "sweep/",
     "export/",
 )  # + evaluate.py's tables
 #: Their modules, which nothing below them imports.
-UPPER = ("capsule_env.agents", "capsule_env.evaluation.evaluate", "capsule_env.evaluation.tables")
+UPPER = ("capsule_env.agents", "capsule_env.evaluation.evaluate", "capsule_env.evaluation.tables",
+         "capsule_env.evaluation.half_car")  # fmt: skip
 
 
 def test_the_library_never_imports_the_controllers_or_the_scripts():
