@@ -192,3 +192,13 @@ def test_learned_baselines_bad_redraws_are_one_line(tmp_path, capsys):
         lb.main(["--plot", str(out)])  # neither runs nor a JSON
     assert exit_.value.code == 2 and "--group and --json are required" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_half_car_figure_from_its_json(drawn, tmp_path):
+    from capsule_env.evaluation.half_car_figure import half_car_figure
+
+    result = json.loads((FIGURES / "evaluation-CapsuleHalfRide-v0.json").read_text())
+    t = 0.005 * np.arange(1, 801)
+    trace = {"time_s": t, "passive": np.sin(9 * t), "LQR per bogie": 0.8 * np.sin(9 * t)}
+    half_car_figure(result, trace, tmp_path / "half_car.png")
+    assert_legible(drawn, 1)

@@ -39,7 +39,7 @@ __all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "evaluat
 TASK_KWARGS: dict[str, Any] = {"vehicle": "half_car", "setting": "hils", "observation": "measured"}
 EVALUATION_GUIDEWAY_SEED, TRAINING_GUIDEWAY_SEED = 2026, 0
 #: The coupled law's weights when not re-tuned: ``--tune``'s result (``docs/half-car.md``).
-TUNED_COUPLED = {"q_stroke": 1.0, "q_levitation": 100.0, "r_force": 3e-8}
+TUNED_COUPLED = {"q_stroke": 0.001, "q_levitation": 0.1, "r_force": 3e-8}
 _GRID = {"q_stroke": (0.001, 0.01, 0.1, 1.0), "q_levitation": (0.1, 1.0, 10.0, 100.0),
          "r_force": (1e-8, 3e-8, 1e-7)}  # fmt: skip
 
