@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import pytest
 from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR, IndependentClippedLQR
 
 from capsule_env.envs.declared_vehicle import DeclaredVehicleEnv
@@ -95,3 +96,32 @@ def test_the_evaluation_reports_three_floor_points_and_refuses_bad_input(capsys)
     assert half_car.main(["--episodes", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--episodes" in err[0]
+
+
+def test_the_sb3_vecenv_follows_sb3s_conventions_and_the_single_env():
+    """Vehicle 0 of ``seed(s)`` runs the single env seeded ``s``; an episode's end resets it in
+    the same step, its last observation and the time limit in its info."""
+    pytest.importorskip("stable_baselines3")
+    from capsule_env.envs.declared_sb3 import DeclaredSB3VecEnv
+
+    kwargs = {**half_car.TASK_KWARGS, "episode_length_s": 0.1}  # 20 steps
+    venv = DeclaredSB3VecEnv(3, **kwargs)
+    venv.seed(7)
+    obs = venv.reset()
+    single = DeclaredVehicleEnv(**kwargs)
+    first, _ = single.reset(seed=7)
+    np.testing.assert_array_equal(obs[0], first)
+    rng = np.random.default_rng(0)
+    for t in range(20):
+        act = rng.uniform(-1, 1, (3, 2)).astype(np.float32)
+        obs, reward, dones, infos = venv.step(act)
+        o, r, terminated, truncated, _ = single.step(act[0])
+        assert reward[0] == np.float32(r)
+        if t < 19:
+            np.testing.assert_array_equal(obs[0], o)
+            assert not dones.any()
+    assert dones.all() and all(i["TimeLimit.truncated"] for i in infos)
+    np.testing.assert_array_equal(infos[0]["terminal_observation"], o)
+    assert truncated and not terminated
+    with pytest.raises(ValueError, match="shape"):
+        venv.step_async(np.zeros((3, 1)))

@@ -1,0 +1,176 @@
+"""PPO on the half-car task (``CapsuleHalfRide-v0``), several seeds, evaluated beside the
+per-bogie clipped LQR on the held-out episodes; checkpoints and resumes.
+
+    python experiments/half_car_ppo.py --out runs/half_car_ppo            # 5 seeds x 1M steps
+    python experiments/half_car_ppo.py --out runs/half_car_ppo --evaluate  # the figures only
+
+Read top to bottom: the arguments, one seed's training (SB3 PPO with ``hyperparams/ppo.yml``'s
+ride-task values, the training bank ``guideway_seed`` 0, a checkpoint every
+``--checkpoint-every`` steps, resumed from the newest after an interruption), one seed's
+evaluation (10 s episodes 1000.. of the evaluation bank 2026, the deterministic action), and
+the group's IQM over the seeds against the per-bogie LQR on the same episodes with a 95 %
+bootstrap interval over seeds and episodes (:func:`capsule_env.evaluation.rl_statistics.paired_ratio_interval`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class Args:
+    out: Path  # the run folder: seed<k>/ per seed, results.json
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)  # training seeds (independent streams)
+    total_timesteps: int = 1_000_000  # env steps per seed
+    num_envs: int = 256  # vehicles per vector step (hyperparams/ppo.yml)
+    checkpoint_every: int = 200_000  # env steps between checkpoints
+    eval_episodes: int = 10  # held-out episodes 1000.. of the evaluation bank
+    evaluate_only: bool = False  # skip training: evaluate what is saved
+
+
+def _env(args: Args, seed: int) -> Any:
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from capsule_env.envs.declared_sb3 import DeclaredSB3VecEnv
+    from capsule_env.evaluation.half_car import TASK_KWARGS, TRAINING_GUIDEWAY_SEED
+
+    venv = DeclaredSB3VecEnv(args.num_envs, guideway_seed=TRAINING_GUIDEWAY_SEED, **TASK_KWARGS)
+    venv.seed(seed)
+    return VecNormalize(VecMonitor(venv), norm_obs=True, norm_reward=True, clip_obs=10.0,
+                        gamma=0.99)  # fmt: skip
+
+
+def _save_atomic(model: Any, env: Any, folder: Path, stem: str) -> None:
+    """``stem.zip`` and ``stem.vecnormalize.pkl`` written whole or not at all."""
+    for suffix, save in ((".zip", model.save), (".vecnormalize.pkl", env.save)):
+        with tempfile.NamedTemporaryFile(dir=folder, suffix=suffix, delete=False) as f:
+            tmp = f.name
+        save(tmp)
+        os.replace(tmp, folder / f"{stem}{suffix}")
+
+
+def _newest_checkpoint(folder: Path) -> tuple[Path, int] | None:
+    steps = sorted(int(p.stem.split("_")[1]) for p in folder.glob("step_*.zip"))
+    return (folder / f"step_{steps[-1]}", steps[-1]) if steps else None
+
+
+def train_seed(args: Args, seed: int) -> Path:
+    """Train (or resume) one seed; returns its folder, with ``final.zip`` when done."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    torch.set_num_threads(1)
+    folder = args.out / f"seed{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    if (folder / "final.zip").exists():
+        return folder
+    env = _env(args, seed)
+    latest = _newest_checkpoint(folder)
+    if latest is not None:  # resume: the model, its optimiser and the normaliser's statistics
+        env = VecNormalize.load(f"{latest[0]}.vecnormalize.pkl", env.venv)
+        model = PPO.load(f"{latest[0]}.zip", env=env)
+    else:
+        model = PPO("MlpPolicy", env, n_steps=64, batch_size=2048, n_epochs=10, gamma=0.99,
+                    gae_lambda=0.95, learning_rate=lambda p: 1e-3 * p, clip_range=0.2,
+                    ent_coef=0.0, max_grad_norm=0.5, seed=seed, verbose=0,
+                    policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0})  # fmt: skip
+    while model.num_timesteps < args.total_timesteps:
+        chunk = min(args.checkpoint_every, args.total_timesteps - model.num_timesteps)
+        model.learn(chunk, reset_num_timesteps=False)
+        _save_atomic(model, env, folder, f"step_{model.num_timesteps}")
+    _save_atomic(model, env, folder, "final")
+    return folder
+
+
+class _Policy:
+    """A saved seed's deterministic action on raw observations (its normaliser inside)."""
+
+    def __init__(self, folder: Path) -> None:
+        import pickle
+
+        from stable_baselines3 import PPO
+
+        self.model = PPO.load(folder / "final.zip", device="cpu")
+        with open(folder / "final.vecnormalize.pkl", "rb") as f:
+            self.norm = pickle.load(f)
+        from capsule_env.evaluation.half_car import TASK_KWARGS
+
+        self.env_kwargs = dict(TASK_KWARGS)
+
+    def predict(self, obs: np.ndarray) -> tuple[np.ndarray, None]:
+        action, _ = self.model.predict(self.norm.normalize_obs(obs), deterministic=True)
+        return action, None
+
+
+def evaluate(args: Args) -> dict[str, Any]:
+    """Each seed's Wk per held-out episode, the per-bogie LQR's, and the group's ratio."""
+    from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
+
+    from capsule_env.evaluation.half_car import EVALUATION_GUIDEWAY_SEED, episode_metrics, rollout
+    from capsule_env.evaluation.rl_statistics import paired_ratio_interval
+
+    episodes = list(range(1000, 1000 + args.eval_episodes))
+    law = episode_metrics(rollout(IndependentClippedLQR(), episodes, EVALUATION_GUIDEWAY_SEED))
+    per_seed = {}
+    for seed in args.seeds:
+        folder = args.out / f"seed{seed}"
+        if (folder / "final.zip").exists():
+            roll = rollout(_Policy(folder), episodes, EVALUATION_GUIDEWAY_SEED)
+            per_seed[seed] = episode_metrics(roll)["wk_rms_body_acc_m_s2"].tolist()
+    law_wk = law["wk_rms_body_acc_m_s2"]
+    out: dict[str, Any] = {"episodes": episodes, "lqr-clipped-biexp-meas": law_wk.tolist(),
+                           "ppo_per_seed": per_seed}  # fmt: skip
+    if len(per_seed) >= 2:
+        est = paired_ratio_interval(np.array(list(per_seed.values())), law_wk)
+        out["ppo_iqm_ratio_to_lqr"] = [est.value, est.low, est.high]
+    return out
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", required=True, type=Path)
+    p.add_argument("--seeds", default="0,1,2,3,4", help="comma-separated training seeds")
+    p.add_argument("--total-timesteps", type=int, default=1_000_000)
+    p.add_argument("--num-envs", type=int, default=256)
+    p.add_argument("--checkpoint-every", type=int, default=200_000)
+    p.add_argument("--eval-episodes", type=int, default=10)
+    p.add_argument("--evaluate", action="store_true", help="evaluate the saved seeds only")
+    a = p.parse_args(argv)
+    try:
+        seeds = tuple(int(s) for s in a.seeds.split(","))
+    except ValueError:
+        p.exit(2, f"error: --seeds must be comma-separated integers, got {a.seeds!r}\n")
+    if min(a.total_timesteps, a.num_envs, a.checkpoint_every) < 1 or a.eval_episodes < 2:
+        p.exit(2, "error: --total-timesteps, --num-envs, --checkpoint-every >= 1 and "
+                  "--eval-episodes >= 2\n")  # fmt: skip
+    return Args(a.out, seeds, a.total_timesteps, a.num_envs, a.checkpoint_every,
+                a.eval_episodes, a.evaluate)  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    if not args.evaluate_only:
+        for seed in args.seeds:
+            train_seed(args, seed)
+    result = {"command": "python experiments/half_car_ppo.py " + " ".join(argv or sys.argv[1:]),
+              **evaluate(args)}  # fmt: skip
+    path = args.out / "results.json"
+    with tempfile.NamedTemporaryFile("w", dir=args.out, suffix=".tmp", delete=False) as f:
+        json.dump(result, f, indent=1)
+    os.replace(f.name, path)
+    print(json.dumps({k: v for k, v in result.items() if k != "ppo_per_seed"}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
