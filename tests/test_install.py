@@ -22,6 +22,7 @@ SCRIPTS = {
     "capsule-identify",
     "capsule-sweep",
     "capsule-export",
+    "capsule-datasets",
 }
 
 
@@ -252,6 +253,7 @@ COMMANDS = (
     "evaluation/half_car_figure.py",
     "sweep/",
     "export/",
+    "datasets/",
 )  # + evaluate.py's tables
 #: Their modules, which nothing below them imports.
 UPPER = ("capsule_env.agents", "capsule_env.evaluation.evaluate", "capsule_env.evaluation.tables",
