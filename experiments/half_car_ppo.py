@@ -3,6 +3,7 @@ per-bogie clipped LQR on the held-out episodes; checkpoints and resumes.
 
     python experiments/half_car_ppo.py --out runs/half_car_ppo            # 5 seeds x 1M steps
     python experiments/half_car_ppo.py --out runs/half_car_ppo --evaluate  # the figures only
+    python experiments/half_car_ppo.py --out runs/half_car_residual --residual  # on the LQR
 
 Read top to bottom: the arguments, one seed's training (SB3 PPO with ``hyperparams/ppo.yml``'s
 ride-task values, the training bank ``guideway_seed`` 0, a checkpoint every
@@ -35,6 +36,43 @@ class Args:
     checkpoint_every: int = 200_000  # env steps between checkpoints
     eval_episodes: int = 10  # held-out episodes 1000.. of the evaluation bank
     evaluate_only: bool = False  # skip training: evaluate what is saved
+    residual: bool = False  # learn a residual on the per-bogie clipped LQR (scale 0.5)
+
+
+#: The residual's scale: half the action range, as the quarter-car's residual policies.
+RESIDUAL_SCALE = 0.5
+
+
+def _law() -> Any:
+    from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
+
+    return IndependentClippedLQR()
+
+
+def _residual_wrapper(venv: Any) -> Any:
+    """``a = clip(a_law(obs) + 0.5 a_policy, -1, 1)`` on an SB3 VecEnv (SB3 resets a finished
+    vehicle at once: its next observation starts an episode; the law keeps no state)."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class Residual(VecEnvWrapper):
+        def __init__(self, venv: Any) -> None:
+            super().__init__(venv)
+            self.law, self._obs = _law(), None
+
+        def reset(self) -> Any:
+            self._obs = self.venv.reset()
+            return self._obs
+
+        def step_async(self, actions: np.ndarray) -> None:
+            base = self.law.act(np.asarray(self._obs, dtype=np.float64))
+            self.venv.step_async(np.clip(base + RESIDUAL_SCALE * actions, -1.0, 1.0))
+
+        def step_wait(self) -> Any:
+            obs, reward, done, infos = self.venv.step_wait()
+            self._obs = obs
+            return obs, reward, done, infos
+
+    return Residual(venv)
 
 
 def _env(args: Args, seed: int) -> Any:
@@ -45,7 +83,8 @@ def _env(args: Args, seed: int) -> Any:
 
     venv = DeclaredSB3VecEnv(args.num_envs, guideway_seed=TRAINING_GUIDEWAY_SEED, **TASK_KWARGS)
     venv.seed(seed)
-    return VecNormalize(VecMonitor(venv), norm_obs=True, norm_reward=True, clip_obs=10.0,
+    wrapped = _residual_wrapper(venv) if args.residual else venv
+    return VecNormalize(VecMonitor(wrapped), norm_obs=True, norm_reward=True, clip_obs=10.0,
                         gamma=0.99)  # fmt: skip
 
 
@@ -84,6 +123,10 @@ def train_seed(args: Args, seed: int) -> Path:
                     gae_lambda=0.95, learning_rate=lambda p: 1e-3 * p, clip_range=0.2,
                     ent_coef=0.0, max_grad_norm=0.5, seed=seed, verbose=0,
                     policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0})  # fmt: skip
+        if args.residual:  # start from the law's behaviour exactly
+            from capsule_env.agents.learning.residual import zero_last_layer
+
+            zero_last_layer(model)
     while model.num_timesteps < args.total_timesteps:
         chunk = min(args.checkpoint_every, args.total_timesteps - model.num_timesteps)
         model.learn(chunk, reset_num_timesteps=False)
@@ -95,7 +138,7 @@ def train_seed(args: Args, seed: int) -> Path:
 class _Policy:
     """A saved seed's deterministic action on raw observations (its normaliser inside)."""
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, residual: bool = False) -> None:
         import pickle
 
         from stable_baselines3 import PPO
@@ -106,9 +149,13 @@ class _Policy:
         from capsule_env.evaluation.half_car import TASK_KWARGS
 
         self.env_kwargs = dict(TASK_KWARGS)
+        self.law = _law() if residual else None
 
     def predict(self, obs: np.ndarray) -> tuple[np.ndarray, None]:
         action, _ = self.model.predict(self.norm.normalize_obs(obs), deterministic=True)
+        if self.law is not None:
+            base = self.law.act(np.asarray(obs, dtype=np.float64))
+            action = np.clip(base + RESIDUAL_SCALE * action, -1.0, 1.0)
         return action, None
 
 
@@ -125,14 +172,15 @@ def evaluate(args: Args) -> dict[str, Any]:
     for seed in args.seeds:
         folder = args.out / f"seed{seed}"
         if (folder / "final.zip").exists():
-            roll = rollout(_Policy(folder), episodes, EVALUATION_GUIDEWAY_SEED)
+            roll = rollout(_Policy(folder, args.residual), episodes, EVALUATION_GUIDEWAY_SEED)
             per_seed[seed] = episode_metrics(roll)["wk_rms_body_acc_m_s2"].tolist()
     law_wk = law["wk_rms_body_acc_m_s2"]
+    group = "residual-ppo" if args.residual else "ppo"
     out: dict[str, Any] = {"episodes": episodes, "lqr-clipped-biexp-meas": law_wk.tolist(),
-                           "ppo_per_seed": per_seed}  # fmt: skip
+                           f"{group}_per_seed": per_seed}  # fmt: skip
     if len(per_seed) >= 2:
         est = paired_ratio_interval(np.array(list(per_seed.values())), law_wk)
-        out["ppo_iqm_ratio_to_lqr"] = [est.value, est.low, est.high]
+        out[f"{group}_iqm_ratio_to_lqr"] = [est.value, est.low, est.high]
     return out
 
 
@@ -145,6 +193,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
     p.add_argument("--checkpoint-every", type=int, default=200_000)
     p.add_argument("--eval-episodes", type=int, default=10)
     p.add_argument("--evaluate", action="store_true", help="evaluate the saved seeds only")
+    p.add_argument("--residual", action="store_true", help="a residual on the per-bogie LQR")
     a = p.parse_args(argv)
     try:
         seeds = tuple(int(s) for s in a.seeds.split(","))
@@ -154,7 +203,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
         p.exit(2, "error: --total-timesteps, --num-envs, --checkpoint-every >= 1 and "
                   "--eval-episodes >= 2\n")  # fmt: skip
     return Args(a.out, seeds, a.total_timesteps, a.num_envs, a.checkpoint_every,
-                a.eval_episodes, a.evaluate)  # fmt: skip
+                a.eval_episodes, a.evaluate, a.residual)  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -168,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.NamedTemporaryFile("w", dir=args.out, suffix=".tmp", delete=False) as f:
         json.dump(result, f, indent=1)
     os.replace(f.name, path)
-    print(json.dumps({k: v for k, v in result.items() if k != "ppo_per_seed"}, indent=1))
+    print(json.dumps({k: v for k, v in result.items() if not k.endswith("_per_seed")}, indent=1))
     return 0
 
 
