@@ -67,6 +67,7 @@ class DeclaredVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start every vehicle's episode: ``(observations, info)`` (module doc: the seeds)."""
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
         if seed is not None:
@@ -77,6 +78,8 @@ class DeclaredVectorEnv(VectorEnv):
         return self._batch.observe(sig), dict(sig)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """One control step of every vehicle, ``actions`` of shape ``(num_envs, slots)``:
+        ``(observations, rewards, terminated, truncated, info)`` (``NEXT_STEP`` autoreset)."""
         batch = self._batch
         shape = (self.num_envs, batch.n_slots)
         try:

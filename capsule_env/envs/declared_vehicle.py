@@ -125,6 +125,8 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode: ``(observation, info)``; ``seed`` (an integer in ``[0, 2**63)``)
+        re-seeds the vehicle's stream; ``options`` accepts no key."""
         if seed is not None:
             check_seed("seed", seed)
         if options:
@@ -138,6 +140,10 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
         return self._batch.observe(sig)[0], _row(sig, 0)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One control step: ``(observation, reward, terminated, truncated, info)``; ``action``
+        has the action space's shape (one number per damper slot; a bare number for one slot),
+        is clipped to [-1, 1]; another shape, NaN or infinity raises ``ValueError``. ``info``:
+        the physical signals (arrays per slot, point or contact) and the reward's terms."""
         if self._needs_reset:
             raise ResetNeeded(
                 "call reset() before step(): the episode has not started or has ended"
