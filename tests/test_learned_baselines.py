@@ -95,7 +95,8 @@ def test_each_task_reads_its_own_references(lb, task, file, laws):
     for law in laws:  # every law's figure is one of the project's evaluation files (the
         # quarter-car's: evaluate.py's schema, with "settings"; the half-car's has "rows")
         found = [
-            json.loads(f.read_text()).get("settings", {})
+            json.loads(f.read_text())
+            .get("settings", {})
             .get("hils", {})
             .get("controllers", {})
             .get(law, {})
