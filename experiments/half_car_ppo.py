@@ -89,12 +89,32 @@ def _env(args: Args, seed: int) -> Any:
 
 
 def _save_atomic(model: Any, env: Any, folder: Path, stem: str) -> None:
-    """``stem.zip`` and ``stem.vecnormalize.pkl`` written whole or not at all."""
-    for suffix, save in ((".zip", model.save), (".vecnormalize.pkl", env.save)):
+    """``stem.vecnormalize.pkl``, then ``stem.zip``, each written whole or not at all: a
+    ``stem.zip`` (what :func:`_newest_checkpoint` and the ``final.zip`` test look for) exists
+    only beside its normaliser."""
+    for suffix, save in ((".vecnormalize.pkl", env.save), (".zip", model.save)):
         with tempfile.NamedTemporaryFile(dir=folder, suffix=suffix, delete=False) as f:
             tmp = f.name
-        save(tmp)
-        os.replace(tmp, folder / f"{stem}{suffix}")
+        try:
+            save(tmp)
+            os.replace(tmp, folder / f"{stem}{suffix}")
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+
+
+def _learning_rate(done: int, chunk: int, total: int) -> Any:
+    """The schedule for ``model.learn(chunk)`` from ``done`` steps: the run's linear decay
+    from 1e-3 to 0 over ``total`` steps (``hyperparams/ppo.yml``'s ``lin_1e-3``). SB3's
+    progress is ``1 - steps / (done + chunk)`` (from ``done / (done + chunk)`` down to 0, and
+    below 0 when the last rollout overshoots the chunk), so the steps done are recovered from
+    it; the rate stops at 0."""
+
+    def rate(progress_remaining: float) -> float:
+        steps = (1.0 - progress_remaining) * (done + chunk)
+        return 1e-3 * max(0.0, 1.0 - steps / total)
+
+    return rate
 
 
 def _newest_checkpoint(folder: Path) -> tuple[Path, int] | None:
@@ -120,7 +140,7 @@ def train_seed(args: Args, seed: int) -> Path:
         model = PPO.load(f"{latest[0]}.zip", env=env)
     else:
         model = PPO("MlpPolicy", env, n_steps=64, batch_size=2048, n_epochs=10, gamma=0.99,
-                    gae_lambda=0.95, learning_rate=lambda p: 1e-3 * p, clip_range=0.2,
+                    gae_lambda=0.95, learning_rate=1e-3, clip_range=0.2,
                     ent_coef=0.0, max_grad_norm=0.5, seed=seed, verbose=0,
                     policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0})  # fmt: skip
         if args.residual:  # start from the law's behaviour exactly
@@ -129,6 +149,7 @@ def train_seed(args: Args, seed: int) -> Path:
             zero_last_layer(model)
     while model.num_timesteps < args.total_timesteps:
         chunk = min(args.checkpoint_every, args.total_timesteps - model.num_timesteps)
+        model.lr_schedule = _learning_rate(model.num_timesteps, chunk, args.total_timesteps)
         model.learn(chunk, reset_num_timesteps=False)
         _save_atomic(model, env, folder, f"step_{model.num_timesteps}")
     _save_atomic(model, env, folder, "final")
@@ -199,6 +220,8 @@ def parse_args(argv: list[str] | None = None) -> Args:
         seeds = tuple(int(s) for s in a.seeds.split(","))
     except ValueError:
         p.exit(2, f"error: --seeds must be comma-separated integers, got {a.seeds!r}\n")
+    if a.evaluate and not a.out.is_dir():
+        p.exit(2, f"error: --out must be an existing run folder with --evaluate, got {a.out}\n")
     if min(a.total_timesteps, a.num_envs, a.checkpoint_every) < 1 or a.eval_episodes < 2:
         p.exit(2, "error: --total-timesteps, --num-envs, --checkpoint-every >= 1 and "
                   "--eval-episodes >= 2\n")  # fmt: skip

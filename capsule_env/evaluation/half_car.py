@@ -179,6 +179,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes < 2 or args.oracle_iterations < 0:
         print("error: --episodes must be >= 2 and --oracle-iterations >= 0", file=sys.stderr)
         return 2
+    if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
+        print(f"error: --out's folder must exist, got {args.out!r}", file=sys.stderr)
+        return 2
     coupled = tune_coupled() if args.tune else dict(TUNED_COUPLED)
     seeds = list(range(1000, 1000 + args.episodes))
     result = {"task": "CapsuleHalfRide-v0", "episodes": seeds, "guideway_seed":
