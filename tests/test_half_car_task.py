@@ -125,3 +125,14 @@ def test_the_sb3_vecenv_follows_sb3s_conventions_and_the_single_env():
     assert truncated and not terminated
     with pytest.raises(ValueError, match="shape"):
         venv.step_async(np.zeros((3, 1)))
+
+
+def test_a_law_with_memory_starts_each_evaluation_afresh():
+    """The wheelbase law keeps its window of the front's rises: a second evaluation with the
+    same object gives the first's figures."""
+    from capsule_env.agents.controllers.wheelbase import WheelbasePreviewLQ
+
+    law = WheelbasePreviewLQ(0.001, 0.1, 3e-8)
+    first = half_car.episode_metrics(half_car.rollout(law, [1000], 2026, length_s=0.5))
+    again = half_car.episode_metrics(half_car.rollout(law, [1000], 2026, length_s=0.5))
+    assert first["wk_rms_body_acc_m_s2"][0] == again["wk_rms_body_acc_m_s2"][0]

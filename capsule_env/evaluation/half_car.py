@@ -54,6 +54,8 @@ def rollout(policy: Any, seeds: list[int], guideway_seed: int, length_s: float =
     env = DeclaredVectorEnv(len(seeds), guideway_seed=guideway_seed, episode_length_s=length_s,
                             **{k: v for k, v in kwargs.items() if k != "vehicle_params"})  # fmt: skip
     obs, _ = env.reset(seed=[int(s) for s in seeds])
+    if hasattr(policy, "reset"):  # a law with memory (the wheelbase window) starts afresh
+        policy.reset()
     steps = env.batch.max_steps
     acc, currents = [], []
     stroke = np.zeros(len(seeds))
