@@ -106,15 +106,20 @@ def wk_weighting(frequencies_hz: np.ndarray) -> np.ndarray:
     acceleration-velocity transition f3 = f4 = 12.5 Hz, Q4 = 0.63; upward step
     f5 = 2.37 Hz, Q5 = 0.91, f6 = 3.35 Hz, Q6 = 0.91.
     """
-    f = np.asarray(frequencies_hz, dtype=float)
-    s = 2j * np.pi * f
-    w2, w3, w4 = (2.0 * np.pi * x for x in (100.0, 12.5, 12.5))
+    s = 2j * np.pi * np.asarray(frequencies_hz, dtype=float)
+    step = _second_order(s, 2.37, 0.91) / _second_order(s, 3.35, 0.91)
+    return _band_limited_transition(s, 12.5) * step
+
+
+def _band_limited_transition(s: np.ndarray, f_transition_hz: float) -> np.ndarray:
+    """ISO 2631-1's band limiting (f1 = 0.4 Hz, f2 = 100 Hz, Q = 1/sqrt 2) times the
+    acceleration-velocity transition at f3 = f4 = ``f_transition_hz``, Q4 = 0.63."""
+    w2, w3, w4 = (2.0 * np.pi * x for x in (100.0, f_transition_hz, f_transition_hz))
     q = 1.0 / np.sqrt(2.0)
     high_pass = s**2 / _second_order(s, 0.4, q)
     low_pass = w2**2 / _second_order(s, 100.0, q)
     transition = (1.0 + s / w3) / (1.0 + s / (0.63 * w4) + (s / w4) ** 2)
-    step = _second_order(s, 2.37, 0.91) / _second_order(s, 3.35, 0.91)
-    return high_pass * low_pass * transition * step
+    return high_pass * low_pass * transition
 
 
 def wk_weighted_rms(acceleration_m_s2: np.ndarray, dt_s: float) -> np.ndarray:
@@ -137,14 +142,7 @@ def we_weighting(frequencies_hz: np.ndarray) -> np.ndarray:
     """Complex ISO 2631-1 We weighting (rotational vibration, Table 3 and Annex A): the band
     limiting of :func:`wk_weighting` (f1 = 0.4 Hz, f2 = 100 Hz, Q = 1/sqrt 2) and the
     acceleration-velocity transition f3 = f4 = 1 Hz, Q4 = 0.63; no upward step."""
-    f = np.asarray(frequencies_hz, dtype=float)
-    s = 2j * np.pi * f
-    w2, w3, w4 = (2.0 * np.pi * x for x in (100.0, 1.0, 1.0))
-    q = 1.0 / np.sqrt(2.0)
-    high_pass = s**2 / _second_order(s, 0.4, q)
-    low_pass = w2**2 / _second_order(s, 100.0, q)
-    transition = (1.0 + s / w3) / (1.0 + s / (0.63 * w4) + (s / w4) ** 2)
-    return high_pass * low_pass * transition
+    return _band_limited_transition(2j * np.pi * np.asarray(frequencies_hz, dtype=float), 1.0)
 
 
 def we_weighted_rms(acceleration_rad_s2: np.ndarray, dt_s: float) -> np.ndarray:

@@ -16,7 +16,9 @@ W = (0.1, 10.0, 3e-8)
 
 def test_the_preview_leaves_the_state_feedback_alone():
     """Tomizuka's separation: the window enters the plant and not the other way round, so the
-    Riccati solution's plant block, hence the state and in-flight gains, are the plain LQR's."""
+    Riccati solution's plant block, hence the state and in-flight gains, are the plain LQR's
+    (two SciPy/LAPACK Riccati solves of different sizes: equal to 1e-8 of the largest gain, the
+    last bits differing across CPUs; observed 2e-12)."""
     with_p = wheelbase_gains("half_car", 0.005, 225.0, *W)
     without = wheelbase_gains("half_car", 0.005, 225.0, *W, preview=False)
     np.testing.assert_allclose(

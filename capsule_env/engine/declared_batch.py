@@ -205,9 +205,9 @@ class DeclaredBatch:
                 self.i_max, out)  # fmt: skip
         return out
 
-    def step(self, actions: np.ndarray) -> None:
+    def step(self, actions: np.ndarray) -> dict[str, np.ndarray]:
         """Every vehicle by one control step: commands, the control delay, the plant, the
-        sensors."""
+        sensors; returns the signals after it (:meth:`signals`, computed once)."""
         self.requested[:] = self.commands(actions)
         delay = self.delay_steps
         if delay:  # the command from ``delay`` steps ago is applied
@@ -223,13 +223,14 @@ class DeclaredBatch:
             declared_step(self.damper.code, 0, self.num_envs, self.plant, self.state,
                           self.command, self.route, self.dt, self.out)  # fmt: skip
         self.step_count += 1
-        self._measure()
+        sig = self.signals()
+        self._measure(sig)
+        return sig
 
-    def _measure(self) -> None:
+    def _measure(self, sig: dict[str, np.ndarray]) -> None:
         """Each slot's stroke, stroke rate and end accelerations, with sensor noise (the
         quarter-car's channels: stroke, stroke rate, car-body and bogie accelerometers)."""
         n, ns = self.num_envs, self.n_slots
-        sig = self.signals()
         ends = sig["slot_end_acceleration_m_s2"].reshape(n, ns, 2)
         true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1],
                          sig["gap_m"]], axis=-1).reshape(n, -1)  # fmt: skip

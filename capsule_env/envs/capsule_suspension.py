@@ -6,7 +6,6 @@ The single environment and its native vector environment. Both are thin shells o
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
@@ -21,6 +20,7 @@ from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed, obs
 from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs.render import render_vehicle
+from capsule_env.envs.spec import LengthSpec
 
 __all__ = [
     "CapsuleSuspensionEnv",
@@ -59,30 +59,6 @@ def _check_options(
     unknown = sorted(set(options) - set(accepted))
     if unknown:
         raise ValueError(f"unknown reset option(s) {unknown}; accepted: {list(accepted) or 'none'}")
-
-
-def _spec_with_length(spec: EnvSpec | None, config: EnvConfig) -> EnvSpec | None:
-    """The spec ``gymnasium.make`` gave, with ``max_episode_steps`` the env's own length when
-    the registration leaves it open (it does: the length is ``episode_length_s *
-    control_rate_hz``, an argument, so a fixed registered number would be wrong)."""
-    if spec is None or spec.max_episode_steps is not None:
-        return spec
-    return dataclasses.replace(spec, max_episode_steps=config.max_episode_steps)
-
-
-class LengthSpec:
-    """The ``spec`` property of an env whose episode length is its own (``config``'s)."""
-
-    config: EnvConfig
-    _spec: EnvSpec | None = None
-
-    @property
-    def spec(self) -> EnvSpec | None:
-        return _spec_with_length(self._spec, self.config)
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        self._spec = value
 
 
 class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):

@@ -56,8 +56,7 @@ class DeclaredSB3VecEnv(VecEnv):
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         batch = self.batch
-        batch.step(self._actions)
-        sig = batch.signals()
+        sig = batch.step(self._actions)
         reward, terminated, _ = batch.reward(sig)
         truncated = batch.step_count >= batch.max_steps
         dones = terminated | truncated

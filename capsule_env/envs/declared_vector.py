@@ -93,8 +93,7 @@ class DeclaredVectorEnv(VectorEnv):
         if not np.all(np.isfinite(a)):
             raise ValueError("actions must be finite")
         restart = self._autoreset.copy()
-        batch.step(np.clip(a, -1.0, 1.0))
-        sig = batch.signals()
+        sig = batch.step(np.clip(a, -1.0, 1.0))
         reward, terminated, costs = batch.reward(sig)
         truncated = batch.step_count >= batch.max_steps
         if restart.any():  # NEXT_STEP: these vehicles start a new episode instead

@@ -49,7 +49,8 @@ from capsule_env.engine.declared_batch import (
     DeclaredBatch,
     inverse_is_algebraic,
 )
-from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv, LengthSpec
+from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv
+from capsule_env.envs.spec import LengthSpec
 from capsule_env.vehicles import model_named, names
 from capsule_env.vehicles.compiled import runs_compiled
 
@@ -150,8 +151,7 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
             )
         a = _checked_action(action, self._batch.n_slots)
         batch = self._batch
-        batch.step(a[None, :])
-        sig = batch.signals()
+        sig = batch.step(a[None, :])
         reward, hit, costs = batch.reward(sig)
         terminated = bool(hit[0])
         truncated = bool(batch.step_count[0] >= batch.max_steps)
