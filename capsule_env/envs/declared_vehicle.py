@@ -29,8 +29,10 @@ points and the slots; the episode terminates when any stroke passes ``stroke_lim
 
 ## Options
 Those of ``CapsuleSuspension-v0`` that concern the damper (``setting="hils"``, the coil lag),
-the sensors' noise and the control delay, the guideway, the episode and the reward. The others
-(preview, the envelope, domain randomisation, the velocity reward, the reward filter) are
+the sensors' noise and the control delay, the guideway, the episode and the reward, and
+``levitation="eds"`` at a constant speed (each bogie's coil model at ``speed_kmh``:
+:mod:`capsule_env.envs.declared_levitation`). The others (preview, a speed that changes, the
+spans, the payload, domain randomisation, the velocity reward, the reward filter) are
 refused by name: they are not built for these vehicles yet. The native batched version is
 :class:`capsule_env.envs.declared_vector.DeclaredVectorEnv`.
 """
@@ -50,6 +52,7 @@ from capsule_env.engine.declared_batch import (
     inverse_is_algebraic,
 )
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv
+from capsule_env.envs.declared_levitation import eds_at_speed
 from capsule_env.envs.spec import LengthSpec
 from capsule_env.vehicles import model_named, names
 from capsule_env.vehicles.compiled import runs_compiled
@@ -66,7 +69,7 @@ __all__ = [
 #: Options of ``CapsuleSuspension-v0`` not built for declared vehicles, with the values each
 #: accepts (its default).
 UNSUPPORTED_OPTIONS: dict[str, Any] = {
-    "preview_points": (0,), "levitation": ("fixed",), "speed_profile": ("constant",),
+    "preview_points": (0,), "levitation": ("fixed", "eds"), "speed_profile": ("constant",),
     "spans": ("none",), "payload_range": (None,), "vehicle_randomization": (0.0,),
     "speed_range_kmh": (None,), "reward_velocity_weight": (0.0,),
     "reward_acceleration_filter": ("none",),
@@ -89,7 +92,10 @@ def declared_setup(owner: str, kwargs: dict[str, Any], num_envs: int = 1) -> Dec
     model = model_named(name)
     if not isinstance(vehicle_params, dict):
         raise TypeError("vehicle_params must be a dict of parameter overrides")
-    return DeclaredBatch(config, model, _params(model, vehicle_params), num_envs)
+    params = _params(model, vehicle_params)
+    if config.levitation == "eds":  # each bogie's levitation at the constant speed
+        params = eds_at_speed(model, params, config, vehicle_params)
+    return DeclaredBatch(config, model, params, num_envs)
 
 
 def declared_spaces(batch: DeclaredBatch) -> tuple[spaces.Box, spaces.Box]:
