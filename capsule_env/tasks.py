@@ -146,7 +146,8 @@ DECLARED_TASKS: tuple[Task, ...] = (
          "levitation gap, the on-board velocity estimates and the last current command "
          "(observation='measured')",
          {"vehicle": "half_car", "setting": "hils", "observation": "measured"}, "hils",
-         "lqr-clipped-biexp-meas", "", "evaluation-CapsuleHalfRide-v0.json",
+         "lqr-clipped-biexp-meas", "residual-ppo-lqr-half-car",
+         "evaluation-CapsuleHalfRide-v0.json",
          headline="the half-car capsule: pitch, two bogies, two dampers (`hils`, measured)"),
 )  # fmt: skip
 

@@ -15,6 +15,7 @@ import pytest
 from capsule_env.agents.learning.sb3_policy import ALGORITHMS, SB3Policy, shipped_policy_paths
 
 from capsule_env.envs import CapsuleSuspensionVectorEnv
+from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.evaluation import evaluate
 
 from conftest import NO_SB3
@@ -76,7 +77,8 @@ def test_shipped_policy_is_the_saved_model_on_normalised_observations(path):
     a2, _ = second.predict(obs, deterministic=True)
     np.testing.assert_array_equal(a1, a2)
     np.testing.assert_allclose(a1, np.clip(expected, -1.0, 1.0), rtol=1e-6, atol=1e-6)
-    assert a1.shape == (64, 1) and np.all((a1 >= -1.0) & (a1 <= 1.0))
+    slots = model.action_space.shape[0]  # one action per damper slot: 2 on the half-car
+    assert a1.shape == (64, slots) and np.all((a1 >= -1.0) & (a1 <= 1.0))
     # its actions depend on the observation: not one constant (nor one saturated) action
     assert np.ptp(a1) > 0.1
     assert np.any(np.abs(a1) < 1.0)
@@ -88,13 +90,16 @@ def test_shipped_policy_acts_in_its_training_mode(path):
     pytest.importorskip("stable_baselines3", reason=NO_SB3)
     policy = SB3Policy.load(path)
     assert policy.obs_rms is not None  # its VecNormalize statistics were found and loaded
+    declared = "vehicle" in policy.env_kwargs  # a declared vehicle's: its own env
+    slots = policy.model.action_space.shape[0]
     for setting in ("sim", "hils"):
-        env = CapsuleSuspensionVectorEnv(num_envs=4, setting=setting, **policy.env_kwargs)
+        make = DeclaredVectorEnv if declared else CapsuleSuspensionVectorEnv
+        env = make(num_envs=4, setting=setting, **policy.env_kwargs)
         obs, _ = env.reset(seed=0)
         actions = []
         for _ in range(200):
             action, _ = policy.predict(obs, deterministic=True)
-            assert action.shape == (4, 1) and np.all((action >= -1.0) & (action <= 1.0))
+            assert action.shape == (4, slots) and np.all((action >= -1.0) & (action <= 1.0))
             actions.append(action)
             obs, reward, terminated, _, info = env.step(action)
             assert np.all(np.isfinite(obs)) and not terminated.any()
@@ -110,8 +115,8 @@ def test_evaluate_lists_the_shipped_policy(tmp_path):
                    "--controllers", "passive", "--json", str(out)])  # fmt: skip
     names = set(json.loads(out.read_text())["settings"]["hils"]["controllers"])
     # the shipped policies trained in the paper's env; the trip task's own are its
-    # evaluation's (test_trip_policy)
-    trip = ("ppo-trip", "residual-ppo-mpc-trip")
+    # evaluation's (test_trip_policy), the half-car's its (test_half_car_policy)
+    trip = ("ppo-trip", "residual-ppo-mpc-trip", "residual-ppo-lqr-half-car")  # + the half-car's
     paper = [p for p in SHIPPED if Path(p).stem not in trip]
     shipped = {json.loads(files_of(p)[2].read_text()).get("name", Path(p).stem) for p in paper}
     assert {"ppo-hils", "ppo-measured", "ppo-preview"} <= shipped and shipped <= names

@@ -164,7 +164,8 @@ class ResidualVectorEnv(gym.vector.VectorWrapper):
 
 class ResidualPolicy(Controller):
     """``law`` plus a learned residual ``policy`` (anything with SB3's ``predict``), as one
-    controller: what :class:`ResidualEnv` applies, for evaluation."""
+    controller: what :class:`ResidualEnv` applies, for evaluation; one action per damper slot
+    (a declared vehicle's law and policy act on each of its slots, e.g. the half-car's two)."""
 
     def __init__(self, law: Controller, policy: Any, scale: float = 0.5, name: str = "") -> None:
         self.law, self.policy, self.scale = law, policy, _check_scale(scale)
@@ -187,11 +188,10 @@ class ResidualPolicy(Controller):
         obs = np.atleast_2d(np.asarray(observation))
         start = (np.zeros(obs.shape[0], dtype=bool) if episode_start is None
                  else np.asarray(episode_start, dtype=bool))  # fmt: skip
-        base = _base_actions(self.law, obs, start)
+        base, _ = self.law.predict(obs, episode_start=start, deterministic=True)  # (N, slots)
         residual, state = self.policy.predict(obs.astype(np.float32), state=state,
                                               episode_start=start, deterministic=deterministic)  # fmt: skip
-        total = combine_actions(base, np.reshape(residual, (obs.shape[0],)), self.scale)
-        return total[:, None], state
+        return combine_actions(base, np.reshape(residual, base.shape), self.scale), state
 
 
 def zero_last_layer(model: Any) -> None:

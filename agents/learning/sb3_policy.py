@@ -114,9 +114,10 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
     """A saved policy as a controller: :meth:`SB3Policy.load`, wrapped as a
     :class:`~capsule_env.agents.learning.residual.ResidualPolicy` of its law when its metadata has a
     ``residual`` block (``{"law": NAME, "scale": S}``, written by ``train.py --residual``): the
-    saved network is the correction added to the law's request, so it only acts right with it.
-    ``ValueError`` for an unknown law or a bad scale in the metadata, or a law whose QP solver
-    (the ``mpc`` extra) is not installed."""
+    saved network is the correction added to the law's request, so it only acts right with it;
+    a declared vehicle's policy (its ``env_kwargs`` name a ``vehicle``) rides on that vehicle's
+    law (:func:`declared_law`). ``ValueError`` for an unknown law or a bad scale in the
+    metadata, or a law whose QP solver (the ``mpc`` extra) is not installed."""
     policy = SB3Policy.load(path, require_normalization=require_normalization)
     block = policy.meta.get("residual")
     if block is None:
@@ -125,17 +126,43 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
     from capsule_env.agents.learning.residual import ResidualPolicy
 
     law_name = block.get("law") if isinstance(block, dict) else None
-    if law_name not in FACTORIES:
+    vehicle = str(policy.env_kwargs.get("vehicle", "quarter_car"))
+    if vehicle != "quarter_car":  # a declared vehicle's policy rides on that vehicle's law
+        law = declared_law(str(law_name), vehicle, path)
+    elif law_name not in FACTORIES:
         raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller; "
                          f"accepted: {', '.join(sorted(FACTORIES))}")  # fmt: skip
-    if missing_solver(path):
+    elif missing_solver(path):
         raise ValueError(f"{path}: its residual law {law_name} needs a QP solver: "
                          "pip install 'capsule-env[mpc]'")  # fmt: skip
-    residual = ResidualPolicy(make_controller(law_name), policy, block.get("scale", 0.5),
-                              name=str(policy.name))  # fmt: skip
+    else:
+        law = make_controller(law_name)
+    residual = ResidualPolicy(law, policy, block.get("scale", 0.5), name=str(policy.name))
     residual.env_kwargs = dict(policy.env_kwargs)
     residual.meta, residual.path = policy.meta, getattr(policy, "path", None)
     return residual
+
+
+#: The laws a declared vehicle's residual policy may ride on, by the name its metadata's
+#: ``residual`` block gives (the per-slot law of the half-car task's card).
+DECLARED_LAWS = ("lqr-clipped-biexp-meas",)
+
+
+def declared_law(name: str, vehicle: str, path: str | Path) -> Controller:
+    """The law ``name`` of a residual policy trained on the declared vehicle ``vehicle``:
+    ``lqr-clipped-biexp-meas`` is one tuned quarter-car clipped LQR per damper slot
+    (:class:`~capsule_env.agents.controllers.declared_lqr.IndependentClippedLQR`, what
+    ``experiments/half_car_ppo.py --residual`` trains on). ``ValueError`` naming the file
+    for another name or an unknown vehicle."""
+    from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
+
+    if name not in DECLARED_LAWS:
+        raise ValueError(f"{path}: its residual law {name!r} is not one a {vehicle} policy rides "
+                         f"on; accepted: {', '.join(DECLARED_LAWS)}")  # fmt: skip
+    try:
+        return IndependentClippedLQR(vehicle)
+    except (KeyError, ValueError) as exc:
+        raise ValueError(f"{path}: its vehicle {vehicle!r} has no {name}: {exc}") from None
 
 
 def use_one_torch_thread() -> None:

@@ -1,0 +1,105 @@
+"""The half-car task's shipped policy (``residual-ppo-lqr-half-car``): the loader rebuilds the
+per-bogie law it rides on and acts as the saved network plus that law, it is the task card's,
+it stays out of the quarter-car's evaluations, and it scores on the validation bank what its
+metadata records (the score it was chosen by, ``experiments/half_car_select.py``)."""
+
+from __future__ import annotations
+
+import json
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import NO_SB3
+
+pytest.importorskip("stable_baselines3", reason=NO_SB3)
+pytestmark = pytest.mark.rl
+
+ROOT = Path(__file__).resolve().parents[1]
+NAME = "residual-ppo-lqr-half-car"
+PRETRAINED = ROOT / "capsule_env" / "pretrained"
+
+
+def _observations(n: int = 64) -> np.ndarray:
+    """Observations of the half-car task's env (16 measured columns), a few steps in."""
+    from capsule_env.envs.declared_vector import DeclaredVectorEnv
+
+    env = DeclaredVectorEnv(n, vehicle="half_car", setting="hils", observation="measured")
+    obs, _ = env.reset(seed=list(range(n)))
+    for _ in range(40):
+        obs, *_ = env.step(np.zeros((n, 2), dtype=np.float32))
+    return obs
+
+
+def test_the_loader_rebuilds_the_per_bogie_law_and_adds_the_residual():
+    from capsule_env.agents.learning.sb3_policy import load_policy
+    from stable_baselines3 import PPO
+
+    policy = load_policy(PRETRAINED / f"{NAME}.zip")
+    obs = _observations()
+    # independent of ResidualPolicy: SB3's model on the pickled normaliser's own scaling, plus
+    # the quarter-car's tuned clipped LQR gain applied to each bogie's own columns
+    model = PPO.load(str(PRETRAINED / f"{NAME}.zip"), device="cpu")
+    with (PRETRAINED / f"{NAME}.vecnormalize.pkl").open("rb") as fh:
+        norm = pickle.load(fh)
+    residual, _ = model.predict(norm.normalize_obs(obs), deterministic=True)
+    from capsule_env.agents.controllers.classical import make_controller
+
+    gain = np.asarray(make_controller("lqr-clipped-biexp-meas").gain)
+    per = obs.reshape(len(obs), 2, 8)  # stroke, rate, 2 accelerations, gap, 2 estimates, cmd
+    state = np.stack([per[..., 0], per[..., 5], per[..., 4], per[..., 6]], axis=-1)
+    law = np.clip(-(state @ gain) / 8000.0, -1.0, 1.0)
+    expected = np.clip(law + 0.5 * residual, -1.0, 1.0)
+    got, _ = policy.predict(obs, deterministic=True)
+    assert got.shape == (64, 2)
+    np.testing.assert_allclose(got, expected, atol=1e-6)
+    assert np.ptp(residual) > 0.05  # the network's part is not nothing
+
+
+def test_a_declared_policy_on_an_unknown_law_is_one_clear_error(tmp_path):
+    from capsule_env.agents.learning.policy_files import member_digests
+    from capsule_env.agents.learning.sb3_policy import load_policy
+
+    for suffix in (".zip", ".vecnormalize.pkl"):
+        (tmp_path / f"x{suffix}").write_bytes((PRETRAINED / f"{NAME}{suffix}").read_bytes())
+    meta = json.loads((PRETRAINED / f"{NAME}.json").read_text())
+    meta.update(residual={"law": "mpc-biexp-meas", "scale": 0.5},
+                digests=member_digests(tmp_path / "x"))  # fmt: skip
+    (tmp_path / "x.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="residual law 'mpc-biexp-meas' is not one a half_car"):
+        load_policy(tmp_path / "x.zip")
+
+
+def test_it_is_the_half_car_cards_policy_and_not_the_quarter_cars():
+    from capsule_env.agents.learning.sb3_policy import shipped_policy_paths
+
+    from capsule_env.tasks import DECLARED_TASKS, TASKS
+
+    task = next(t for t in DECLARED_TASKS if t.env_id == "CapsuleHalfRide-v0")
+    assert task.shipped_policy == NAME
+    meta = json.loads((PRETRAINED / f"{NAME}.json").read_text())
+    assert {k: v for k, v in meta["env_kwargs"].items() if k != "action_mode"} == task.kwargs
+    for kwargs in [{}, *(t.kwargs for t in TASKS)]:  # no quarter-car evaluation lists it
+        assert all(Path(p).stem != NAME for p in shipped_policy_paths(kwargs)), kwargs
+
+
+def test_it_scores_its_recorded_validation_score():
+    """The choice's figure: this policy on the validation bank (guideway seed 7, episodes
+    5000..5009), never evaluate.py's bank (guideway seed 2026)."""
+    from capsule_env.agents.learning.sb3_policy import load_policy
+
+    from capsule_env.evaluation.half_car import episode_metrics, rollout
+
+    meta = json.loads((PRETRAINED / f"{NAME}.json").read_text())
+    valid = meta["validation"]
+    assert valid["guideway_seed"] == 7 and valid["seeds"] == [5000, 5009]
+    episodes = list(range(valid["seeds"][0], valid["seeds"][1] + 1))
+    policy = load_policy(PRETRAINED / f"{NAME}.zip")
+    wk = episode_metrics(rollout(policy, episodes, valid["guideway_seed"]))
+    assert float(wk["wk_rms_body_acc_m_s2"].mean()) == pytest.approx(
+        valid["wk_rms_body_acc_m_s2"], rel=1e-6
+    )
+    # chosen as the lowest of the runs recorded
+    assert valid["wk_rms_body_acc_m_s2"] == min(valid["runs"].values())
