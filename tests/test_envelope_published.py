@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+from test_figures_legible import assert_legible, drawn  # noqa: F401  (drawn: the fixture)
 
 from capsule_env.common.units import kmh_to_m_s
 from capsule_env.envelope.levitation import (
@@ -166,10 +167,9 @@ def test_bad_input_is_named():
         lift_off_speed_m_s(coil, 1.0, -0.1)
 
 
-def test_main_prints_the_three_tables(capsys, tmp_path):
-    pytest.importorskip("matplotlib")
-    out = tmp_path / "f.png"
+def test_main_prints_the_three_tables_and_a_legible_figure(capsys, tmp_path, drawn):  # noqa: F811
+    out = tmp_path / "envelope_published.png"
     assert main(["--figure", str(out)]) == 0
     text = capsys.readouterr().out
     assert text.count("| speed (km/h) |") == 2 and "| payload |" in text
-    assert out.stat().st_size > 10_000
+    assert_legible(drawn, 1)
