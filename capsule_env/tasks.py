@@ -149,6 +149,15 @@ DECLARED_TASKS: tuple[Task, ...] = (
          "lqr-clipped-biexp-meas", "residual-ppo-lqr-half-car",
          "evaluation-CapsuleHalfRide-v0.json",
          headline="the half-car capsule: pitch, two bogies, two dampers (`hils`, measured)"),
+    Task("CapsuleHalfRidePreview-v0",
+         "The half-car ride task with the surveyed guideway ahead of each bogie (32 points over "
+         "0.5 s per bogie, each from its own bogie; survey offset and noise as the env's "
+         "defaults).",
+         "the measured signals of both bogies and each bogie's preview of the surveyed guideway",
+         {"vehicle": "half_car", "setting": "hils", "observation": "measured",
+          "preview_points": 32, "preview_horizon_s": 0.5}, "hils",
+         "survey-preview-lq-biexp-meas", "", "evaluation-CapsuleHalfRidePreview-v0.json",
+         headline="the half-car ride task + 0.5 s of surveyed guideway ahead of each bogie"),
 )  # fmt: skip
 
 ENTRY_POINT = "capsule_env.envs.capsule_suspension:CapsuleSuspensionEnv"

@@ -259,7 +259,11 @@ def test_the_declared_env_on_the_quarter_car_is_the_quarter_car_env(mode):
 
 
 def test_unsupported_options_are_refused_by_name(seat_toy):
-    for key, value in (("preview_points", 4), ("levitation", "eds"), ("spans", "continuous")):
+    for key, value in (
+        ("speed_range_kmh", (300.0, 800.0)),
+        ("levitation", "eds"),
+        ("spans", "continuous"),
+    ):
         with pytest.raises(ValueError, match=key):
             gym.make("CapsuleSuspension-v0", vehicle="seat_toy", **{key: value})
     with pytest.raises(ValueError, match="observation"):

@@ -28,12 +28,20 @@ import numpy as np
 from capsule_env.agents.controllers.base import Controller
 from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
 from capsule_env.agents.controllers.lqr import state_weights
+from capsule_env.agents.controllers.preview_lq import preview_rises
 from scipy.linalg import expm, solve_discrete_are
 
 from capsule_env.common.units import kmh_to_m_s
 from capsule_env.vehicles import model_named, relative_model
 
-__all__ = ["WheelbaseGains", "wheelbase_gains", "WheelbasePreviewLQ", "WheelbaseExactPreviewLQ"]
+__all__ = [
+    "WheelbaseGains",
+    "wheelbase_gains",
+    "survey_preview_gains",
+    "WheelbasePreviewLQ",
+    "WheelbaseExactPreviewLQ",
+    "SurveyPreviewLQ",
+]
 
 #: Measured columns per slot (``capsule_env.engine.declared_batch``): stroke, rate, the two
 #: accelerations, the gap, the two velocity estimates, the last command.
@@ -64,6 +72,31 @@ def wheelbase_gains(
 ) -> WheelbaseGains:  # fmt: skip
     """The optimal gains (module doc); ``preview=False``: the same design without the window
     (the discrete LQR the preview adds to)."""
+    return _design(vehicle, dt_s, speed_m_s, q_stroke, q_gap, r_force, delay_steps, preview,
+                   vehicle_params)[0]  # fmt: skip
+
+
+def survey_preview_gains(
+    vehicle: str, dt_s: float, q_stroke: float, q_gap: float, r_force: float, n_preview: int,
+    delay_steps: int = 1, vehicle_params: dict | None = None,
+) -> tuple[WheelbaseGains, np.ndarray]:  # fmt: skip
+    """The survey-preview LQ's gains (:class:`SurveyPreviewLQ`): the discrete LQR without the
+    wheelbase window and each contact's gains on its next ``n_preview`` rises, ``(contacts,
+    slots, n_preview)`` (N per m of rise)."""
+    if int(n_preview) < 1:
+        raise ValueError(f"n_preview must be >= 1, got {n_preview!r}")
+    return _design(vehicle, dt_s, 1.0, q_stroke, q_gap, r_force, delay_steps, False,
+                   vehicle_params, int(n_preview))  # fmt: skip
+
+
+def _design(
+    vehicle: str, dt_s: float, speed_m_s: float, q_stroke: float, q_gap: float, r_force: float,
+    delay_steps: int, preview: bool, vehicle_params: dict | None, survey_steps: int = 0,
+) -> tuple[WheelbaseGains, np.ndarray]:  # fmt: skip
+    """The gains and, for the survey's preview, each contact's preview gains ``(contacts, m,
+    j)`` by Tomizuka's product ``K_c[j] = G B' (A_c')^j P E_c`` (``G = (R + B' P B)^-1``,
+    ``A_c = A - B K``: :func:`capsule_env.agents.controllers.preview_lq.preview_lq_gains`'s,
+    one input per slot), ``j < survey_steps``."""
     model = model_named(vehicle)
     params = model.params(**(vehicle_params or {}))
     offsets = model.contact_offsets_m(params)
@@ -99,8 +132,23 @@ def wheelbase_gains(
     r = d_big.T @ d_big + r_force * np.eye(m)
     s = c_big.T @ d_big
     p = solve_discrete_are(big_a, big_b, q, r, s=s)
-    k = np.linalg.solve(r + big_b.T @ p @ big_b, big_b.T @ p @ big_a + s.T)
-    return WheelbaseGains(k[:, :n], k[:, n : n + m * nd], k[:, n + m * nd :], frac)
+    g = np.linalg.inv(r + big_b.T @ p @ big_b)
+    k = g @ (big_b.T @ p @ big_a + s.T)
+    gains = WheelbaseGains(k[:, :n], k[:, n : n + m * nd], k[:, n + m * nd :], frac)
+    # each contact's rise enters the plant as E d; the window's rises reach it through the
+    # closed loop (module doc of preview_lq): the columns of (A_c')^j P E, one product a step
+    column = p[:, :n] @ e  # (size, contacts)
+    a_closed_t = (big_a - big_b @ k).T
+    return gains, _products(g @ big_b.T, a_closed_t, column, survey_steps)
+
+
+def _products(gb: np.ndarray, a_closed_t: np.ndarray, column: np.ndarray, steps: int) -> np.ndarray:
+    """``gb (A_c')^j column`` for ``j = 0 .. steps - 1``: ``(contacts, m, steps)``."""
+    out = np.empty((column.shape[1], gb.shape[0], steps))
+    for j in range(steps):
+        out[:, :, j] = (gb @ column).T
+        column = a_closed_t @ column
+    return out
 
 
 class WheelbasePreviewLQ(Controller):
@@ -118,6 +166,7 @@ class WheelbasePreviewLQ(Controller):
         self.gains_ = wheelbase_gains(vehicle, dt_s, kmh_to_m_s(speed_kmh), q_stroke, q_levitation,
                                       r_force, delay_steps, preview)  # fmt: skip
         self.dt_s, self.max_force_n = float(dt_s), float(max_force_n)
+        self.delay_steps = int(delay_steps)
         self.env_kwargs = {"vehicle": vehicle, "action_mode": "force", "observation": "measured",
                            "inverse_model": "bi_exponential", "max_force_n": self.max_force_n}  # fmt: skip
         self._memory: dict[str, np.ndarray] = {}
@@ -149,10 +198,14 @@ class WheelbasePreviewLQ(Controller):
             mem["window"][:, -1] = rise
         x = self.state_law.relative_state(obs)
         force = -(x @ g.k_x.T + mem["in_flight"] @ g.k_u.T + mem["window"] @ g.k_p.T)
-        m = force.shape[1]
-        if g.k_u.shape[1]:  # newest first: the line shifts by one slot set
-            mem["in_flight"][:, m:] = mem["in_flight"][:, :-m]
-            mem["in_flight"][:, :m] = force
+        return self._push(force)
+
+    def _push(self, force: np.ndarray) -> np.ndarray:
+        """Remember the requests ``force`` (N, slots) in flight; the action asking for them."""
+        in_flight, m = self._memory["in_flight"], force.shape[1]
+        if in_flight.shape[1]:  # newest first: the line shifts by one slot set
+            in_flight[:, m:] = in_flight[:, :-m]
+            in_flight[:, :m] = force
         return np.clip(force / self.max_force_n, -1.0, 1.0)
 
 
@@ -178,3 +231,42 @@ class WheelbaseExactPreviewLQ(WheelbasePreviewLQ):
         rise = z_front - mem["z"]
         mem["z"] = z_front.copy()
         return rise
+
+
+class SurveyPreviewLQ(WheelbasePreviewLQ):
+    """Tomizuka's preview LQ of the half-car on the survey (``CapsuleHalfRidePreview-v0``): the
+    discrete LQR of :func:`wheelbase_gains` without the wheelbase window, plus, for each bogie,
+    the gains on its own guideway's rises over the next ``preview_horizon_s`` (read from its
+    ``preview_points`` surveyed elevations, linear between them:
+    :func:`capsule_env.agents.controllers.preview_lq.preview_rises`, folded into one weight
+    per preview column). The rear's preview is its own (it starts at the rear bogie), so the
+    wheelbase window adds nothing the survey has not. Reads the ``measured`` set and the preview;
+    through the Bi-exponential inverse."""
+
+    def __init__(
+        self, q_stroke: float, q_levitation: float, r_force: float,
+        preview_points: int = 32, preview_horizon_s: float = 0.5, **kwargs: Any,
+    ) -> None:  # fmt: skip
+        super().__init__(q_stroke, q_levitation, r_force, preview=False, **kwargs)
+        self.name = "survey-preview-lq-biexp-meas"
+        self.points, self.horizon_s = int(preview_points), float(preview_horizon_s)
+        n_preview = max(1, int(round(self.horizon_s / self.dt_s)))
+        self.gains_, k_c = survey_preview_gains(self.env_kwargs["vehicle"], self.dt_s, q_stroke,
+                                                q_levitation, r_force, n_preview,
+                                                self.delay_steps)  # fmt: skip
+        rises = preview_rises(np.eye(self.points), self.horizon_s / self.points, self.dt_s,
+                              n_preview)  # (points, n_preview)  # fmt: skip
+        self.preview_weight = k_c @ rises.T  # (contacts, slots, points)
+        self.env_kwargs = dict(self.env_kwargs, preview_points=self.points,
+                               preview_horizon_s=self.horizon_s)  # fmt: skip
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+        n, (contacts, _, points) = obs.shape[0], self.preview_weight.shape
+        mem, g = self._memory, self.gains_
+        if "in_flight" not in mem or mem["in_flight"].shape[0] != n:
+            mem["in_flight"] = np.zeros((n, g.k_u.shape[1]))
+        ahead = obs[:, obs.shape[1] - contacts * points :].reshape(n, contacts, points)
+        feedforward = np.einsum("ncp,csp->ns", ahead, self.preview_weight)
+        x = self.state_law.relative_state(obs)
+        return self._push(-(x @ g.k_x.T + mem["in_flight"] @ g.k_u.T + feedforward))

@@ -55,7 +55,7 @@ from capsule_env.guideway.spans import span_profile
 from capsule_env.plant.block import block_constants, block_kernel_mode, levitation_damped
 from capsule_env.plant.params import PlantParams, Route
 
-__all__ = ["CapsuleBatch", "vehicle_streams"]
+__all__ = ["CapsuleBatch", "survey_error", "vehicle_streams"]
 
 #: Signal rows are padded by this many values: rows a multiple of 4 KiB apart would all map to
 #: the same L1 cache set (measured: ~60 ns per vehicle-step).
@@ -319,35 +319,11 @@ class CapsuleBatch:
         return n_samples(profile_length_m(gw, duration), gw.spacing_m)
 
     def _build_survey_error(self) -> np.ndarray:
-        """The survey map's error on the bank's grid, one row per profile (a (1, 1) zero array
-        without preview): a long-wavelength offset and a short-wavelength error, each a random
-        FRA-shaped profile in its band (``config.SURVEY_OFFSET_BAND_M``,
-        ``SURVEY_NOISE_BAND_M``) scaled to its standard deviation, from a stream of the
-        guideway seed (the map belongs to the guideway, not to a vehicle)."""
-        cfg = self.config
-        if cfg.preview_points == 0:
+        """The survey map's error on the bank's grid (:func:`survey_error`; a (1, 1) zero array
+        without preview)."""
+        if self.config.preview_points == 0:
             return np.zeros((1, 1))
-        run = self._run_samples()  # the map's error over them; continued beyond (periodic)
-        length = (run - 1) * self.spacing
-        extend_m = (self.profiles.shape[1] - run) * self.spacing
-        seeds = np.random.SeedSequence([cfg.guideway_seed, 1]).generate_state(
-            2 * self.profiles.shape[0]
-        )
-        rows = []
-        for k in range(self.profiles.shape[0]):
-            error = np.zeros(self.profiles.shape[1])
-            for seed, std, band in (
-                (seeds[2 * k], cfg.survey_offset_m, SURVEY_OFFSET_BAND_M),
-                (seeds[2 * k + 1], cfg.survey_noise_m, SURVEY_NOISE_BAND_M),
-            ):
-                if std > 0.0:
-                    part = random_profile(
-                        length, self.spacing, int(seed), peak_m=None, min_wavelength_m=band[0],
-                        max_wavelength_m=band[1], extend_m=extend_m,
-                    )[: error.size]  # fmt: skip
-                    error[: part.size] += std * part / np.std(part[:run])
-            rows.append(error)
-        return np.ascontiguousarray(np.stack(rows))
+        return survey_error(self.config, self.profiles, self._run_samples())
 
     # ---------------------------------------------------------------- seeding / reset
     def seed(self, seed: int | list[int] | None) -> None:
@@ -521,3 +497,31 @@ class CapsuleBatch:
     def truncated(self) -> np.ndarray:
         """Vehicles whose episode reached its time limit (``max_episode_steps``)."""
         return self.step_count >= self.max_steps
+
+
+def survey_error(config: EnvConfig, profiles: np.ndarray, run_samples: int) -> np.ndarray:
+    """The survey map's error on the grid of the bank ``profiles`` (K, L), one row per profile:
+    a long-wavelength offset and a short-wavelength error, each a random FRA-shaped profile in
+    its band (``config.SURVEY_OFFSET_BAND_M``, ``SURVEY_NOISE_BAND_M``) scaled to its standard
+    deviation over the ``run_samples`` runs drive over (continued beyond, periodic), from a
+    stream of the guideway seed (the map belongs to the guideway, not to a vehicle)."""
+    cfg, spacing = config, config.guideway_spec.spacing_m
+    run = run_samples
+    length = (run - 1) * spacing
+    extend_m = (profiles.shape[1] - run) * spacing
+    seeds = np.random.SeedSequence([cfg.guideway_seed, 1]).generate_state(2 * profiles.shape[0])
+    rows = []
+    for k in range(profiles.shape[0]):
+        error = np.zeros(profiles.shape[1])
+        for seed, std, band in (
+            (seeds[2 * k], cfg.survey_offset_m, SURVEY_OFFSET_BAND_M),
+            (seeds[2 * k + 1], cfg.survey_noise_m, SURVEY_NOISE_BAND_M),
+        ):
+            if std > 0.0:
+                part = random_profile(
+                    length, spacing, int(seed), peak_m=None, min_wavelength_m=band[0],
+                    max_wavelength_m=band[1], extend_m=extend_m,
+                )[: error.size]  # fmt: skip
+                error[: part.size] += std * part / np.std(part[:run])
+        rows.append(error)
+    return np.ascontiguousarray(np.stack(rows))

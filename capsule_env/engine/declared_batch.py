@@ -36,6 +36,7 @@ from capsule_env.dampers.inverse import INVERSE_CODES, affine_in_current, invert
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.engine.batch import vehicle_streams
 from capsule_env.engine.config import EnvConfig
+from capsule_env.engine.declared_preview import DeclaredPreview, preview_reach_m
 from capsule_env.engine.env_kernel import gaussian_pair
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD
 from capsule_env.engine.observations import NOISE_CHANNELS
@@ -96,7 +97,8 @@ class DeclaredBatch:
         self.guideway = config.guideway_spec
         self.n_slots, self.n_coords = len(model.dampers), len(model.coordinates)
         offsets_m = model.contact_offsets_m(params)  # the contacts' stretch of guideway
-        self.profiles = _bank(config, float(np.ptp(np.r_[offsets_m, 0.0])))
+        span_m = float(np.ptp(np.r_[offsets_m, 0.0])) + preview_reach_m(config)
+        self.profiles = _bank(config, span_m)
         speed = config.speed_m_s
         rate = float(np.asarray(config.input_rate_rad_s(speed)).reshape(-1)[0])
         self.plant = declared_plant(model, [self.values] * self.num_envs, self.damper,
@@ -126,6 +128,8 @@ class DeclaredBatch:
         self.noise_key = np.zeros(n, dtype=np.uint64)
         self.step_count = np.zeros(n, dtype=np.int64)
         self.rngs = vehicle_streams(None, n)
+        self.preview = (None if not config.preview_points else
+                        DeclaredPreview(config, self.profiles, tuple(c.name for c in model.contacts), n))  # fmt: skip
         self._geometry()
 
     def _geometry(self) -> None:
@@ -184,6 +188,8 @@ class DeclaredBatch:
         self.out[n, self.n_slots + self.n_coords :] = zg
         self.measured[n] = 0.0  # at rest: no stroke, no acceleration, no gap change
         self.estimates[n] = self._estimator_state[n] = 0.0
+        if self.preview is not None:
+            self.preview.reset(n, self.noise_key[n])
 
     def _contact_elevations(self, n: int, t: float) -> np.ndarray:
         pos = self.route.start_m[n] + self.route.speed_mps[n] * t + self.plant.contact_offsets_m[n]
@@ -292,6 +298,20 @@ class DeclaredBatch:
         return reward - np.where(hit, cfg.bump_stop_penalty, 0.0), hit, costs
 
     def observation_names(self) -> tuple[str, ...]:
+        """The observation's columns: the set's, then the preview's (if any)."""
+        preview = self.preview.names if self.preview is not None else ()
+        return (*self._set_names(), *preview)
+
+    def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(low, high)`` of each column: unbounded but the preview's (+-1 m, saturating)."""
+        dim = len(self.observation_names())
+        low, high = np.full(dim, -np.inf), np.full(dim, np.inf)
+        if self.preview is not None:
+            low[dim - self.preview.low.size :] = self.preview.low
+            high[dim - self.preview.high.size :] = self.preview.high
+        return low, high
+
+    def _set_names(self) -> tuple[str, ...]:
         m = self.model
         slots = [d.name for d in m.dampers]
         if self.config.observation == "sensors":
@@ -307,7 +327,15 @@ class DeclaredBatch:
 
     def observe(self, sig: dict[str, np.ndarray]) -> np.ndarray:
         """The observations (N, d), float32 (``sensors``: the measurements, noisy where the
-        options say; ``full_state``: the true values)."""
+        options say; ``full_state``: the true values), the preview's columns after them."""
+        obs = self._observe_set(sig)
+        if self.preview is None:
+            return obs
+        time_s = self.state[:, -1]
+        cols = self.preview.columns(self.profiles, self.route, time_s, self.plant.contact_offsets_m)
+        return np.concatenate([obs, cols.astype(np.float32)], axis=1)
+
+    def _observe_set(self, sig: dict[str, np.ndarray]) -> np.ndarray:
         n, ns = self.num_envs, self.n_slots
         if self.config.observation in ("sensors", "measured"):
             meas = self.measured.reshape(n, ns, N_SLOT_CHANNELS)

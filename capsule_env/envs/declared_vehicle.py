@@ -22,6 +22,11 @@ stroke and stroke rate, each comfort point's acceleration, each contact's elevat
 values); ``"sensors"``: per slot its stroke, stroke rate, the accelerations of its two ends
 (with the quarter-car's sensor noise per channel where ``sensor_noise`` or ``setting="hils"``
 asks) and its last current command. Names with units: :attr:`DeclaredVehicleEnv.observation_names`.
+``preview_points=P`` appends, for each guideway contact (the half-car's front then rear bogie),
+``P`` columns ``<contact>_preview_ahead_<k>``: the surveyed guideway ``k * preview_horizon_s /
+P`` seconds ahead of that contact relative to under it now, the 1/4-car env's survey map and
+position error (:mod:`capsule_env.engine.declared_preview`); bounds +-1 m (saturating), the
+other columns unbounded.
 
 ## Reward
 :mod:`capsule_env.engine.declared_batch`: the quarter-car's terms, averaged over the comfort
@@ -31,7 +36,7 @@ points and the slots; the episode terminates when any stroke passes ``stroke_lim
 Those of ``CapsuleSuspension-v0`` that concern the damper (``setting="hils"``, the coil lag),
 the sensors' noise and the control delay, the guideway, the episode and the reward, and
 ``levitation="eds"`` at a constant speed (each bogie's coil model at ``speed_kmh``:
-:mod:`capsule_env.envs.declared_levitation`). The others (preview, a speed that changes, the
+:mod:`capsule_env.envs.declared_levitation`), the survey preview. The others (a speed that changes, the
 spans, the payload, domain randomisation, the velocity reward, the reward filter) are
 refused by name: they are not built for these vehicles yet. The native batched version is
 :class:`capsule_env.envs.declared_vector.DeclaredVectorEnv`.
@@ -69,7 +74,7 @@ __all__ = [
 #: Options of ``CapsuleSuspension-v0`` not built for declared vehicles, with the values each
 #: accepts (its default).
 UNSUPPORTED_OPTIONS: dict[str, Any] = {
-    "preview_points": (0,), "levitation": ("fixed", "eds"), "speed_profile": ("constant",),
+    "levitation": ("fixed", "eds"), "speed_profile": ("constant",),
     "spans": ("none",), "payload_range": (None,), "vehicle_randomization": (0.0,),
     "speed_range_kmh": (None,), "reward_velocity_weight": (0.0,),
     "reward_acceleration_filter": ("none",),
@@ -100,9 +105,9 @@ def declared_setup(owner: str, kwargs: dict[str, Any], num_envs: int = 1) -> Dec
 
 def declared_spaces(batch: DeclaredBatch) -> tuple[spaces.Box, spaces.Box]:
     """``(action_space, observation_space)`` of one vehicle."""
-    dim = len(batch.observation_names())
+    low, high = batch.observation_bounds()
     return (spaces.Box(-1.0, 1.0, shape=(batch.n_slots,), dtype=np.float32),
-            spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32))  # fmt: skip
+            spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32))  # fmt: skip
 
 
 class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
