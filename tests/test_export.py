@@ -37,6 +37,7 @@ from capsule_env.agents.learning.sb3_policy import (  # noqa: E402
 )
 
 from capsule_env.envs import CapsuleSuspensionVectorEnv  # noqa: E402
+from capsule_env.envs.declared_vector import DeclaredVectorEnv  # noqa: E402
 from capsule_env.export import export_policy  # noqa: E402
 from capsule_env.export.__main__ import main  # noqa: E402
 from capsule_env.export.c_build import CPolicy, build_shared, c_compiler  # noqa: E402
@@ -51,8 +52,8 @@ NO_COMPILER = "no C compiler on this machine (cc, gcc, clang or $CC): the C expo
 def rollout_obs(policy, env_kwargs: dict, vehicles: int = 4, steps: int = 200) -> np.ndarray:
     """The observations of ``steps`` control steps of ``vehicles`` episodes that ``policy``
     drives (its deterministic actions), guideway bank 3, seeds 40.. (rows: every step)."""
-    env = CapsuleSuspensionVectorEnv(num_envs=vehicles, guideway_seed=3, episode_length_s=2.0,
-                                     **env_kwargs)  # fmt: skip
+    make = DeclaredVectorEnv if "vehicle" in env_kwargs else CapsuleSuspensionVectorEnv
+    env = make(num_envs=vehicles, guideway_seed=3, episode_length_s=2.0, **env_kwargs)
     obs, _ = env.reset(seed=list(range(40, 40 + vehicles)))
     policy.reset() if hasattr(policy, "reset") else None
     start, rows = np.ones(vehicles, dtype=bool), []
@@ -70,10 +71,11 @@ def network_of(policy):
     return getattr(policy, "policy", policy)
 
 
-def c_policy(files: dict[str, Path], name: str, obs_size: int, folder: Path) -> CPolicy:
+def c_policy(files: dict[str, Path], name: str, obs_size: int, folder: Path,
+             action_size: int = 1) -> CPolicy:  # fmt: skip
     if c_compiler() is None:
         pytest.skip(NO_COMPILER)
-    return CPolicy(build_shared(files[f"{name}.c"], folder), obs_size)
+    return CPolicy(build_shared(files[f"{name}.c"], folder), obs_size, action_size)
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +101,8 @@ def test_shipped_policy_exports_act_as_the_policy(name, exported, tmp_path):
     got_onnx = onnx.run(None, {"obs": obs})[0]
     assert got_onnx.shape == expected.shape
     np.testing.assert_allclose(got_onnx, expected, rtol=0, atol=TOLERANCE)
-    got_c = c_policy(files, name, obs.shape[1], tmp_path).policy(obs)
+    # one action per damper slot: 2 for the half-car's policy
+    got_c = c_policy(files, name, obs.shape[1], tmp_path, expected.shape[1]).policy(obs)
     np.testing.assert_allclose(got_c, expected, rtol=0, atol=TOLERANCE)
 
 

@@ -103,3 +103,24 @@ def test_it_scores_its_recorded_validation_score():
     )
     # chosen as the lowest of the runs recorded
     assert valid["wk_rms_body_acc_m_s2"] == min(valid["runs"].values())
+
+
+def test_it_exports_with_a_contract_of_the_half_cars_columns(tmp_path):
+    """``python -m capsule_env.export`` on it: the contract names the half-car env's 16 columns,
+    two actions and the per-bogie law the rig provides; the file is standard JSON."""
+    from capsule_env.envs.declared_vector import DeclaredVectorEnv
+    from capsule_env.export import export_policy
+
+    files = export_policy(NAME, tmp_path, "c")
+    text = files[f"{NAME}.contract.json"].read_text()
+    card = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+    env = DeclaredVectorEnv(1, vehicle="half_car", setting="hils", observation="measured")
+    assert [c["name"] for c in card["observation"]["columns"]] == list(env.observation_names)
+    units = {c["name"]: c["unit"] for c in card["observation"]["columns"]}
+    assert units["rear_secondary_damper_gap_m"] == "m"
+    assert units["front_secondary_damper_upper_acceleration_m_s2"] == "m/s^2"
+    assert units["rear_secondary_damper_last_current_command_a"] == "A"
+    assert card["task"] == "CapsuleHalfRide-v0" and card["action"]["size"] == 2
+    assert card["residual"]["law"] == "lqr-clipped-biexp-meas"
+    assert card["residual"]["rig_provides_law"] is True  # not the 1/4-car's law written in C
+    assert "capsule_law" not in files[f"{NAME}.c"].read_text()

@@ -39,12 +39,28 @@ CONTRACT_VERSION = 1
 _APPENDED_UNITS = {"speed_m_s": "m/s", "longitudinal_acceleration_m_s2": "m/s^2"}
 
 
+#: Units of a declared vehicle's columns, by the end of their names (longest first).
+_UNIT_SUFFIXES = (("_m_s2", "m/s^2"), ("_m_s", "m/s"), ("_a", "A"), ("_m", "m"))
+
+
+def _declared_batch(kwargs: dict[str, Any]) -> Any:
+    """One vehicle of a declared vehicle's env (its ``kwargs`` name a ``vehicle`` other than
+    the 1/4-car, e.g. the half-car task's policy), or None for the 1/4-car's env."""
+    if kwargs.get("vehicle", "quarter_car") == "quarter_car":
+        return None
+    from capsule_env.envs.declared_vehicle import declared_setup
+
+    return declared_setup("the policy's env options", kwargs, 1)
+
+
 def training_config(source: PolicySource) -> tuple[EnvConfig, dict[str, Any]]:
-    """The env configuration the policy was trained with, and its options as recorded."""
+    """The env configuration the policy was trained with (a declared vehicle's: its env's
+    settings, control period and action), and its options as recorded."""
     meta = source.meta
     kwargs = dict(meta.get("train_env_kwargs", meta.get("env_kwargs", {})))
     try:
-        return EnvConfig.from_kwargs(**kwargs), kwargs
+        batch = _declared_batch(kwargs)
+        return (EnvConfig.from_kwargs(**kwargs) if batch is None else batch.config), kwargs
     except (TypeError, ValueError) as exc:
         raise ValueError(
             f"{source.zip_path}: its recorded env options are not valid: {exc}"
@@ -64,16 +80,33 @@ def task_of(source: PolicySource, config: EnvConfig) -> str | None:
     return None
 
 
-def _columns(config: EnvConfig, actor: DeterministicActor) -> list[dict[str, Any]]:
+def _table(config: EnvConfig, kwargs: dict[str, Any]) -> tuple[tuple[str, ...], dict, Any, Any]:
+    """The observation's column names, their ``(unit, what)`` by name, and the saturation
+    bounds: the 1/4-car's table, or a declared vehicle's per-slot columns (units by name)."""
+    batch = _declared_batch(kwargs)
+    if batch is not None:
+        names = batch.observation_names()
+        units = {n: next(u for end, u in _UNIT_SUFFIXES if n.endswith(end)) for n in names}
+        rows = {n: (units[n], f"{config.observation} signal of a damper slot: {n}") for n in names}
+        return names, rows, *batch.observation_bounds()
     rows = {row.name: (row.unit, row.what) for row in obs_table.observables(config.observation)}
     appended = (*obs_table.TRIP_COLUMNS, *obs_table.preview_columns(config.preview_points))
     rows.update({c.name: (_APPENDED_UNITS.get(c.name, "m"), c.what) for c in appended})
-    low, high = observation_bounds(config, config.max_current_a)
+    return config.observation_names, rows, *observation_bounds(config, config.max_current_a)
+
+
+def _bound(value: float) -> float | None:
+    """A saturation bound as JSON: None where the env does not clip (an infinite bound)."""
+    return float(value) if np.isfinite(value) else None
+
+
+def _columns(names: tuple[str, ...], rows: dict, low: Any, high: Any,
+             actor: DeterministicActor) -> list[dict[str, Any]]:  # fmt: skip
     out = []
-    for k, name in enumerate(config.observation_names):
+    for k, name in enumerate(names):
         unit, what = rows[name]
         column = {"index": k, "name": name, "unit": unit, "what": what,
-                  "saturation_low": float(low[k]), "saturation_high": float(high[k])}  # fmt: skip
+                  "saturation_low": _bound(low[k]), "saturation_high": _bound(high[k])}  # fmt: skip
         if actor.normaliser is not None:
             column["mean"] = float(actor.normaliser.mean[k])
             column["std"] = float(actor.normaliser.std[k])
@@ -81,10 +114,12 @@ def _columns(config: EnvConfig, actor: DeterministicActor) -> list[dict[str, Any
     return out
 
 
-def _observation(config: EnvConfig, actor: DeterministicActor) -> dict[str, Any]:
-    if len(config.observation_names) != actor.obs_size:
+def _observation(config: EnvConfig, actor: DeterministicActor,
+                 kwargs: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    names, rows, low, high = _table(config, kwargs)
+    if len(names) != actor.obs_size:
         raise ValueError(f"the network takes {actor.obs_size} observations, its training env "
-                         f"gives {len(config.observation_names)}")  # fmt: skip
+                         f"gives {len(names)}")  # fmt: skip
     norm = actor.normaliser
     normalisation: dict[str, Any] = {"inside_artifacts": True, "kind": "none"}
     if norm is not None:
@@ -94,7 +129,7 @@ def _observation(config: EnvConfig, actor: DeterministicActor) -> dict[str, Any]
             "precision, then float32; std = sqrt(var + epsilon)",
         }  # fmt: skip
     return {"size": actor.obs_size, "dtype": "float32", "set": config.observation,
-            "columns": _columns(config, actor), "normalisation": normalisation,
+            "columns": _columns(names, rows, low, high, actor), "normalisation": normalisation,
             "note": "raw SI values in this order, as the env gives them; the env clips each "
                     "column to its saturation bounds (the sensor's)"}  # fmt: skip
 
@@ -171,7 +206,7 @@ def contract(source: PolicySource, actor: DeterministicActor,
         "env_id": "CapsuleSuspension-v0",
         "env_kwargs": kwargs,
         "control": _control(config),
-        "observation": _observation(config, actor),
+        "observation": _observation(config, actor, kwargs),
         "action": _action(config, actor),
         "network": _network(actor),
         "residual": _residual(source),

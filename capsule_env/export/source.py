@@ -67,18 +67,26 @@ def _zip_of(name_or_path: str) -> Path:
     return PRETRAINED_DIR / f"{name_or_path}.zip"
 
 
-def _residual(block: Any, path: Path) -> Residual | None:
+def _residual(block: Any, path: Path, vehicle: str = "quarter_car") -> Residual | None:
     from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.agents.learning.sb3_policy import DECLARED_LAWS
     from capsule_env.export.laws_c import c_law_reason, law_class
 
     if block is None:
         return None
     law_name = block.get("law") if isinstance(block, dict) else None
     scale = block.get("scale", 0.5) if isinstance(block, dict) else None
-    if not isinstance(law_name, str) or law_class(law_name) is None:
+    declared = vehicle != "quarter_car"  # a declared vehicle's law: one per damper slot
+    if not isinstance(law_name, str) or (law_name not in DECLARED_LAWS if declared
+                                         else law_class(law_name) is None):  # fmt: skip
         raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller")
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < scale <= 2.0:
         raise ValueError(f"{path}: its residual scale must be a number in (0, 2], got {scale!r}")
+    if declared:
+        reason = (f"{law_name} on the {vehicle} is one law per damper slot on its own slot's "
+                  "columns; its C form is not generated: the rig must provide it, and combine "
+                  "each slot's action with capsule_combine")  # fmt: skip
+        return Residual(law_name, float(scale), None, reason)
     reason = c_law_reason(law_name)
     law = None if reason else make_controller(law_name)
     return Residual(law_name, float(scale), law, reason)
@@ -94,5 +102,6 @@ def resolve_policy(name_or_path: str, name: str | None = None) -> PolicySource:
     if not _STEM.match(out_name):
         raise ValueError(f"--name must be a plain file stem (letters, digits, '_', '.', '+', "
                          f"'-'), got {out_name!r}")  # fmt: skip
-    residual = _residual(policy.meta.get("residual"), path)
+    vehicle = str(policy.meta.get("env_kwargs", {}).get("vehicle", "quarter_car"))
+    residual = _residual(policy.meta.get("residual"), path, vehicle)
     return PolicySource(out_name, path, policy, residual)
