@@ -150,3 +150,12 @@ def test_the_survey_preview_gains_are_the_finite_horizon_optimum():
     law = -np.einsum("cmj,jc->m", k_c, rises[:n_preview])
     np.testing.assert_allclose(law, first, rtol=1e-4, atol=1e-6 * np.abs(first).max())
     assert gains.k_u.shape == (2, 0)
+
+
+@pytest.mark.parametrize("argv", [["--episodes", "1"], ["--out", "/no/such/folder/x.json"]])
+def test_the_preview_evaluation_refuses_bad_input_in_one_line(argv, capsys, tmp_path):
+    from capsule_env.evaluation.half_car_preview import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1
