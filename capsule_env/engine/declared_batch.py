@@ -37,16 +37,17 @@ from capsule_env.dampers.registry import model_of_code
 from capsule_env.engine.batch import vehicle_streams
 from capsule_env.engine.config import EnvConfig
 from capsule_env.engine.declared_preview import DeclaredPreview, preview_reach_m
+from capsule_env.engine.declared_sensing import combine_rows, measure_slots
 from capsule_env.engine.env_kernel import gaussian_pair
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD
 from capsule_env.engine.observations import NOISE_CHANNELS
 from capsule_env.guideway import make_profile, random_profile
-from capsule_env.plant.declared import declared_step, declared_step_parallel
 from capsule_env.plant.declared_build import (
     declared_output_names,
     declared_plant,
     declared_state_names,
 )
+from capsule_env.plant.declared_lanes import lanes_step, lanes_step_parallel, plant_form
 from capsule_env.plant.params import Route
 from capsule_env.plant.substeps import MAX_AUTO_SUBSTEPS
 from capsule_env.vehicles.declaration import SPRING, VehicleModel
@@ -222,12 +223,13 @@ class DeclaredBatch:
             self.delay[:, -1] = self.requested
         else:
             self.command[:] = self.requested
+        code, form = self.damper.code, plant_form(self.plant)  # the same bits as declared_step
         if self.num_envs >= PARALLEL_THRESHOLD:
-            declared_step_parallel(self.damper.code)(self.num_envs, self.plant, self.state,
-                                                     self.command, self.route, self.dt, self.out)  # fmt: skip
+            lanes_step_parallel(code, form)(self.num_envs, self.plant, self.state, self.command,
+                                            self.route, self.dt, self.out)  # fmt: skip
         else:
-            declared_step(self.damper.code, 0, self.num_envs, self.plant, self.state,
-                          self.command, self.route, self.dt, self.out)  # fmt: skip
+            lanes_step(code, form, 0, self.num_envs, self.plant, self.state, self.command,
+                       self.route, self.dt, self.out)  # fmt: skip
         self.step_count += 1
         sig = self.signals()
         self._measure(sig)
@@ -236,27 +238,15 @@ class DeclaredBatch:
     def _measure(self, sig: dict[str, np.ndarray]) -> None:
         """Each slot's stroke, stroke rate and end accelerations, with sensor noise (the
         quarter-car's channels: stroke, stroke rate, car-body and bogie accelerometers)."""
-        n, ns = self.num_envs, self.n_slots
-        ends = sig["slot_end_acceleration_m_s2"].reshape(n, ns, 2)
-        true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1],
-                         sig["gap_m"]], axis=-1).reshape(n, -1)  # fmt: skip
-        if self.noise_level > 0.0:
-            normals = np.empty((n, true.shape[1] + 1))
+        noisy = self.noise_level > 0.0
+        normals = np.empty((self.num_envs, self.measured.shape[1] + 1) if noisy else (0, 0))
+        if noisy:
             _normals(self.noise_key, self.step_count, normals)
-            true = true + self._noise_std * normals[:, : true.shape[1]]
-        self.measured[:] = true
-        self._estimate(true.reshape(n, ns, N_SLOT_CHANNELS)[:, :, 2:4])
-
-    def _estimate(self, acc: np.ndarray) -> None:
-        """The on-board velocity estimates from the measured accelerations (N, slots, 2): the
-        quarter-car's estimator (``EnvConfig.velocity_estimator_coefficients``, transposed
-        direct form II) on each accelerometer."""
-        b0, b1, b2, a1, a2 = self._estimator
-        s1, s2 = self._estimator_state[..., 0], self._estimator_state[..., 1]
-        y = b0 * acc + s1
-        s1[...] = b1 * acc - a1 * y + s2
-        s2[...] = b2 * acc - a2 * y
-        self.estimates[:] = y
+        channels = (sig["stroke_m"], sig["stroke_rate_m_s"], sig["slot_end_acceleration_m_s2"],
+                    sig["gap_m"])  # fmt: skip
+        measure_slots(channels, self._noise_std, normals, noisy, self.measured,
+                      np.asarray(self._estimator, dtype=float), self._estimator_state,
+                      self.estimates)  # fmt: skip
 
     # ------------------------------------------------------------------ signals
     def positions_rates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -367,10 +357,7 @@ def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):
 def _combine(x: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """``x @ rows.T`` (N, R) summed coordinate by coordinate in order: a vehicle's numbers do
     not depend on its batch (a BLAS product's summation order does)."""
-    out = np.zeros((x.shape[0], rows.shape[0]))
-    for j in range(rows.shape[1]):
-        out += x[:, j, None] * rows[None, :, j]
-    return out
+    return combine_rows(x, rows, np.empty((x.shape[0], rows.shape[0])))
 
 
 @njit(cache=True)
