@@ -1,0 +1,194 @@
+"""A certified floor: per episode, a proven lower bound on the Wk-weighted RMS body
+acceleration (:func:`capsule_env.metrics.wk_weighted_rms`, what evaluate.py reports) that no
+controller of the plant's damper can go below on that guideway.
+
+    from capsule_env.bounds import certified_floor, floor_row
+    result = certified_floor({"setting": "sim"}, seeds=range(1000, 1010), episode_length_s=1.0)
+    result.floor_wk_m_s2          # (episodes,) m/s^2
+    floor_row(result)             # a results row (certified: True)
+
+How (docs/fair-comparison.md, "A certified floor"): the simulator's RK4 integration lifted over
+the episode (:mod:`.lifted`: every force evaluation a variable, the motion affine in them,
+exactly the simulator's arithmetic), quadratic constraints that every force the damper model
+can produce satisfies (:mod:`.relaxation`), and the Lagrangian dual of the ride metric under
+them (:mod:`.dual`), maximised over the multipliers by L-BFGS-B. Any multipliers give a valid
+bound; the search only tightens it. Supported plants: the Bi-exponential damper (the ``sim``
+setting) and the passive linear damper; the ``hils`` plant (Spencer's hysteretic model) is
+refused with a ValueError.
+
+Dense linear algebra (an ``N + 1`` square Cholesky per dual evaluation, ``N = T (4 n_sub +
+1)``, 1801 for a 1 s episode of the ``sim`` setting): on a machine shared by several jobs set
+``OPENBLAS_NUM_THREADS=1`` (threads oversubscribed made it 40 times slower here).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from capsule_env.bounds.dual import DualProblem, DualSolution, maximise
+from capsule_env.bounds.lifted import LiftedEpisode, lift_episode
+from capsule_env.bounds.relaxation import (
+    constraint_matrices,
+    constraint_names,
+    damper_envelope,
+)
+
+__all__ = ["FloorResult", "certified_floor", "floor_row", "DEFAULT_OPTIONS"]
+
+#: ``max_iterations``: L-BFGS-B iterations per episode; ``lam_scale``: the multipliers'
+#: scale (the optimiser's variables are ``lam / lam_scale``); ``lam_start``: the start, per
+#: constraint of :func:`~capsule_env.bounds.relaxation.constraint_names` (a positive definite
+#: one: the rate part's magnitude above the maximum slope and the offset's band).
+DEFAULT_OPTIONS: dict[str, Any] = {
+    "max_iterations": 200,
+    "lam_scale": 1e-5,
+    "lam_start": (0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0),
+}
+
+
+@dataclass(frozen=True)
+class FloorResult:
+    """What :func:`certified_floor` found.
+
+    floor_wk_m_s2 : (E,) the certified floors (m/s^2); ``mean_wk_m_s2`` their mean.
+    dual_value : (E,) ``g`` at the certificate's multipliers ((m/s^2)^2; the floor is
+    ``sqrt(max(g, 0))``). multipliers : per episode, (N, K) ``lam`` (the certificate: with
+    the env, the seeds and the length, :func:`verify` recomputes ``g`` from them).
+    """
+
+    env_kwargs: dict
+    seeds: tuple[int, ...]
+    episode_length_s: float
+    floor_wk_m_s2: np.ndarray
+    dual_value: np.ndarray
+    multipliers: tuple[np.ndarray, ...]
+    options: dict
+    runtime_s: float
+    evaluations: tuple[int, ...]
+    constraints: tuple[str, ...] = field(default_factory=constraint_names)
+    method: str = "lifted-RK4 Shor/Lagrangian dual, L-BFGS-B over the multipliers"
+
+    @property
+    def mean_wk_m_s2(self) -> float:
+        return float(np.mean(self.floor_wk_m_s2))
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-ready summary (no multipliers)."""
+        return {
+            "method": self.method,
+            "env_kwargs": dict(self.env_kwargs),
+            "seeds": list(self.seeds),
+            "episode_length_s": self.episode_length_s,
+            "floor_wk_m_s2": [float(v) for v in self.floor_wk_m_s2],
+            "mean_wk_m_s2": self.mean_wk_m_s2,
+            "dual_value": [float(v) for v in self.dual_value],
+            "constraints": list(self.constraints),
+            "options": {
+                k: (list(v) if isinstance(v, tuple) else v) for k, v in self.options.items()
+            },  # fmt: skip
+            "dual_evaluations": list(self.evaluations),
+            "runtime_s": self.runtime_s,
+        }
+
+
+def _options(options: Mapping[str, Any]) -> dict[str, Any]:
+    unknown = set(options) - set(DEFAULT_OPTIONS)
+    if unknown:
+        raise TypeError(f"certified_floor: unknown options {sorted(unknown)}; accepted: "
+                        f"{sorted(DEFAULT_OPTIONS)}")  # fmt: skip
+    out = {**DEFAULT_OPTIONS, **options}
+    it = out["max_iterations"]
+    if isinstance(it, bool) or not isinstance(it, int) or it < 0:
+        raise ValueError(f"max_iterations must be an integer >= 0, got {it!r}")
+    scale = out["lam_scale"]
+    if not isinstance(scale, (int, float)) or not 0.0 < float(scale) < math.inf:
+        raise ValueError(f"lam_scale must be a finite number > 0, got {scale!r}")
+    start = np.asarray(out["lam_start"], dtype=float)
+    if start.shape != (len(constraint_names()),) or np.any(~(start >= 0.0)):
+        raise ValueError(f"lam_start must be {len(constraint_names())} numbers >= 0 (one per "
+                         f"constraint {constraint_names()}), got {out['lam_start']!r}")  # fmt: skip
+    out["lam_start"] = tuple(float(v) for v in start)
+    return out
+
+
+def _check(seeds: Sequence[int], episode_length_s: float) -> tuple[tuple[int, ...], float]:
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Sequence | range):
+        raise TypeError(f"seeds must be a sequence of integers, got {seeds!r}")
+    out = tuple(seeds)
+    if not out or not all(isinstance(s, (int, np.integer)) and s >= 0 for s in out):
+        raise ValueError(f"seeds must be a non-empty sequence of integers >= 0, got {seeds!r}")
+    length = float(episode_length_s)
+    if not 0.0 < length <= 10.0:
+        raise ValueError(f"episode_length_s must be in (0, 10] s, got {episode_length_s!r}")
+    return tuple(int(s) for s in out), length
+
+
+def _problem(episodes: Any, k: int) -> tuple[LiftedEpisode, DualProblem]:
+    lifted = lift_episode(episodes, k)
+    mats = constraint_matrices(damper_envelope(episodes.code, episodes.damper_params[k]))
+    return lifted, DualProblem(lifted, mats)
+
+
+def certified_floor(
+    env_kwargs: Mapping[str, Any],
+    seeds: Sequence[int],
+    episode_length_s: float,
+    **options: Any,
+) -> FloorResult:
+    """Per episode (the env's episode for each seed, as evaluate.py runs them), a certified
+    lower bound on the Wk-weighted RMS body acceleration that any controller reaches:
+    :class:`FloorResult`. ``options``: :data:`DEFAULT_OPTIONS`. ValueError for a plant with
+    no relaxation (``hils``: Spencer's hysteretic damper) or bad arguments."""
+    from capsule_env.oracle.plant import OracleEpisodes
+
+    seeds_t, length = _check(seeds, episode_length_s)
+    opts = _options(options)
+    t0 = time.perf_counter()
+    episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
+    for k in range(len(seeds_t)):  # refuse before any long computation
+        damper_envelope(episodes.code, episodes.damper_params[k])
+    floors, values, lams, evals = [], [], [], []
+    for k in range(len(seeds_t)):
+        lifted, problem = _problem(episodes, k)
+        lam0 = np.tile(np.array(opts["lam_start"]), (lifted.n_forces, 1))
+        sol: DualSolution = maximise(problem, lam0, opts["max_iterations"], opts["lam_scale"])
+        g = sol.point.value
+        values.append(g)
+        floors.append(math.sqrt(max(g, 0.0)))
+        lams.append(sol.lam)
+        evals.append(sol.evaluations)
+    return FloorResult(
+        dict(env_kwargs), seeds_t, length, np.array(floors), np.array(values), tuple(lams),
+        opts, time.perf_counter() - t0, tuple(evals),
+    )  # fmt: skip
+
+
+def verify(result: FloorResult) -> np.ndarray:
+    """Recompute every episode's ``g`` from the certificate's multipliers (independently of
+    the search): (E,) values; the floors are ``sqrt(max(g, 0))``."""
+    from capsule_env.oracle.plant import OracleEpisodes
+
+    episodes = OracleEpisodes(result.env_kwargs, result.seeds, result.episode_length_s)
+    out = []
+    for k, lam in enumerate(result.multipliers):
+        _, problem = _problem(episodes, k)
+        out.append(problem.evaluate(lam).value)
+    return np.array(out)
+
+
+def floor_row(result: FloorResult) -> dict[str, Any]:
+    """A results row, as evaluate.py's: ``wk_rms_body_acc_m_s2`` the mean over episodes,
+    ``per_episode`` the values, ``certified: True``, ``method``, the search's summary."""
+    return {
+        "wk_rms_body_acc_m_s2": result.mean_wk_m_s2,
+        "per_episode": {"wk_rms_body_acc_m_s2": [float(v) for v in result.floor_wk_m_s2]},
+        "certified": True,
+        "method": result.method,
+        "floor": {k: v for k, v in result.summary().items() if k != "floor_wk_m_s2"},
+    }

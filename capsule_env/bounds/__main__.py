@@ -1,0 +1,37 @@
+"""``python -m capsule_env.bounds``: the certified floor of a setting's episodes, as JSON.
+
+    OPENBLAS_NUM_THREADS=1 python -m capsule_env.bounds --setting sim --seed 1000 \\
+        --episodes 10 --episode-length 1 --max-iterations 100
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from capsule_env.bounds import certified_floor
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m capsule_env.bounds", description=__doc__)
+    p.add_argument("--setting", default="sim", help="env setting (sim; hils is refused)")
+    p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
+    p.add_argument("--episodes", type=int, default=10, help="episodes (>= 1)")
+    p.add_argument("--episode-length", type=float, default=1.0, help="s, in (0, 10]")
+    p.add_argument("--max-iterations", type=int, default=100, help="L-BFGS-B iterations")
+    args = p.parse_args(argv)
+    if args.episodes < 1 or args.seed < 0:
+        p.error(f"--episodes must be >= 1 and --seed >= 0, got {args.episodes}, {args.seed}")
+    seeds = list(range(args.seed, args.seed + args.episodes))
+    try:
+        result = certified_floor({"setting": args.setting}, seeds, args.episode_length,
+                                 max_iterations=args.max_iterations)  # fmt: skip
+    except (ValueError, TypeError) as exc:
+        p.error(str(exc))
+    print(json.dumps(result.summary(), indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""The certified floor (capsule_env.bounds): the lifted plant against the compiled env, the
+constraints against the damper model on rollouts, the dual against a known answer and weak
+duality, and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from capsule_env import metrics
+from capsule_env.bounds import certified_floor, floor_row, verify
+from capsule_env.bounds.dual import DualProblem, weighting_matrix
+from capsule_env.bounds.lifted import LiftedEpisode, closed_loop, lift_episode
+from capsule_env.bounds.relaxation import (
+    FORCE_SCALE_N,
+    constraint_matrices,
+    constraint_values,
+    damper_envelope,
+    model_force_parts,
+)
+from capsule_env.engine.layout import OUT_BODY_ACC, OUT_FORCE
+from capsule_env.oracle.plant import OracleEpisodes
+
+SHORT_S = 0.1  # 20 control steps: the algebra, not the figures
+
+
+@pytest.fixture(scope="module")
+def sim() -> OracleEpisodes:
+    return OracleEpisodes({"setting": "sim"}, [1000, 1001], SHORT_S)
+
+
+def _replay(ep: OracleEpisodes, k: int, currents: np.ndarray) -> tuple[LiftedEpisode, np.ndarray]:
+    """The lifted episode closed with the plant damper's own force at ``currents`` (T,)."""
+    lifted = lift_episode(ep, k)
+    p = ep.damper_params[k]
+
+    def law(x: float, v: float, step: int) -> float:
+        d, c = model_force_parts(ep.code, p, np.array([x]), np.array([v]), currents[[step]])
+        return float(d[0] + c[0])
+
+    return lifted, closed_loop(lifted, law)
+
+
+@pytest.mark.parametrize("kwargs", [{"setting": "sim"}, {"setting": "sim", "damper": "passive"}])
+def test_lifted_plant_reproduces_the_compiled_env(kwargs: dict) -> None:
+    ep = OracleEpisodes(kwargs, [1003], SHORT_S)
+    currents = np.random.default_rng(3).uniform(-0.2, 1.7, ep.n_steps)  # clipped by both
+    lifted, forces = _replay(ep, 0, currents)
+    _, out = ep.run(np.array([0]), currents[None], substeps="env")
+    acc = lifted.affine(lifted.acc_rows, forces)
+    env_acc = out[0, :, OUT_BODY_ACC]
+    assert np.max(np.abs(acc - env_acc)) <= 1e-9 * np.max(np.abs(env_acc))
+    env_force = out[0, :, OUT_FORCE]
+    assert np.max(np.abs(forces[lifted.is_output] - env_force)) <= 1e-9 * np.max(np.abs(env_force))
+
+
+def test_every_force_of_a_rollout_satisfies_every_constraint(sim: OracleEpisodes) -> None:
+    """Bang-bang, random and extreme currents: each stage's (D, C, v, x) inside the set."""
+    rng = np.random.default_rng(5)
+    mats = constraint_matrices(damper_envelope(sim.code, sim.damper_params[0]))
+    for currents in (rng.uniform(0, 1.5, sim.n_steps), rng.choice([0.0, 1.5], sim.n_steps)):
+        lifted, forces = _replay(sim, 0, currents)
+        x, v = lifted.affine(lifted.x_rows, forces), lifted.affine(lifted.v_rows, forces)
+        d, c = model_force_parts(sim.code, sim.damper_params[0], x, v, currents[lifted.step_of])
+        assert np.allclose(d + c, forces, rtol=1e-12, atol=1e-9)
+        xi = np.stack([d / FORCE_SCALE_N, c / FORCE_SCALE_N, v, x, np.ones_like(v)], axis=1)
+        assert constraint_values(mats, xi).min() >= 0.0
+
+
+def test_constraints_hold_on_a_grid_of_the_model(sim: OracleEpisodes) -> None:
+    """Stroke within and beyond the branch blend, rates to 2 m/s, every current."""
+    p = sim.damper_params[0]
+    mats = constraint_matrices(damper_envelope(sim.code, p))
+    x, v, i = np.meshgrid(np.linspace(-3e-4, 3e-4, 31), np.r_[-np.logspace(-7, 0.3, 40), 0.0,
+                          np.logspace(-7, 0.3, 40)], np.linspace(0, 1.5, 7))  # fmt: skip
+    x, v, i = x.ravel(), v.ravel(), i.ravel()
+    d, c = model_force_parts(sim.code, p, x, v, i)
+    xi = np.stack([d / FORCE_SCALE_N, c / FORCE_SCALE_N, v, x, np.ones_like(v)], axis=1)
+    assert constraint_values(mats, xi).min() >= 0.0
+
+
+def test_weighting_matrix_is_the_metric() -> None:
+    a = np.random.default_rng(1).normal(size=64) + 3.0
+    w = weighting_matrix(64, 0.005)
+    assert math.isclose(float(np.sqrt(np.mean((w @ a) ** 2))),
+                        float(metrics.wk_weighted_rms(a, 0.005)), rel_tol=1e-12)  # fmt: skip
+
+
+def test_unconstrained_dual_is_the_regularised_preview_optimum(sim: OracleEpisodes) -> None:
+    """No constraints, a force weight rho: g is min_F J + rho |F|^2, a least-squares problem
+    solved here by lstsq on the stacked system."""
+    lifted = lift_episode(sim, 1)
+    rho = 1e-4
+    problem = DualProblem(lifted, np.zeros((0, 5, 5)), force_weight=rho)
+    g = problem.evaluate(np.zeros((lifted.n_forces, 0))).value
+    t = lifted.acc_rows.shape[0]
+    wa = metrics.wk_weighting(np.fft.rfftfreq(t, lifted.dt_s))  # W by FFT of each column
+    cols = lifted.acc_rows * FORCE_SCALE_N
+    cols[:, -1] /= FORCE_SCALE_N
+    spec = np.fft.rfft(cols - cols.mean(axis=0), axis=0) * np.abs(wa)[:, None]
+    wg = np.fft.irfft(spec, n=t, axis=0) / math.sqrt(t)
+    m = np.vstack([wg[:, :-1], math.sqrt(rho) * np.eye(lifted.n_forces)])
+    rhs = -np.concatenate([wg[:, -1], np.zeros(lifted.n_forces)])
+    f, *_ = np.linalg.lstsq(m, rhs, rcond=None)
+    best = float(np.sum((m @ f - rhs) ** 2))
+    assert g == pytest.approx(best, rel=1e-6)
+    assert 0.0 < g < problem.ride(np.zeros(lifted.n_forces))  # the weight costs something
+    # without the weight the body can be held still: g -> 0 with rho
+    small = DualProblem(lifted, np.zeros((0, 5, 5)), force_weight=1e-12)
+    assert 0.0 <= small.evaluate(np.zeros((lifted.n_forces, 0))).value < 1e-6 * g
+
+
+def test_weak_duality_on_a_feasible_trajectory(sim: OracleEpisodes) -> None:
+    """For multipliers with a positive definite Lagrangian: g <= J - sum lam q <= J of a real
+    trajectory."""
+    currents = np.random.default_rng(7).uniform(0, 1.5, sim.n_steps)
+    lifted, forces = _replay(sim, 0, currents)
+    mats = constraint_matrices(damper_envelope(sim.code, sim.damper_params[0]))
+    problem = DualProblem(lifted, mats)
+    lam = np.tile([2e-8, 4e-8, 0.0, 1e-10, 0.0, 1e-6, 2e-11], (lifted.n_forces, 1))
+    g = problem.evaluate(lam).value
+    assert math.isfinite(g)
+    x, v = lifted.affine(lifted.x_rows, forces), lifted.affine(lifted.v_rows, forces)
+    d, c = model_force_parts(sim.code, sim.damper_params[0], x, v, currents[lifted.step_of])
+    xi = np.stack([d / FORCE_SCALE_N, c / FORCE_SCALE_N, v, x, np.ones_like(v)], axis=1)
+    j = problem.ride(forces / FORCE_SCALE_N)
+    assert math.isclose(j, float(metrics.wk_weighted_rms(
+        lifted.affine(lifted.acc_rows, forces), lifted.dt_s)) ** 2, rel_tol=1e-9)  # fmt: skip
+    assert g <= j - float(np.sum(lam * constraint_values(mats, xi))) <= j
+
+
+def test_floor_below_the_oracle_and_the_controllers() -> None:
+    from capsule_env.oracle import clairvoyant_bound
+
+    seeds, length = [1000, 1001], 0.35
+    result = certified_floor({"setting": "sim"}, seeds, length, max_iterations=15)
+    oracle = clairvoyant_bound({"setting": "sim"}, seeds, length)
+    ep = OracleEpisodes({"setting": "sim"}, seeds, length)
+    _, out = ep.run(np.arange(2), np.zeros((2, ep.n_steps)), substeps="env")  # 0 A, passive
+    zero_a = metrics.wk_weighted_rms(out[:, :, OUT_BODY_ACC], ep.dt_s)
+    assert np.all(result.floor_wk_m_s2 >= 0.0)
+    assert np.all(result.floor_wk_m_s2 <= oracle.wk_rms_body_acc_m_s2)
+    assert np.all(oracle.wk_rms_body_acc_m_s2 <= zero_a)
+    assert np.allclose(verify(result), result.dual_value, rtol=1e-9, atol=1e-15)
+    row = floor_row(result)
+    assert row["certified"] is True and row["wk_rms_body_acc_m_s2"] == result.mean_wk_m_s2
+    assert len(row["per_episode"]["wk_rms_body_acc_m_s2"]) == 2
+
+
+@pytest.mark.parametrize(
+    ("args", "options", "error", "match"),
+    [
+        (({"setting": "hils"}, [1000], 0.1), {}, ValueError, "supported"),
+        (({"setting": "sim"}, [], 0.1), {}, ValueError, "seeds"),
+        (({"setting": "sim"}, [-1], 0.1), {}, ValueError, "seeds"),
+        (({"setting": "sim"}, "1000", 0.1), {}, TypeError, "seeds"),
+        (({"setting": "sim"}, [1000], 0.0), {}, ValueError, "episode_length_s"),
+        (({"setting": "sim"}, [1000], 0.1), {"max_iterations": -1}, ValueError, "max_iter"),
+        (({"setting": "sim"}, [1000], 0.1), {"lam_scale": 0.0}, ValueError, "lam_scale"),
+        (({"setting": "sim"}, [1000], 0.1), {"lam_start": (1.0,)}, ValueError, "lam_start"),
+        (({"setting": "sim"}, [1000], 0.1), {"iterations": 3}, TypeError, "unknown options"),
+    ],
+)
+def test_bad_input(args: tuple, options: dict, error: type, match: str) -> None:
+    with pytest.raises(error, match=match):
+        certified_floor(*args, **options)
