@@ -119,7 +119,8 @@ def test_weak_duality_on_a_feasible_trajectory(sim: OracleEpisodes) -> None:
     lifted, forces = _replay(sim, 0, currents)
     mats = constraint_matrices(damper_envelope(sim.code, sim.damper_params[0]))
     problem = DualProblem(lifted, mats)
-    lam = np.tile([2e-8, 4e-8, 0.0, 1e-10, 0.0, 1e-6, 2e-11], (lifted.n_forces, 1))
+    lam = np.tile([2e-8, 4e-8, 0.0, 1e-10, 0.0, 1e-6, 2e-11, 1e-10, 0.0, 1e-10, 1e-9],
+                  (lifted.n_forces, 1))  # fmt: skip
     g = problem.evaluate(lam).value
     assert math.isfinite(g)
     x, v = lifted.affine(lifted.x_rows, forces), lifted.affine(lifted.v_rows, forces)
@@ -166,3 +167,16 @@ def test_floor_below_the_oracle_and_the_controllers() -> None:
 def test_bad_input(args: tuple, options: dict, error: type, match: str) -> None:
     with pytest.raises(error, match=match):
         certified_floor(*args, **options)
+
+
+def test_offset_sector_constant_is_an_upper_bound_and_tight(sim: OracleEpisodes) -> None:
+    from capsule_env.bounds.relaxation import OFFSET_SECTOR_SLOPES, offset_sector_constant
+
+    p = sim.damper_params[0]
+    env = damper_envelope(sim.code, p)
+    v = np.linspace(1e-6, 0.5, 200001)
+    d, _ = model_force_parts(sim.code, p, np.full_like(v, 1.0), v, np.full_like(v, 1.5))
+    for m in OFFSET_SECTOR_SLOPES:
+        sampled = float(np.max((d - env.b_lo * v) * (d - m * v)))
+        delta = offset_sector_constant(env, m)
+        assert sampled <= delta <= 1.01 * sampled

@@ -47,8 +47,11 @@ __all__ = ["FloorResult", "certified_floor", "floor_row", "DEFAULT_OPTIONS"]
 #: one: the rate part's magnitude above the maximum slope and the offset's band).
 DEFAULT_OPTIONS: dict[str, Any] = {
     "max_iterations": 200,
-    "lam_scale": 1e-5,
-    "lam_start": (0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0),
+    "lam_scale": 1e-6,
+    "lam_start": tuple(
+        1e-7 if n in ("rate_part_above_max_slope", "offset_band") else 0.0
+        for n in constraint_names()
+    ),
 }
 
 

@@ -20,6 +20,7 @@ c_lin v``) is the special case ``a = 0``, ``b = c_lin``, ``c = 0``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +42,10 @@ __all__ = [
 FORCE_SCALE_N = 1000.0
 #: The splits ``e`` of ``|E| <= a_hi + db |v|`` into ``E^2 <= (1 + 1/e) a_hi^2 + (1 + e) db^2 v^2``.
 MAGNITUDE_SPLITS = (0.1, 1.0, 10.0)
+#: The slopes ``m`` (N s/m) of the offset sectors ``(D - b_lo v)(m v - D) + delta_m >= 0``.
+OFFSET_SECTOR_SLOPES = (3e4, 6e4, 1.2e5, 2.5e5)
+#: Cells of the grid over which ``delta_m`` is bounded (:func:`offset_sector_constant`).
+DELTA_CELLS = 20000
 #: Relative slack on the sector's upper slope and absolute slack (kN^2) on every constraint:
 #: covers the kernel's fast exp (within 2 ulp of exp) and the rounding of ``v`` itself.
 SLOPE_SLACK_REL = 1e-9
@@ -59,6 +64,7 @@ class DamperEnvelope:
     c_lo: float
     c_hi: float
     blend_m: float
+    offset_follows_stroke: bool = True
 
     @property
     def slope_hi(self) -> float:
@@ -88,8 +94,10 @@ def damper_envelope(code: int, params: np.ndarray) -> DamperEnvelope:
         if a.min() < 0.0 or b.min() < 0.0:
             raise ValueError("certified_floor: a Bi-exponential damper with a negative yield "
                              "force or slope at some current has no sector relaxation")  # fmt: skip
+        # outside the blend the offset is one branch's: does it have the stroke's sign?
+        follows = bool(c[2:].min() > 0.0 and c[:2].max() < 0.0)
         return DamperEnvelope(a.min(), a.max(), b.min(), b.max(), d_hi, c.min(), c.max(),
-                              float(p[BRANCH_BLEND]))  # fmt: skip
+                              float(p[BRANCH_BLEND]), follows)  # fmt: skip
     if name == "passive":
         slope = float(p[0])
         return DamperEnvelope(0.0, 0.0, slope, slope, 0.0, 0.0, 0.0, 0.0)
@@ -102,7 +110,24 @@ def damper_envelope(code: int, params: np.ndarray) -> DamperEnvelope:
 def constraint_names() -> tuple[str, ...]:
     """The constraints of :func:`constraint_matrices`, in order."""
     mags = tuple(f"rate_part_magnitude_e{e:g}" for e in MAGNITUDE_SPLITS)
-    return ("sector", "rate_part_above_max_slope", *mags, "offset_band", "offset_sign")
+    cones = tuple(f"offset_sector_{m:g}" for m in OFFSET_SECTOR_SLOPES)
+    return ("sector", "rate_part_above_max_slope", *mags, "offset_band", "offset_sign", *cones)
+
+
+def offset_sector_constant(env: DamperEnvelope, slope: float) -> float:
+    """An upper bound (N^2) on ``(D - b_lo v)(D - m v)`` over every rate part ``D`` the damper
+    produces, ``m = slope``: for ``v > 0`` (odd symmetry gives ``v < 0``), ``D`` lies in
+    ``[b_lo v, U(v)]``, ``U = a_hi (1 - exp(-d_hi v)) + b_hi v`` increasing, and the product,
+    convex in ``D``, is largest at an end: 0 at ``b_lo v``. On a cell ``[v0, v1]`` of a grid
+    over ``[0, a_hi / (m - b_hi)]`` (beyond, ``U < m v``) it is at most ``(U(v1) - b_lo v0)
+    (U(v1) - m v0)`` where both factors are positive (a rigorous bound, not a sample)."""
+    if env.a_hi == 0.0 or slope <= env.b_hi:
+        return 0.0 if env.a_hi == 0.0 else math.inf
+    v = np.linspace(0.0, env.a_hi / (slope - env.b_hi), DELTA_CELLS + 1)
+    upper = env.a_hi * (1.0 - np.exp(-env.d_hi * v)) + env.b_hi * v
+    first = upper[1:] - env.b_lo * v[:-1]
+    second = upper[1:] - slope * v[:-1]
+    return float(np.max(np.where(second > 0.0, first * second, 0.0)) * (1.0 + 1e-9))
 
 
 def _quad(u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -131,7 +156,11 @@ def constraint_matrices(env: DamperEnvelope) -> np.ndarray:
     c_lo, c_hi = env.c_lo / f0, env.c_hi / f0
     out.append(_quad(e_c - c_lo * e_1, c_hi * e_1 - e_c))  # c_lo <= C <= c_hi
     c_abs = max(abs(c_lo), abs(c_hi))
-    out.append(_quad(e_c, e_x) + c_abs * env.blend_m * _quad(e_1, e_1))  # C x >= -|c| blend
+    sign = _quad(e_c, e_x) + c_abs * env.blend_m * _quad(e_1, e_1)  # C x >= -|c| blend
+    out.append(sign if env.offset_follows_stroke else np.zeros((5, 5)))
+    for m in OFFSET_SECTOR_SLOPES:  # (D - b_lo v)(m v - D) + delta_m >= 0
+        delta = offset_sector_constant(env, m) / f0**2
+        out.append(_quad(e_d - lo * e_v, (m / f0) * e_v - e_d) + delta * _quad(e_1, e_1))
     mats = np.array(out)
     mats[:, 4, 4] += ABS_SLACK_KN2
     return mats
