@@ -2,6 +2,7 @@
 
     python experiments/paper_sensitivity.py            # both tables, 10 episodes, resumes
     python experiments/paper_sensitivity.py --settings sim --episodes 3 --json out/s.json
+    python experiments/paper_sensitivity.py --measured-data ../shared/data/labcontrol-mr-damper
 
 Runs the paper's comparison (on-off Skyhook, c_max 7e4 N s/m, through the Bi-exponential
 inverse and through CSDC on the Bouc-Wen model; passive on the same seeds; evaluate.py's
@@ -9,8 +10,12 @@ evaluation bank, seeds 1000..) once per point of :mod:`capsule_env.sensitivity.p
 lost detail at a time varied over its plausible range. Each finished point is saved at once
 to the JSON (atomically): a killed run started again with the same arguments skips what is
 done (other arguments: the JSON is refused, one line, unless ``--restart``). At the end the
-Markdown tables and the figure (``--figure``) are written from the JSON. Bad arguments: one
-line on stderr, exit status 1 (2 for argument syntax).
+Markdown tables and the figure (``--figure``) are written from the JSON. Every VRE and gap
+is stored per episode, with its 95 % interval over the episodes (t; paired t for the gaps).
+``--measured-data DIR`` adds the ``hils`` points on a plant identified from the measured
+Labcontrol loops in DIR (read at run time, never copied;
+:mod:`capsule_env.sensitivity.measured_plant`). Bad arguments: one line on stderr, exit
+status 1 (2 for argument syntax).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
+from capsule_env.identification.measured import measured_files
 from capsule_env.sensitivity.points import fitted_models, study_points
 from capsule_env.sensitivity.runner import format_table, plot_tornado, run_point
 
@@ -47,6 +53,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="fit on 4 currents, 200 samples a cycle (tests)")  # fmt: skip
     p.add_argument("--only", default="", help="comma-separated factors to run (default all)")
     p.add_argument("--restart", action="store_true", help="discard a JSON of other arguments")
+    p.add_argument("--measured-data", type=Path, default=None,
+                   help="folder of Labcontrol .mat loops: adds the measured-plant hils points")  # fmt: skip
     return p.parse_args(argv)
 
 
@@ -63,6 +71,13 @@ def check(args: argparse.Namespace) -> list[str]:
         raise ValueError(f"--episode-length must be >= 2 s, got {args.episode_length}")
     check_writable_file(args.json, "--json")
     check_writable_file(args.figure, "--figure")
+    if args.measured_data is not None:
+        if "hils" not in settings:
+            raise ValueError("--measured-data needs the hils setting (its points are hils ones)")
+        try:
+            measured_files(args.measured_data)
+        except ValueError as exc:
+            raise ValueError(f"--measured-data: {exc}") from None
     return settings
 
 
@@ -86,14 +101,23 @@ def main(argv: list[str] | None = None) -> int:
     try:
         settings = check(args)
         config = {"settings": settings, "episodes": args.episodes, "seed": args.seed,
-                  "episode_length_s": args.episode_length, "quick_fits": args.quick_fits}  # fmt: skip
+                  "episode_length_s": args.episode_length, "quick_fits": args.quick_fits,
+                  "per_episode": True,
+                  "measured_data": None if args.measured_data is None
+                  else args.measured_data.resolve().name}  # fmt: skip
         data = load(args, config)
     except ValueError as exc:
         print(f"paper_sensitivity.py: error: {exc}", file=sys.stderr)
         return 1
     t0 = time.perf_counter()
-    models = fitted_models(quick=args.quick_fits)
+    try:
+        models = fitted_models(quick=args.quick_fits, measured=args.measured_data)
+    except ValueError as exc:  # a measured folder whose loops cannot make a plant
+        print(f"paper_sensitivity.py: error: --measured-data: {exc}", file=sys.stderr)
+        return 1
     data["fits"] = {k: models[k] for k in ("free_rmse_n", "biexp_rmse_n", "ratio_target_n")}
+    if "measured" in models:
+        data["fits"]["measured"] = models["measured"]
     only = {f.strip() for f in args.only.split(",") if f.strip()}
     points = [p for p in study_points(models, tuple(settings))
               if not only or p.factor in only or p.factor == "baseline"]  # fmt: skip

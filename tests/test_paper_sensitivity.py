@@ -44,6 +44,14 @@ def test_tiny_study_writes_resumes_and_refuses(study, tmp_path, capsys):
     diverged = res["sim/CSDC variant/Euler z observer, 1 step per 5 ms"]["csdc"]
     assert converged["vre_body_mode1_pct"] == pytest.approx(base, abs=1.0)
     assert diverged["vre_body_mode1_pct"] < 0.3 * base
+    # per episode: their mean is evaluate.py's VRE; the paired interval holds the gap
+    for point in res.values():
+        for side in ("csdc", "biexp"):
+            per = point[side]["per_episode"]["vre_body_mode1_pct"]
+            assert len(per) == 2
+            assert sum(per) / 2 == pytest.approx(point[side]["vre_body_mode1_pct"], abs=1e-9)
+        low, high = point["ci95"]["gap"]["gap_body_mode1_pct"]
+        assert low <= point["gap_body_mode1_pct"] <= high
     runtime = data["runtime_s"]
     assert study.main(argv) == 0  # resumed: nothing left to run
     assert json.loads(out.read_text())["runtime_s"] == runtime
@@ -57,6 +65,18 @@ def test_bad_settings_is_one_line(study, capsys, tmp_path):
     assert study.main(["--settings", "lab", "--json", str(tmp_path / "a.json")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--settings" in err[0]
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--measured-data", "no/such/folder"], "--measured-data: measured-data folder"),
+    (["--measured-data", ".", "--settings", "sim"], "needs the hils setting"),
+    (["--measured-data", "docs"], "holds no .mat files"),
+])  # fmt: skip
+def test_bad_measured_data_is_one_line(study, capsys, tmp_path, extra, words):
+    out = tmp_path / "a.json"
+    assert study.main([*extra, "--json", str(out), "--figure", str(tmp_path / "a.png")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and not out.exists()
 
 
 def test_page_tables_are_the_json_tables():

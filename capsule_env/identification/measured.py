@@ -7,7 +7,8 @@ displacement mm, velocity mm/s, force N; time ``Tout`` or sample period ``Ts``),
 The reader has two steps: a format-specific one that gets the time (s) and the three ``x_F``
 columns out of the file (:func:`_read_mat`), and :func:`_loop_from_samples`, which checks the
 samples (finite, plausible magnitudes, no constant column, increasing time) and converts them
-to a centred SI :class:`Loop`. CSV and NumPy files, whose columns have names, units and
+to a centred SI :class:`Loop`. :func:`scale_loop` maps a loop onto another damper's scale
+(stroke, time and force scaled, a current attached). CSV and NumPy files, whose columns have names, units and
 perhaps no velocity, are read by :mod:`capsule_env.identification.tabular`, with the same
 limits (:data:`MAX_MEASURED_MAGNITUDE`) and errors that name the file and the column.
 """
@@ -26,7 +27,7 @@ from scipy import io as sio
 from capsule_env.common.validation import check_in_range
 from capsule_env.identification.loops import Loop
 
-__all__ = ["MAX_MEASURED_MAGNITUDE", "load_measured_loop", "measured_files"]
+__all__ = ["MAX_MEASURED_MAGNITUDE", "load_measured_loop", "measured_files", "scale_loop"]
 
 #: Largest sample magnitude accepted in a measured file (mm, mm/s or N): far beyond any damper
 #: test, and small enough that the fits' sums of squares cannot overflow.
@@ -173,4 +174,30 @@ def _loop_from_samples(
         force_offset_n=offset,
         periodic=False,
         current_known=current_a is not None,
+    )
+
+
+def scale_loop(
+    loop: Loop, stroke_scale: float, time_scale: float, force_scale: float, current_a: float
+) -> Loop:
+    """``loop`` mapped onto another damper's scale, kinematics kept consistent: stroke times
+    ``stroke_scale``, time times ``time_scale`` (so frequency divided by it), stroke rate times
+    ``stroke_scale / time_scale``, force (and its removed offset) times ``force_scale``; the
+    current ``current_a`` (A) is attached as known. Each scale must be in (0, 1e6]
+    (``ValueError`` naming it)."""
+    for name, value in (("stroke_scale", stroke_scale), ("time_scale", time_scale),
+                        ("force_scale", force_scale)):  # fmt: skip
+        check_in_range(name, value, 0.0, 1e6)
+        if value == 0.0:
+            raise ValueError(f"{name} must be in (0, 1e6], got 0")
+    return Loop(
+        current_a=check_in_range("current_a", current_a, 0.0, math.inf),
+        time_s=loop.time_s * time_scale,
+        stroke_m=loop.stroke_m * stroke_scale,
+        stroke_rate_m_s=loop.stroke_rate_m_s * (stroke_scale / time_scale),
+        force_n=loop.force_n * force_scale,
+        source=f"{loop.source} (scaled)",
+        force_offset_n=loop.force_offset_n * force_scale,
+        periodic=loop.periodic,
+        current_known=True,
     )

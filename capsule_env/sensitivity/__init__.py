@@ -8,6 +8,10 @@
   through the env's inverses;
 - :mod:`~capsule_env.sensitivity.variable_step`: the closed loop on SciPy's variable-step
   plant (the solver factor).
+- :mod:`~capsule_env.sensitivity.intervals`: the 95 % intervals over the episodes (t for a
+  VRE, paired t for a gap, issue 43);
+- :mod:`~capsule_env.sensitivity.measured_plant`: a plant damper identified from measured
+  loops and scaled to the capsule (the measured-plant ``hils`` points, issue 43).
 
 ``experiments/paper_sensitivity.py`` is the thin script over them; docs/paper-reproduction.md
 the page of its results.

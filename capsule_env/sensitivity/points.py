@@ -15,7 +15,8 @@ seconds each) from :func:`~capsule_env.identification.reference_loops`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 from typing import Any
 
 from capsule_env.dampers import BiExponentialDamper, BoucWenDamper
@@ -33,12 +34,14 @@ from capsule_env.identification.constrained import (
     scale_current_terms,
 )
 
-__all__ = ["Point", "SETTINGS_FACTORS", "fitted_models", "study_points"]
+__all__ = ["PAPER_D", "Point", "SETTINGS_FACTORS", "fitted_models", "paper_d_fit", "study_points"]
 
 #: The paper-reproduction Skyhook gain (N s/m), agents/controllers/skyhook.py's C_SKY.
 C_MAX = 7.0e4
 #: The paper's Bouc-Wen / Bi-exponential RMSE ratio at 1.5 A (695.3 / 61.8).
 PAPER_RMSE_RATIO = PAPER_RMSE_N["bouc_wen"] / PAPER_RMSE_N["bi_exponential"]
+#: The paper's Bi-exponential ``d`` per branch (s/m; docs/model.md 6): upper and lower curve.
+PAPER_D = {"upper": 15.35, "lower": 15.68}
 
 
 @dataclass(frozen=True)
@@ -68,10 +71,23 @@ def _params(damper: Any) -> dict[str, float]:
     return {f.name: float(getattr(damper, f.name)) for f in fields(damper)}
 
 
-def fitted_models(quick: bool = False) -> dict[str, Any]:
+def paper_d_fit(loops: Any) -> BiExponentialDamper:
+    """The Bi-exponential fit (the paper's mean rule) with ``d`` held at the paper's values,
+    :data:`PAPER_D` (upper 15.35, lower 15.68 s/m): each branch is fitted on its own, so the
+    upper branch of a fit at the upper ``d`` joins the lower branch of a fit at the lower."""
+    fits = {b: fit_bi_exponential(loops, d_bounds=(d, d * (1.0 + 1e-9)))[0]
+            for b, d in PAPER_D.items()}  # fmt: skip
+    lower = {f.name: getattr(fits["lower"], f.name) for f in fields(BiExponentialDamper)
+             if f.name.startswith("lower_")}  # fmt: skip
+    return replace(fits["upper"], **lower)
+
+
+def fitted_models(quick: bool = False, measured: str | Path | None = None) -> dict[str, Any]:
     """The Bouc-Wen and Bi-exponential models the identification points use, with their
     RMSE at 1.5 A on the default loops (1 Hz, +-25 mm, 0-1.5 A; ``quick``: 4 currents, 200
-    samples a cycle, for tests)."""
+    samples a cycle, for tests); with ``measured`` (a folder of Labcontrol loops) also the
+    measured plant and the pairs identified on its loops
+    (:func:`~capsule_env.sensitivity.measured_plant.identify_measured_plant`)."""
     opts = {"currents": (0.0, 0.5, 1.0, 1.5), "samples_per_cycle": 200} if quick else {}
     loops = reference_loops(**opts)
     free = BoucWenDamper()
@@ -93,9 +109,15 @@ def fitted_models(quick: bool = False) -> dict[str, Any]:
     bw[f"paper's RMSE ratio (current terms x {s:.2f})"] = model
     bx: dict[str, Any] = {
         "d jointly fitted": fit_bi_exponential(loops, d_rule="joint")[0],
-        "d = 15.35 s/m (the paper's value)": fit_bi_exponential(loops, d_bounds=(15.35, 15.36))[0],
+        "d = 15.35 / 15.68 s/m (the paper's values)": paper_d_fit(loops),
     }
+    extra = {}
+    if measured is not None:
+        from capsule_env.sensitivity.measured_plant import identify_measured_plant
+
+        extra["measured"] = identify_measured_plant(measured)
     return {
+        **extra,
         "bouc_wen": {k: (_params(m), rmse_at_current(m, loops, 1.5)) for k, m in bw.items()},
         "bi_exponential": {k: (_params(m), rmse_at_current(m, loops, 1.5)) for k, m in bx.items()},
         "free_rmse_n": rmse_at_current(free, loops, 1.5),
@@ -195,7 +217,34 @@ def _hils_points(models: dict[str, Any]) -> list[Point]:
     for label, (observer, law, sub) in _CSDC_VARIANTS.items():
         spec = {"variant": {"observer": observer, "law": law, "substeps": sub}}
         pts.append(_one(s, "CSDC variant", label, _CSDC_WHY, "csdc", spec))
+    for label, (params, err) in models["bi_exponential"].items():
+        pts.append(_one(s, "Bi-exponential fit", label, _BX_WHY + _INVERSE_ONLY, "biexp",
+                        {"env": {"inverse_params": params}}, {"rmse_1p5A_n": err}))  # fmt: skip
+    for blend in (1e-5, 1e-3):
+        env = {"inverse_params": {"branch_blend_m": blend}}
+        pts.append(_one(s, "Bi-exponential fit", f"branch blend {blend * 1e3:g} mm",
+                        _BLEND_WHY + _INVERSE_ONLY, "biexp", {"env": env}))  # fmt: skip
+    if "measured" in models:
+        pts += _measured_points(models["measured"])
     return pts
+
+
+def _measured_points(m: dict[str, Any]) -> list[Point]:
+    """``hils`` on the plant identified from measured loops (a tanh fit, scaled to the
+    capsule): the pairs identified on the same scaled loops, and the pairs as today."""
+    plant = {"damper": "tanh", "damper_params": m["plant"]}
+    rmse = m["rmse_1p5A_n"]
+    csdc = {"env": {**plant, "inverse_params": m["bouc_wen"]}, "c_max": C_MAX, "variant": None,
+            "solver": None}  # fmt: skip
+    biexp = {**csdc, "env": {**plant, "inverse_params": m["bi_exponential"]}}
+    notes = {"plant_rmse_1p5A_n": rmse["plant"], "files": list(m["files"]), "scales": m["scales"]}
+    fits = {"rmse_1p5A_n_csdc": rmse["bouc_wen"], "rmse_1p5A_n_biexp": rmse["bi_exponential"]}
+    return [
+        Point("hils", "measured plant", "pairs fitted to the measured loops", _MEAS_WHY,
+              csdc, biexp, {}, {**notes, **fits}),
+        _both("hils", "measured plant", "pairs as today (fitted to the reference)",
+              _MEAS_WHY + "; the controllers unchanged", env=plant, **notes),
+    ]  # fmt: skip
 
 
 def study_points(
@@ -233,6 +282,11 @@ _BLEND_WHY = (
     "the paper switches branches at x = 0 literally; the 0.1 mm blend is this "
     "package's regularisation (docs/model.md 4.5), varied x 0.1 and x 10"
 )
+_INVERSE_ONLY = " (the inverse's model only: the hardware is the reference damper)"
+_MEAS_WHY = ("the paper's HILS hardware was a real damper: here a tanh model fitted to two "
+             "measured Labcontrol loops (largest and smallest force at one stroke, taken as "
+             "1.5 and 0 A), scaled so the 1.5 A loop meets the reference damper's +-25 mm, 1 Hz "
+             "loop (capsule_env.sensitivity.measured_plant)")  # fmt: skip
 _CMAX_WHY = "the paper's c_max is lost; 7e4 N s/m is reconstructed, varied by a factor 2"
 _AMP_WHY = "the paper's guideway is 'irregular ... with amplitude of about 8 mm'; x 0.5 and x 2"
 _SPEC_WHY = (

@@ -16,9 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from capsule_env import metrics
 from capsule_env.dampers import LinearDamper, make_damper
 from capsule_env.evaluation.episodes import Rollout, episode_metrics, run_episodes
 from capsule_env.sensitivity.csdc_variants import CSDCVariant, InverseSkyhook
+from capsule_env.sensitivity.intervals import paired_t_interval, t_interval
 from capsule_env.sensitivity.points import Point
 from capsule_env.sensitivity.policies import ForceSkyhook, PassivePolicy
 from capsule_env.sensitivity.variable_step import variable_step_rollout
@@ -31,6 +33,7 @@ PAPER_VRE = {"sim": {"biexp": 72.33, "csdc": 41.66}, "hils": {}}
 PAPER_GAP = {"sim": 72.33 - 41.66, "hils": 10.0}
 _INVERSE = {"csdc": "csdc", "biexp": "bi_exponential"}
 _PLANT = {"csdc": "bouc_wen", "biexp": "bi_exponential"}
+_MODES = ("body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2")
 
 
 def _variable_step(point: Point, side: str, spec: dict, seeds: Sequence[int],
@@ -83,6 +86,18 @@ def _passive(point: Point, seeds: Sequence[int], length_s: float, cache: dict) -
     return cache[key]
 
 
+def _per_episode_vre(roll: Rollout, passive: Rollout) -> dict[str, list[float]]:
+    """Each episode's VRE (%) per mode, as :func:`episode_metrics` averages them."""
+    out = {}
+    for body, key in (("body", "car_body_displacement_m"), ("bogie", "bogie_displacement_m")):
+        for mode, band in metrics.DEFAULT_BANDS_HZ.items():
+            v = metrics.vibration_reduction_effect(
+                passive.signals[key], roll.signals[key], roll.dt_s, band
+            )
+            out[f"vre_{body}_{mode}_pct"] = [float(x) for x in np.atleast_1d(v)]
+    return out
+
+
 def _summary(roll: Rollout, passive: Rollout) -> dict[str, Any]:
     m = episode_metrics(roll, passive)
     force = roll.signals["damper_force_n"]
@@ -96,7 +111,22 @@ def _summary(roll: Rollout, passive: Rollout) -> dict[str, Any]:
     })  # fmt: skip
     if "force_tracking_error_rel" in m:
         out["force_tracking_error_rel"] = float(m["force_tracking_error_rel"])
+    out["per_episode"] = _per_episode_vre(roll, passive)
     return out
+
+
+def _intervals(out: dict[str, Any]) -> dict[str, dict[str, list[float]]]:
+    """95 % intervals over the episodes (:mod:`capsule_env.sensitivity.intervals`): each pair's
+    VRE (t interval) and the gap (paired t interval), per mode; empty with one episode."""
+    ci: dict[str, dict[str, list[float]]] = {"csdc": {}, "biexp": {}, "gap": {}}
+    for mode in _MODES:
+        k = f"vre_{mode}_pct"
+        a, b = out["csdc"]["per_episode"][k], out["biexp"]["per_episode"][k]
+        if len(a) < 2:
+            return {}
+        ci["csdc"][k], ci["biexp"][k] = list(t_interval(a)), list(t_interval(b))
+        ci["gap"][f"gap_{mode}_pct"] = list(paired_t_interval(a, b))
+    return ci
 
 
 def run_point(point: Point, seeds: Sequence[int], episode_length_s: float = 10.0,
@@ -110,16 +140,35 @@ def run_point(point: Point, seeds: Sequence[int], episode_length_s: float = 10.0
                            "label": point.label, "why": point.why, "notes": point.notes}  # fmt: skip
     for side in ("csdc", "biexp"):
         out[side] = _summary(_pair_rollout(point, side, seeds, episode_length_s), passive)
-    for mode in ("body_mode1", "body_mode2", "bogie_mode1", "bogie_mode2"):
+    for mode in _MODES:
         k = f"vre_{mode}_pct"
         out[f"gap_{mode}_pct"] = out["biexp"][k] - out["csdc"][k]
+    out["ci95"] = _intervals(out)
     return out
+
+
+def _cell(r: dict[str, Any], side: str, key: str, signed: bool = False) -> str:
+    """A table cell: the mean over the episodes and, where the result has it, the half-width
+    of its 95 % interval (``63.1 ± 2.3``)."""
+    value = r[key] if side == "gap" else r[side][key]
+    text = f"{value:+.1f}" if signed else f"{value:.1f}"
+    ci = r.get("ci95", {}).get(side, {}).get(key)
+    return text if not ci else f"{text} ± {(ci[1] - ci[0]) / 2.0:.1f}"
+
+
+def _rmse_cell(notes: dict[str, Any]) -> str:
+    """The fit's RMSE at 1.5 A, or both pairs' (``CSDC / Bi-exp``) where both were refitted."""
+    if "rmse_1p5A_n_csdc" in notes:
+        return f"{notes['rmse_1p5A_n_csdc']:.0f} / {notes['rmse_1p5A_n_biexp']:.0f}"
+    rmse = notes.get("rmse_1p5A_n")
+    return "" if rmse is None else f"{rmse:.0f}"
 
 
 def format_table(results: Sequence[dict[str, Any]], setting: str) -> str:
     """A setting's results as a Markdown table: per point the body first-mode VRE of both
-    pairs and their gap, the body second-mode and bogie second-mode VREs, the mean force and
-    current each delivered, and the fit's RMSE where the point has one."""
+    pairs and their gap, the body second-mode and bogie second-mode VREs (each ``mean ± half
+    width of its 95 % interval over the episodes`` where the result has intervals), the mean
+    force and current each delivered, and the fit's RMSE where the point has one."""
     head = ("| factor | point | CSDC m1 % | Bi-exp m1 % | gap m1 | CSDC m2 % | Bi-exp m2 % | "
             "CSDC bogie m2 % | Bi-exp bogie m2 % | CSDC mean abs F N | Bi-exp mean abs F N | "
             "CSDC I A | Bi-exp I A | fit RMSE 1.5 A N |")  # fmt: skip
@@ -128,14 +177,16 @@ def format_table(results: Sequence[dict[str, Any]], setting: str) -> str:
         if r["setting"] != setting:
             continue
         c, b = r["csdc"], r["biexp"]
-        rmse = r["notes"].get("rmse_1p5A_n")
-        cells = [r["factor"], r["label"], f"{c['vre_body_mode1_pct']:.1f}",
-                 f"{b['vre_body_mode1_pct']:.1f}", f"{r['gap_body_mode1_pct']:+.1f}",
-                 f"{c['vre_body_mode2_pct']:.1f}", f"{b['vre_body_mode2_pct']:.1f}",
-                 f"{c['vre_bogie_mode2_pct']:.1f}", f"{b['vre_bogie_mode2_pct']:.1f}",
+        rmse = _rmse_cell(r["notes"])
+        cells = [r["factor"], r["label"], _cell(r, "csdc", "vre_body_mode1_pct"),
+                 _cell(r, "biexp", "vre_body_mode1_pct"),
+                 _cell(r, "gap", "gap_body_mode1_pct", signed=True),
+                 _cell(r, "csdc", "vre_body_mode2_pct"), _cell(r, "biexp", "vre_body_mode2_pct"),
+                 _cell(r, "csdc", "vre_bogie_mode2_pct"),
+                 _cell(r, "biexp", "vre_bogie_mode2_pct"),
                  f"{c['mean_abs_force_n']:.0f}", f"{b['mean_abs_force_n']:.0f}",
                  f"{c['mean_current_a']:.3f}", f"{b['mean_current_a']:.3f}",
-                 "" if rmse is None else f"{rmse:.0f}"]  # fmt: skip
+                 rmse]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -163,6 +214,16 @@ def plot_tornado(results: Sequence[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+def _xerr(rs: list[dict[str, Any]], side: str, key: str, x: np.ndarray) -> np.ndarray | None:
+    """The error bars (2, n) of the 95 % intervals around ``x``, or None where a result has
+    none (one episode, or a JSON from before the intervals)."""
+    ci = [r.get("ci95", {}).get(side, {}).get(key) for r in rs]
+    if not all(ci):
+        return None
+    lo, hi = np.array([c[0] for c in ci]), np.array([c[1] for c in ci])
+    return np.vstack([x - lo, hi - x])
+
+
 def _point_name(r: dict[str, Any], textwrap: Any) -> str:
     """A point's tick label: ``factor: label``, on two lines (at the colon) when long."""
     name = f"{r['factor']}: {r['label']}"
@@ -174,12 +235,10 @@ def _tornado_row(row_axes: Any, s: str, rs: list[dict[str, Any]], textwrap: Any)
     y = np.arange(len(rs))[::-1]
     base = next((r for r in rs if r["factor"] == "baseline"), rs[0])
     ax = row_axes[0]
-    ax.scatter(
-        [r["csdc"]["vre_body_mode1_pct"] for r in rs], y, marker="s", label="Bouc-Wen + CSDC"
-    )
-    ax.scatter(
-        [r["biexp"]["vre_body_mode1_pct"] for r in rs], y, marker="o", label="Bi-exponential"
-    )
+    for side, marker, name in (("csdc", "s", "Bouc-Wen + CSDC"), ("biexp", "o", "Bi-exponential")):
+        x = np.array([r[side]["vre_body_mode1_pct"] for r in rs])
+        ax.errorbar(x, y, xerr=_xerr(rs, side, "vre_body_mode1_pct", x), fmt=marker, ms=4,
+                    elinewidth=0.7, capsize=1.5, label=name)  # fmt: skip
     for side, ls in (("csdc", "--"), ("biexp", ":")):
         if side in PAPER_VRE[s]:
             ax.axvline(PAPER_VRE[s][side], ls=ls, color="k", lw=0.8)
@@ -192,9 +251,14 @@ def _tornado_row(row_axes: Any, s: str, rs: list[dict[str, Any]], textwrap: Any)
     gaps = np.array([r["gap_body_mode1_pct"] for r in rs])
     g0 = base["gap_body_mode1_pct"]
     ax.barh(y, gaps - g0, left=g0, color=np.where(gaps >= g0, "tab:blue", "tab:red"))
+    err = _xerr(rs, "gap", "gap_body_mode1_pct", gaps)
+    if err is not None:
+        ax.errorbar(gaps, y, xerr=err, fmt="none", ecolor="k", elinewidth=0.7, capsize=1.5)
     ax.axvline(g0, color="grey", lw=0.8)
     ax.axvline(PAPER_GAP[s], color="k", ls="--", lw=0.8)
     ax.set_yticks(y, [""] * len(rs))
     ax.set_ylim(-0.7, len(rs) - 0.3)
-    ax.set_xlabel(f"{s}: gap Bi-exp - CSDC (points)\ndashed: the paper's {PAPER_GAP[s]:.1f}")
+    ax.set_xlabel(
+        f"{s}: gap Bi-exp - CSDC (points)\n95 % paired CI; dashed: the paper's {PAPER_GAP[s]:.1f}"
+    )
     ax.grid(alpha=0.3)
