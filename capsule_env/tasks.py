@@ -52,8 +52,9 @@ class Task:
     """One registered task: its id, what it models, what the agent reads, its env options,
     the evaluation's names of its reference controllers, the evaluation file (under
     docs/figures/) its card's scores come from, and which law to compare against and why
-    (``use``), the README's one-line description of it (``headline``), and the laws designed
-    for it that ``evaluate.py --task`` adds to its default controllers (``own_laws``)."""
+    (``use``), the README's one-line description of it (``headline``), the laws designed
+    for it that ``evaluate.py --task`` adds to its default controllers (``own_laws``), and
+    its card's reported metric where it is not the 1/4-car's car-body Wk (``metric``)."""
 
     env_id: str
     summary: str
@@ -66,6 +67,7 @@ class Task:
     use: str = ""
     headline: str = ""
     own_laws: tuple[str, ...] = ()
+    metric: str = ""
 
 
 # Which law to compare against on each task, and why (printed on the task cards).
@@ -134,8 +136,24 @@ TASKS: tuple[Task, ...] = (
 
 #: Tasks over a declared vehicle of another form than the 1/4-car's: their env is
 #: ``DeclaredVehicleEnv`` (``DeclaredVectorEnv`` batched), their evaluation
-#: :mod:`capsule_env.evaluation.half_car` (``docs/half-car.md``); the quarter-car tasks' tools
-#: (``evaluate.py``, the cards of ``docs/tasks.md``) do not run them yet.
+#: :mod:`capsule_env.evaluation.half_car` (``docs/half-car.md``), which ``evaluate.py --task``
+#: runs (the JSON's layout and headline ``wk_rms_body_acc_m_s2`` the 1/4-car tasks'); carded
+#: in ``docs/tasks.md`` as the others.
+_METRIC_HALF = (
+    "ISO 2631-1 Wk-weighted RMS vertical acceleration of the car body's floor at three points, "
+    "over the front bogie, at the centre of mass and over the rear bogie, and their mean (the "
+    "headline `wk_rms_body_acc_m_s2`, the name the other tasks use): a passenger sits anywhere "
+    "along the body, and the ends, where the pitch adds to the heave, ride worst (passive: "
+    "front 0.31, centre 0.15, rear 0.33 m/s²). Beside it the pitch acceleration's We-weighted "
+    "RMS (rad/s², ISO 2631-1's weighting for rotational vibration; the seat's factor 0.40 for "
+    "pitch not applied), `we_rms_pitch_rad_s2` (docs/half-car.md)"
+)
+_USE_HALF = (
+    "`lqr-clipped-biexp-meas`, one tuned quarter-car clipped LQR per bogie on its own bogie's "
+    "signals: the lowest Wk of the laws on the measured signals (the coupled half-car LQR "
+    "1.004 x, the wheelbase-preview LQ 1.000 x), a gain vector per bogie and a clip, the law "
+    "the shipped residual policy rides on."
+)
 DECLARED_TASKS: tuple[Task, ...] = (
     Task("CapsuleHalfRide-v0",
          "The half-car capsule on the ride task: car body heave and pitch on two bogies, two "
@@ -148,6 +166,7 @@ DECLARED_TASKS: tuple[Task, ...] = (
          {"vehicle": "half_car", "setting": "hils", "observation": "measured"}, "hils",
          "lqr-clipped-biexp-meas", "residual-ppo-lqr-half-car",
          "evaluation-CapsuleHalfRide-v0.json",
+         use=_USE_HALF, metric=_METRIC_HALF,
          headline="the half-car capsule: pitch, two bogies, two dampers (`hils`, measured)"),
     Task("CapsuleHalfRidePreview-v0",
          "The half-car ride task with the surveyed guideway ahead of each bogie (32 points over "

@@ -133,7 +133,7 @@ def test_the_pages_results_table_quotes_the_evaluation_file():
     data = json.loads(
         (ROOT / "docs" / "figures" / "evaluation-CapsuleHalfRide-v0.json").read_text()
     )
-    rows = data["rows"]
+    rows = data["settings"]["hils"]["controllers"]
     table = _table(text, "| row | Wk mean")
     names = [re.search(r"`([^`]+)`", r[0]).group(1) if "`" in r[0] else r[0] for r in table]
     assert set(names) == set(rows)

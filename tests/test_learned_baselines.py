@@ -93,7 +93,7 @@ def test_each_task_reads_its_own_references(lb, task, file, laws):
     assert ("oracle" in refs) == ("oracle" in own)
     assert list(lb.TASK_LAWS[task]) == laws
     for law in laws:  # every law's figure is one of the project's evaluation files (the
-        # quarter-car's: evaluate.py's schema, with "settings"; the half-car's has "rows")
+        # quarter-car's and the half-car's: evaluate.py's schema, with "settings")
         found = [
             json.loads(f.read_text())
             .get("settings", {})

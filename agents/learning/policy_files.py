@@ -78,7 +78,9 @@ ROLES = {"model": ".zip", "normaliser": ".vecnormalize.pkl", "replay_buffer": ".
 def shown_path(path: str | Path) -> str:
     """``path`` as results files record it: a file of the installed package (a shipped
     policy) as ``capsule_env/...``, the same on every machine; any other path as given."""
-    package = Path(__file__).resolve().parent
+    import capsule_env
+
+    package = Path(capsule_env.__file__).resolve().parent  # not this file's: agents/ in a checkout
     try:
         return str(Path(package.name) / Path(path).resolve().relative_to(package))
     except ValueError:

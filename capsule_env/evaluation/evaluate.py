@@ -54,7 +54,7 @@ from capsule_env.evaluation.condition import (
 from capsule_env.evaluation.episodes import check_episode_length, episode_metrics, run_episodes
 from capsule_env.evaluation.tables import format_markdown, format_tables, group_of  # noqa: F401
 from capsule_env.metrics import DEFAULT_BANDS_HZ
-from capsule_env.tasks import TASKS, task_named
+from capsule_env.tasks import DECLARED_TASKS, TASKS, task_named
 from capsule_env.vehicles.modes import natural_frequencies_hz
 
 PAPER_CONTROLLERS = ["passive", "skyhook-csdc", "skyhook-biexp"]
@@ -92,7 +92,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "lag, noise, delay (default: the --task's or --env's setting, else both)")  # fmt: skip
     p.add_argument("--task", metavar="ID",
                    help="evaluate on a registered task (capsule_env.tasks: "
-                   + ", ".join(t.env_id for t in TASKS) + "): its env options, its setting")  # fmt: skip
+                   + ", ".join(t.env_id for t in TASKS + DECLARED_TASKS) + "): its env options, "
+                   "its setting (a declared vehicle's task: its own evaluation, "
+                   "capsule_env.evaluation.half_car)")  # fmt: skip
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help="one env option of the evaluated env (VALUE JSON or a Python literal, "
                    "a bare word a string; over the --task's), repeatable, as train.py's: "
@@ -126,6 +128,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
                    "--task or --env: to its sub-folder named after them)")  # fmt: skip
     args = p.parse_args(argv)
+    if args.task in {t.env_id for t in DECLARED_TASKS}:  # its own evaluation (main)
+        args.condition = None
+        return args
     try:  # the evaluated env: --task, --setting, --episode-length, --env (eval_condition.py)
         args.condition = build_condition(args.task, args.env, args.setting, args.episode_length)
     except (ValueError, TypeError) as exc:
@@ -436,10 +441,74 @@ def _progress(done: int, total: int, label: str, elapsed: float) -> None:
     sys.stderr.flush()
 
 
+#: The options a declared vehicle's task takes (its evaluation: :mod:`capsule_env.evaluation.half_car`).
+DECLARED_OPTIONS = "--episodes (>= 2), --seed, --oracle, --no-shipped-policy and --json"
+
+
+def _declared_refusal(args: argparse.Namespace) -> str:
+    """Why ``args`` (``--task`` a declared vehicle's task) cannot run ("" when they can): the
+    half-car's evaluation runs its own laws and the task's shipped policies on the ``hils``
+    plant, 10 s episodes; the other options of ``evaluate.py`` are refused, each named."""
+    from capsule_env.evaluation.half_car import TASK_ID
+
+    if args.task != TASK_ID:
+        return (f"evaluate.py does not evaluate {args.task} yet (of the declared vehicles' "
+                f"tasks, {TASK_ID} only)")  # fmt: skip
+    given = {"--setting": args.setting not in (None, "hils"), "--env": bool(args.env),
+             "--controllers": args.controllers != ",".join(DEFAULT_CONTROLLERS),
+             "--policy": bool(args.policy), "--allow-unnormalized": args.allow_unnormalized,
+             "--episode-length": args.episode_length not in (None, 10.0),
+             "--plots": args.plots is not None}  # fmt: skip
+    refused = [option for option, set_ in given.items() if set_]
+    if refused:
+        return (f"{', '.join(refused)} not supported with --task {args.task} (its evaluation, "
+                "capsule_env.evaluation.half_car, runs its own laws and shipped policies on the "
+                f"hils plant, 10 s episodes); it takes {DECLARED_OPTIONS}")  # fmt: skip
+    if args.episodes < 2:
+        return (f"--episodes must be >= 2 with --task {args.task} (intervals over the "
+                f"episodes), got {args.episodes}")  # fmt: skip
+    if not 0 <= args.seed <= 2**63 - args.episodes:
+        return f"--seed must be in 0..{2**63 - args.episodes}, got {args.seed}"
+    return ""
+
+
+def _declared_main(args: argparse.Namespace) -> int:
+    """``--task`` a declared vehicle's task: its evaluation's rows (``evaluate.py``'s JSON
+    layout, the headline ``wk_rms_body_acc_m_s2`` the floor's mean over three points), a
+    table on stdout, the JSON with ``--json``. Bad options: one line, exit status 2."""
+    from capsule_env.evaluation import half_car
+
+    problem = _declared_refusal(args)
+    try:
+        if not problem and args.json is not None:
+            check_writable_file(args.json, "--json")
+    except (ValueError, OSError) as exc:
+        problem = str(exc)
+    if problem:
+        print(f"evaluate.py: error: {problem}", file=sys.stderr)
+        return 2
+    options = [f"--task {args.task}", f"--episodes {args.episodes}", f"--seed {args.seed}"]
+    options += ["--oracle"] * args.oracle + ["--no-shipped-policy"] * args.no_shipped_policy
+    options += [f"--json {args.json}"] if args.json is not None else []
+    results = half_car.evaluation_results(
+        list(range(args.seed, args.seed + args.episodes)),
+        half_car.ORACLE_ITERATIONS if args.oracle else 0, not args.no_shipped_policy,
+        "python -m capsule_env.evaluation.evaluate " + " ".join(options),
+    )  # fmt: skip
+    print(half_car.format_rows(results))
+    if args.json:
+        atomic_write_text(args.json, json.dumps(results, indent=1))
+        print(f"\nwrote {args.json}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status. Bad arguments or files: ``SystemExit`` with one
-    line (``evaluate.py: error: ...``) before anything runs."""
+    line (``evaluate.py: error: ...``) before anything runs. ``--task`` a declared vehicle's
+    task runs its own evaluation (:func:`_declared_main`)."""
     args = parse_args(argv)
+    if args.condition is None:
+        return _declared_main(args)
     try:
         ctrls = prepare(args)
     except (ValueError, OSError, TypeError) as exc:

@@ -13,9 +13,15 @@ tasks'); the coupled law's weights are tuned on the training bank (``guideway_se
 seeds 0..9). Intervals: 95 % bootstrap over the episodes (paired for ratios), seeded.
 
     python -m capsule_env.evaluation.half_car --out docs/figures/evaluation-CapsuleHalfRide-v0.json
+    python -m capsule_env.evaluation.evaluate --task CapsuleHalfRide-v0 --oracle --json F  # the same
 
 ``--tune`` re-tunes the coupled law's weights (about a minute); ``--oracle-iterations N`` adds
-the oracle (started from the best law's own currents, so never worse than it).
+the oracle (started from the best law's own currents, so never worse than it; ``evaluate.py
+--oracle``: :data:`ORACLE_ITERATIONS`). The shipped policies trained on the task
+(``capsule_env/pretrained``, e.g. ``residual-ppo-lqr-half-car``) are rows too unless
+``--no-shipped-policy``. The JSON has ``evaluate.py``'s layout (:func:`evaluation_results`):
+each row under ``settings.hils.controllers`` with the headline ``wk_rms_body_acc_m_s2`` and what
+the row reads, so that the task cards and tables read every task's file alike.
 """
 
 from __future__ import annotations
@@ -33,13 +39,17 @@ import numpy as np
 from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
 
-__all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "evaluate", "main"]
+__all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "shipped_policies",
+           "evaluate", "evaluation_results", "format_rows", "main"]  # fmt: skip
 
-#: ``CapsuleHalfRide-v0``'s options (``capsule_env.tasks.DECLARED_TASKS``).
+#: The task evaluated here, and its options (``capsule_env.tasks.DECLARED_TASKS``).
+TASK_ID = "CapsuleHalfRide-v0"
 TASK_KWARGS: dict[str, Any] = {"vehicle": "half_car", "setting": "hils", "observation": "measured"}
 EVALUATION_GUIDEWAY_SEED, TRAINING_GUIDEWAY_SEED = 2026, 0
 #: The coupled law's weights when not re-tuned: ``--tune``'s result (``docs/half-car.md``).
 TUNED_COUPLED = {"q_stroke": 0.001, "q_levitation": 0.1, "r_force": 3e-8}
+#: The oracle's L-BFGS-B iterations with ``evaluate.py --oracle`` (the page's figures').
+ORACLE_ITERATIONS = 30
 _GRID = {"q_stroke": (0.001, 0.01, 0.1, 1.0), "q_levitation": (0.1, 1.0, 10.0, 100.0),
          "r_force": (1e-8, 3e-8, 1e-7)}  # fmt: skip
 
@@ -118,8 +128,54 @@ def tune_coupled(seeds: list[int] | None = None, length_s: float = 10.0) -> dict
     return best
 
 
-def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int = 0) -> dict:
-    """Every row's metrics (means and intervals over the episodes ``seeds``)."""
+def _own_shipped() -> dict[str, str]:
+    """The files of the shipped policies trained on this task (their metadata's
+    ``env_kwargs`` are the task's options, the action mode aside), by name."""
+    from capsule_env.agents.learning.sb3_policy import shipped_policy_paths
+
+    own = {}
+    for path in shipped_policy_paths():
+        with open(path[: -len(".zip")] + ".json") as f:
+            meta = json.load(f)
+        kwargs = {k: v for k, v in meta.get("env_kwargs", {}).items() if k != "action_mode"}
+        if kwargs == TASK_KWARGS:
+            own[str(meta.get("name", os.path.basename(path)[: -len(".zip")]))] = path
+    return own
+
+
+def shipped_policies() -> dict[str, Any]:
+    """The shipped policies trained on this task, loaded, by name (a residual one with the
+    law it rides on)."""
+    from capsule_env.agents.learning.sb3_policy import load_policy, use_one_torch_thread
+
+    own = _own_shipped()
+    if own:
+        use_one_torch_thread()
+    return {name: load_policy(path) for name, path in own.items()}
+
+
+def _describe(law: Any, name: str) -> dict[str, Any]:
+    """What a row reads (as ``evaluate.py``'s rows say it): its observation set, whether that
+    includes unmeasured signals, whether it previews the surveyed guideway, its gains, and
+    the env options it ran with (the policies' file beside a shipped one)."""
+    if name == "oracle":
+        return {"observation": "oracle", "uses_unmeasured_signals": True, "preview": True,
+                "gains": {}, "gains_tuned": False, "env_kwargs": dict(TASK_KWARGS)}  # fmt: skip
+    if law is None:  # passive
+        return {"observation": "none", "uses_unmeasured_signals": False, "preview": False,
+                "gains": {}, "gains_tuned": False,
+                "env_kwargs": dict(TASK_KWARGS, damper="passive")}  # fmt: skip
+    return {"observation": law.observation,
+            "uses_unmeasured_signals": bool(law.uses_unmeasured_signals),
+            "preview": bool(law.preview), "gains": law.gains(),
+            "gains_tuned": name in ("lqr-clipped-biexp-meas", "lqr-coupled-biexp-meas"),
+            "env_kwargs": {**TASK_KWARGS, **law.env_kwargs}}  # fmt: skip
+
+
+def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int = 0,
+             shipped: bool = True) -> dict:  # fmt: skip
+    """Every row's metrics (means and intervals over the episodes ``seeds``) and what it
+    reads; the shipped policies trained on the task among them when ``shipped``."""
     from capsule_env.agents.controllers.declared_lqr import (
         DeclaredClippedLQR,
         IndependentClippedLQR,
@@ -130,21 +186,26 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
     )
 
     w = (coupled["q_stroke"], coupled["q_levitation"], coupled["r_force"])
-    laws = {"passive": None, "lqr-clipped-biexp-meas": IndependentClippedLQR(),
+    laws: dict[str, Any] = {"passive": None, "lqr-clipped-biexp-meas": IndependentClippedLQR(),
             "lqr-coupled-biexp-meas": DeclaredClippedLQR("half_car", observation="measured",
                                                          **coupled),
             "lq-discrete-biexp-meas": WheelbasePreviewLQ(*w, preview=False),
             "wheelbase-lq-biexp-meas": WheelbasePreviewLQ(*w),
             "wheelbase-lq-biexp-exact": WheelbaseExactPreviewLQ(*w)}  # fmt: skip
+    classical = list(laws)
+    if shipped:
+        laws.update(shipped_policies())
     rolls = {name: rollout(law, seeds, EVALUATION_GUIDEWAY_SEED) for name, law in laws.items()}
     metrics = {name: episode_metrics(r) for name, r in rolls.items()}
     if oracle_iterations:
-        metrics["oracle"] = _oracle(seeds, rolls, metrics, oracle_iterations)
+        starts = {n: rolls[n] for n in classical}  # the oracle starts from a law's currents
+        metrics["oracle"] = _oracle(seeds, starts, metrics, oracle_iterations)
     reference = metrics["lqr-clipped-biexp-meas"]["wk_rms_body_acc_m_s2"]
     rows = {}
     for name, m in metrics.items():
         head = m["wk_rms_body_acc_m_s2"]
         rows[name] = {k: float(np.mean(v)) for k, v in m.items()}
+        rows[name].update(_describe(laws.get(name), name))
         rows[name]["wk_rms_body_acc_m_s2_ci95"] = _interval(head)
         rows[name]["ratio_to_independent_lqr"] = float(head.mean() / reference.mean())
         rows[name]["ratio_to_independent_lqr_ci95"] = _ratio_interval(head, reference)
@@ -171,12 +232,56 @@ def _oracle(seeds: list[int], rolls: dict, metrics: dict, iterations: int) -> di
     return episode_metrics(roll)
 
 
+def evaluation_results(seeds: list[int], oracle_iterations: int = 0, shipped: bool = True,
+                       command: str = "", tune: bool = False) -> dict[str, Any]:  # fmt: skip
+    """The evaluation of the episodes ``seeds`` in ``evaluate.py``'s layout: ``condition``,
+    ``episodes`` (their number), ``seeds`` (first and last), ``policies`` (each shipped
+    policy's file) and ``settings.hils.controllers`` (a row per law, policy and the oracle),
+    and the half-car's own: the guideway bank and the coupled law's weights."""
+    from capsule_env.agents.learning.policy_files import shown_path
+
+    coupled = tune_coupled() if tune else dict(TUNED_COUPLED)
+    rows = evaluate(seeds, coupled, oracle_iterations, shipped)
+    policies = _own_shipped() if shipped else {}
+    return {"task": TASK_ID, "command": command,
+            "condition": {"task": TASK_ID, "task_env_kwargs": dict(TASK_KWARGS),
+                          "env_overrides": {}, "env_kwargs": dict(TASK_KWARGS),
+                          "settings": ["hils"], "episode_length_s": 10.0},
+            "episodes": len(seeds), "seeds": [seeds[0], seeds[-1]],
+            "guideway_seed": EVALUATION_GUIDEWAY_SEED, "coupled_weights": coupled,
+            "policies": {name: shown_path(path) for name, path in policies.items()},
+            "settings": {"hils": {"controllers": rows}}}  # fmt: skip
+
+
+def format_rows(results: dict[str, Any]) -> str:
+    """The rows of :func:`evaluation_results` as a Markdown table (Wk with its interval, the
+    ratio to the per-bogie LQR, the three points, the pitch)."""
+    lines = ["| row | Wk mean of 3 points (m/s²) [95 % CI] | x per-bogie LQR | "
+             "front / centre / rear | pitch We (rad/s²) |", "| --- | --- | --- | --- | --- |"]  # fmt: skip
+    for name, r in results["settings"]["hils"]["controllers"].items():
+        low, high = r["wk_rms_body_acc_m_s2_ci95"]
+        lines.append(f"| {name} | {r['wk_rms_body_acc_m_s2']:.4f} [{low:.4f}, {high:.4f}] | "
+                     f"{r['ratio_to_independent_lqr']:.4f} | {r['wk_front_m_s2']:.3f} / "
+                     f"{r['wk_centre_m_s2']:.3f} / {r['wk_rear_m_s2']:.3f} | "
+                     f"{r['we_rms_pitch_rad_s2']:.4f} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def write_json(path: str, text: str) -> None:
+    """``text`` into ``path``, atomically (the folder must exist)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
+        f.write(text)
+    os.replace(f.name, path)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="", help="JSON file to write (atomically)")
     p.add_argument("--episodes", type=int, default=10, help="evaluation episodes (>= 2)")
     p.add_argument("--tune", action="store_true", help="re-tune the coupled law's weights")
     p.add_argument("--oracle-iterations", type=int, default=0, help="L-BFGS-B iterations (0: none)")
+    p.add_argument("--no-shipped-policy", action="store_true", help="no shipped policy's row")
     args = p.parse_args(argv)
     if args.episodes < 2 or args.oracle_iterations < 0:
         print("error: --episodes must be >= 2 and --oracle-iterations >= 0", file=sys.stderr)
@@ -184,19 +289,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
         print(f"error: --out's folder must exist, got {args.out!r}", file=sys.stderr)
         return 2
-    coupled = tune_coupled() if args.tune else dict(TUNED_COUPLED)
-    seeds = list(range(1000, 1000 + args.episodes))
-    result = {"task": "CapsuleHalfRide-v0", "episodes": seeds, "guideway_seed":
-              EVALUATION_GUIDEWAY_SEED, "coupled_weights": coupled,
-              "command": "python -m capsule_env.evaluation.half_car " + " ".join(argv or sys.argv[1:]),
-              "rows": evaluate(seeds, coupled, args.oracle_iterations)}  # fmt: skip
-    text = json.dumps(result, indent=1)
+    command = "python -m capsule_env.evaluation.half_car " + " ".join(argv or sys.argv[1:])
+    result = evaluation_results(list(range(1000, 1000 + args.episodes)), args.oracle_iterations,
+                                not args.no_shipped_policy, command, args.tune)  # fmt: skip
     if args.out:
-        folder = os.path.dirname(os.path.abspath(args.out))
-        with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
-            f.write(text)
-        os.replace(f.name, args.out)
-    print(text)
+        write_json(args.out, json.dumps(result, indent=1))
+    print(format_rows(result))
     return 0
 
 

@@ -67,7 +67,7 @@ def half_car_figure(result: dict[str, Any], trace: dict[str, np.ndarray], path: 
     left.set_xlabel("time (s)", fontsize=10)
     left.set_ylabel("body pitch (mrad)", fontsize=10)
     left.legend(fontsize=9, loc="lower left")
-    rows = result["rows"]
+    rows = result["settings"]["hils"]["controllers"]  # evaluate.py's layout
     base = rows["lqr-clipped-biexp-meas"]
     names = [n for n in _BARS if n in rows and n not in ("passive", "lqr-clipped-biexp-meas")]
     x = np.arange(len(names))

@@ -5,7 +5,10 @@
 ``<!-- generated: readme tasks -->`` markers, from ``docs/figures/evaluation.json`` (written by
 ``evaluate.py --oracle --json``): per task, the Wk-weighted RMS car-body acceleration and the
 normalised score of the passive damper, the task's best tuned classical law, its shipped policy
-and the oracle, with what each reads.
+and the oracle, with what each reads. The declared vehicles' tasks that ``evaluate.py``
+evaluates (``DECLARED_TASKS``: the half-car's) are carded from their own files, in its layout
+(``evaluate.py --task CapsuleHalfRide-v0 --oracle --json``), with the comfort metric their
+card states (``Task.metric``).
 """
 
 from __future__ import annotations
@@ -14,7 +17,12 @@ import json
 import sys
 from pathlib import Path
 
-from capsule_env.tasks import TASKS, Task, normalised_score
+from capsule_env.evaluation.half_car import TASK_ID as HALF_CAR_TASK
+from capsule_env.tasks import DECLARED_TASKS, TASKS, Task, normalised_score
+
+#: Every carded task: the quarter-car's, then the declared vehicles' that ``evaluate.py
+#: --task`` evaluates (their file in its layout): the half-car's.
+CARDED = TASKS + tuple(t for t in DECLARED_TASKS if t.env_id == HALF_CAR_TASK)
 
 __all__ = ["task_cards", "readme_table", "load_results", "sync_page"]
 
@@ -43,11 +51,13 @@ def _card(task: Task, results: dict) -> list[str]:
         rows += [(task.shipped_policy, "shipped learned policy")]
     if has_oracle:
         rows += [("oracle", "clairvoyant search (a reference, not a law or a limit)")]
+    metric = ("Wk-weighted RMS acceleration of the car body's floor, the mean of three points "
+              "(the comfort metric below)") if task.metric else "Wk-weighted RMS car-body acceleration"  # fmt: skip
     lines = [f"## `{task.env_id}`", "", task.summary, "", f"- Reads: {task.reads}.",
              f"- Options: `{json.dumps(task.kwargs)}` (everything else the env's defaults).",
-             "- Reward: the env's (docs/env.md); reported metric: Wk-weighted RMS car-body "
-             "acceleration on guideway seeds "
+             f"- Reward: the env's (docs/env.md); reported metric: {metric} on guideway seeds "
              f"{results['seeds'][0]}..{results['seeds'][1]} (`docs/figures/{task.results}`).",
+             *([f"- Comfort metric: {task.metric}."] if task.metric else []),
              f"- Use as the baseline: {task.use}",
              ""]  # fmt: skip
     if not has_oracle:
@@ -69,14 +79,14 @@ def _card(task: Task, results: dict) -> list[str]:
 def load_results(folder: Path) -> dict[str, dict]:
     """Every evaluation file the tasks' cards read (``Task.results``), by file name, from
     ``folder`` (docs/figures)."""
-    return {t.results: json.loads((folder / t.results).read_text()) for t in TASKS}
+    return {t.results: json.loads((folder / t.results).read_text()) for t in CARDED}
 
 
 def task_cards(results: dict[str, dict]) -> str:
     """The task cards as Markdown, reference scores from ``evaluate.py --json`` files'
     contents by file name (:func:`load_results`; run with ``--oracle`` where the task allows)."""
     lines: list[str] = []
-    for task in TASKS:
+    for task in CARDED:
         lines += _card(task, results[task.results])
     return "\n".join(lines)
 
@@ -90,7 +100,7 @@ def readme_table(results: dict[str, dict]) -> str:
     classical law, the shipped policy and the oracle, from the same files as the cards."""
     lines = ["| task | what it is | passive | best classical law | shipped policy | oracle |",
              "|---|---|---|---|---|---|"]  # fmt: skip
-    for task in TASKS:
+    for task in CARDED:
         rows = results[task.results]["settings"][task.setting]["controllers"]
         wk = {name: row["wk_rms_body_acc_m_s2"] for name, row in rows.items()}
         oracle = f"{wk['oracle']:.4f}" if "oracle" in wk else "-"
