@@ -350,7 +350,8 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             _progress(done, total, f"{setting}/{name}", time.perf_counter() - t0)
         if getattr(args, "oracle", False):
             _progress(done, total, f"{setting}/oracle (search)", time.perf_counter() - t0)
-            add_oracle(results["settings"][setting], setting, args, passive, ctrls)
+            own = {name: rollouts[(setting, name)] for name in ctrls}
+            add_oracle(results["settings"][setting], setting, args, passive, ctrls, own)
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
@@ -360,7 +361,7 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
 
 
 def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any,
-               ctrls: dict) -> None:  # fmt: skip
+               ctrls: dict, rollouts: dict | None = None) -> None:  # fmt: skip
     """Add the clairvoyant search's row (``"oracle"``, :func:`capsule_env.oracle.clairvoyant_bound`
     on the same episodes) to a setting's results, and to every controller on the same plant
     (the same physics: :func:`~capsule_env.evaluation.condition.physics_changes`, e.g. not a law
@@ -369,13 +370,22 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
     (Wk_passive - Wk_oracle)`` (0: passive, 1: the oracle, a local search's best, not a proven
     optimum). In ``sim`` the plant
     is the damper model a controller inverts: the oracle's is the Bi-exponential model, and
-    controllers on another plant get no share (passive, the reference, has 0 by definition)."""
-    from capsule_env.oracle import clairvoyant_bound
+    controllers on another plant get no share (passive, the reference, has 0 by definition).
+
+    The applied currents of every controller on the same plant (from ``rollouts``, name ->
+    its :class:`~capsule_env.evaluation.episodes.Rollout` on these episodes) are the search's
+    ``candidates``: per episode the oracle is never above any of them, and it is searched
+    from the best one too (``search.best_starts`` names the start that won each episode)."""
+    from capsule_env.oracle import applied_currents, clairvoyant_bound
 
     seeds = range(args.seed, args.seed + args.episodes)
     condition_kwargs = _condition(args).env_kwargs
     oracle_kwargs = {**condition_kwargs, "setting": setting}
-    result = clairvoyant_bound(oracle_kwargs, seeds, args.episode_length)
+    length = args.episode_length
+    same = _same_plant(block["controllers"], ctrls, condition_kwargs, setting, length)
+    own = rollouts or {}
+    candidates = {name: applied_currents(own[name], d) for name, d in same.items() if name in own}
+    result = clairvoyant_bound(oracle_kwargs, seeds, length, candidates=candidates)
     entry = episode_metrics(result.rollout, passive)
     summary = result.summary()
     entry.update({
@@ -385,20 +395,33 @@ def add_oracle(block: dict, setting: str, args: argparse.Namespace, passive: Any
     })  # fmt: skip
     controllers = block["controllers"]
     controllers["oracle"] = entry
-    length = args.episode_length
-    plant = EnvConfig.from_kwargs(**oracle_kwargs, episode_length_s=length).plant_damper_name
     wk_passive = controllers["passive"]["wk_rms_body_acc_m_s2"]
     headroom = wk_passive - entry["wk_rms_body_acc_m_s2"]
     for name, m in controllers.items():
-        ctrl = ctrls.get(name)
-        own = ctrl.env_kwargs if ctrl is not None else {}
-        env, _ = controller_env(condition_kwargs, own, setting)
-        damper = EnvConfig.from_kwargs(**env, episode_length_s=length).plant_damper_name
-        same_plant = damper == plant and not physics_changes(oracle_kwargs, own, length)
-        if name in ("oracle", "passive") or same_plant:  # passive: the reference, 0
+        if name in ("oracle", "passive") or name in same:  # passive: the reference, 0
             m["oracle_headroom_captured_rel"] = (
                 (wk_passive - m["wk_rms_body_acc_m_s2"]) / headroom if headroom > 0 else None
             )
+
+
+def _same_plant(
+    controllers: dict, ctrls: dict, condition_kwargs: dict, setting: str, length: float
+) -> dict[str, int]:
+    """The controllers (of ``controllers``, a setting's rows, passive and the oracle left out)
+    that run on the oracle's plant and physics, each with its control delay (steps)."""
+    oracle_kwargs = {**condition_kwargs, "setting": setting}
+    plant = EnvConfig.from_kwargs(**oracle_kwargs, episode_length_s=length).plant_damper_name
+    same = {}
+    for name in controllers:
+        if name in ("oracle", "passive"):
+            continue
+        ctrl = ctrls.get(name)
+        own = ctrl.env_kwargs if ctrl is not None else {}
+        env, _ = controller_env(condition_kwargs, own, setting)
+        config = EnvConfig.from_kwargs(**env, episode_length_s=length)
+        if config.plant_damper_name == plant and not physics_changes(oracle_kwargs, own, length):
+            same[name] = config.effective_control_delay_steps
+    return same
 
 
 def describe(ctrl: Any) -> dict[str, Any]:

@@ -29,7 +29,14 @@ The method (:mod:`capsule_env.oracle.plant`, :mod:`capsule_env.oracle.search`):
 - L-BFGS-B with bounds, from several starts (zero current, 10 % of ``i_max``, on-off Skyhook
   on the true state, or any given sequence such as a controller's own), the searches of all
   episodes and starts in lockstep (one kernel call per step for all of them), then restart
-  rounds from the best sequence smoothed;
+  rounds from the best sequence smoothed (:mod:`capsule_env.oracle.starts`,
+  :mod:`capsule_env.oracle.lockstep`);
+- ``candidates``: named sequences, e.g. the applied currents of every controller evaluated on
+  the same plant (``evaluate.py --oracle`` passes them): each is replayed on its episode (the
+  replay is the env's own run, :func:`applied_currents`), kept where it is the best sequence
+  tried, and the best ``searched_candidates`` of each episode are searched from too. So the
+  oracle is never above any of those controllers, episode by episode, by construction, and
+  :attr:`OracleResult.best_start` names the start that won each episode;
 - the search integrates with each episode's finest substep count (no switching under the
   finite differences); every reported figure is re-measured with the env's adaptive substeps.
 

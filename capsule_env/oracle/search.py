@@ -6,7 +6,6 @@ See :mod:`capsule_env.oracle` for the method and what the numbers mean.
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -33,7 +32,15 @@ from capsule_env.evaluation.episodes import (
     Rollout,
     check_episode_length,
 )
+from capsule_env.oracle.lockstep import Lockstep
 from capsule_env.oracle.plant import OracleEpisodes, RideObjective, adjoint_gradient
+from capsule_env.oracle.starts import (
+    DEFAULT_STARTS,
+    START_NAMES,
+    candidate_starts,
+    named_starts,
+    searched_starts,
+)
 
 __all__ = [
     "DEFAULT_STARTS",
@@ -46,13 +53,6 @@ __all__ = [
 
 #: The seeds ``evaluate.py`` runs by default (``--seed 1000 --episodes 10``).
 EVALUATION_SEEDS = tuple(range(1000, 1010))
-#: Named starts of the search: zero current, 10 %, half and full ``i_max``, on-off Skyhook on
-#: the true state (:meth:`OracleEpisodes.skyhook_currents`), uniform random currents.
-START_NAMES = ("zero", "low", "mid", "max", "skyhook", "random")
-_START_LEVELS = {"zero": 0.0, "low": 0.1, "mid": 0.5, "max": 1.0}
-#: The starts used unless told otherwise: the two best measured (low currents) and a
-#: Skyhook-like one, whose local optimum shows how much the search depends on its start.
-DEFAULT_STARTS: tuple[str, ...] = ("zero", "low", "skyhook")
 #: Env arguments the oracle sets itself.
 _OWN_ARGUMENTS = ("episode_length_s", "num_envs")
 
@@ -83,17 +83,27 @@ class OracleResult:
         (E,) the objective: Wk-weighted RMS body acceleration of the best sequence (m/s^2).
     start_names
         The starts, in order (a name of :data:`START_NAMES`, ``"constant:<A>"`` or
-        ``"given:<j>"`` for an array given as ``starts[j]``).
+        ``"given:<j>"`` for an array given as ``starts[j]``), then the ``candidates``' names.
     start_wk_m_s2
-        (E, S) Wk of each start's own sequence, before the search (m/s^2).
+        (E, S) Wk of each start's own sequence, before the search (m/s^2): for a controller's
+        applied currents (a candidate), that controller's own Wk on the episode.
     final_wk_m_s2
-        (E, S) Wk reached from each start (m/s^2).
+        (E, S) Wk reached from each start (m/s^2); NaN where the start was not searched from.
+    searched
+        (E, S) whether the episode was searched from the start: every start, and the
+        ``searched_candidates`` candidates of lowest own Wk of each episode.
+    best_start
+        (E,) the start the best sequence came from (a name of ``start_names``).
+    best_stage
+        (E,) how it got there: ``"search"`` (the search from that start), ``"own sequence"``
+        (the start itself, unimproved: no search from it ended lower) or ``"restart"`` (a
+        restart round from the best so far).
     restart_wk_m_s2
         (E, R) Wk reached by each restart round (m/s^2).
     iterations
-        (E, S) L-BFGS-B iterations from each start.
+        (E, S) L-BFGS-B iterations from each start (0 where not searched).
     messages
-        (E, S) L-BFGS-B's stop messages.
+        (E, S) L-BFGS-B's stop messages (``"not searched"`` where not searched).
     max_stroke_m
         (E,) largest ``abs(stroke)`` of the best runs (m).
     terminated
@@ -119,6 +129,9 @@ class OracleResult:
     start_names: tuple[str, ...]
     start_wk_m_s2: np.ndarray
     final_wk_m_s2: np.ndarray
+    searched: np.ndarray
+    best_start: tuple[str, ...]
+    best_stage: tuple[str, ...]
     restart_wk_m_s2: np.ndarray
     iterations: np.ndarray
     messages: list[list[str]]
@@ -137,30 +150,36 @@ class OracleResult:
 
     @property
     def spread_m_s2(self) -> np.ndarray:
-        """(E,) max - min over the starts of the Wk each reached (m/s^2): how much the local
-        search's answer depends on where it starts."""
-        return self.final_wk_m_s2.max(axis=1) - self.final_wk_m_s2.min(axis=1)
+        """(E,) max - min over the searched starts of the Wk each reached (m/s^2): how much
+        the local search's answer depends on where it starts."""
+        return np.nanmax(self.final_wk_m_s2, axis=1) - np.nanmin(self.final_wk_m_s2, axis=1)
 
     @property
     def restart_gain_m_s2(self) -> np.ndarray:
-        """(E,) how much the restart rounds lowered the best of the starts (m/s^2, >= 0)."""
-        return self.final_wk_m_s2.min(axis=1) - self.wk_rms_body_acc_m_s2
+        """(E,) how much the restart rounds lowered the best of the searches and the starts'
+        own sequences (m/s^2, >= 0)."""
+        before = np.minimum(np.nanmin(self.final_wk_m_s2, axis=1), self.start_wk_m_s2.min(axis=1))
+        return before - self.wk_rms_body_acc_m_s2
 
     def summary(self) -> dict[str, Any]:
         """A JSON-ready summary: per-episode rows and means (units in the keys)."""
         rows = []
         for k, seed in enumerate(self.seeds):
-            named = lambda values: dict(zip(self.start_names, map(float, values)))  # noqa: E731
+            mine = [(n, j) for j, n in enumerate(self.start_names) if self.searched[k, j]]
+            named = lambda values, cast=float, mine=mine: {  # noqa: E731 - searched starts
+                n: cast(values[j]) for n, j in mine
+            }
             rows.append({
                 "seed": seed,
                 "wk_oracle_m_s2": float(self.wk_rms_body_acc_m_s2[k]),
-                "start_wk_m_s2": named(self.start_wk_m_s2[k]),
+                "start_wk_m_s2": dict(zip(self.start_names, map(float, self.start_wk_m_s2[k]))),
                 "final_wk_m_s2": named(self.final_wk_m_s2[k]),
                 "restart_wk_m_s2": [float(v) for v in self.restart_wk_m_s2[k]],
                 "spread_over_starts_m_s2": float(self.spread_m_s2[k]),
                 "restart_gain_m_s2": float(self.restart_gain_m_s2[k]),
-                "best_start": self.start_names[int(np.argmin(self.final_wk_m_s2[k]))],
-                "iterations": dict(zip(self.start_names, map(int, self.iterations[k]))),
+                "best_start": self.best_start[k],
+                "best_stage": self.best_stage[k],
+                "iterations": named(self.iterations[k], int),
                 "max_stroke_m": float(self.max_stroke_m[k]),
                 "mean_current_a": float(np.mean(self.currents_a[k])),
                 "terminated": bool(self.terminated[k]),
@@ -174,6 +193,7 @@ class OracleResult:
             "wk_oracle_mean_m_s2": float(np.mean(self.wk_rms_body_acc_m_s2)),
             "spread_over_starts_mean_m_s2": float(np.mean(self.spread_m_s2)),
             "restart_gain_mean_m_s2": float(np.mean(self.restart_gain_m_s2)),
+            "best_starts": list(self.best_start),
             "total_time_s": float(self.total_time_s),
             "episodes_detail": rows,
         }
@@ -188,158 +208,6 @@ def applied_currents(rollout: Rollout, delay_steps: int) -> np.ndarray:
     applied = np.zeros_like(commands)
     applied[:, delay:] = commands[:, : commands.shape[1] - delay]
     return applied
-
-
-# ------------------------------------------------------------------------------ lockstep
-class _Aborted(Exception):
-    """Raised in a search thread when the evaluating thread failed."""
-
-
-class _Lockstep:
-    """Runs one L-BFGS-B search per lane, each in its own thread, and gathers their objective
-    requests: the calling thread evaluates all pending requests at once (one open-loop run of
-    every lane per kernel call) when every live search waits for one."""
-
-    def __init__(self, evaluate: Callable[[dict[int, np.ndarray]], dict[int, Any]]) -> None:
-        self._evaluate = evaluate
-        self._cond = threading.Condition()
-        self._pending: dict[int, np.ndarray] = {}
-        self._results: dict[int, Any] = {}
-        self._live: set[int] = set()
-        self._failed = False
-
-    def request(self, lane: int, x: np.ndarray) -> Any:
-        with self._cond:
-            self._pending[lane] = np.array(x, dtype=np.float64)
-            self._cond.notify_all()
-            while lane not in self._results:
-                if self._failed:
-                    raise _Aborted
-                self._cond.wait()
-            return self._results.pop(lane)
-
-    def _finish(self, lane: int) -> None:
-        with self._cond:
-            self._live.discard(lane)
-            self._cond.notify_all()
-
-    def run(self, searches: dict[int, Callable[[Callable[[np.ndarray], Any]], Any]]) -> dict:
-        """Run ``searches[lane](objective)`` for every lane; returns their results."""
-        results: dict[int, Any] = {}
-        errors: list[BaseException] = []
-
-        def work(lane: int, search: Callable) -> None:
-            try:
-                results[lane] = search(lambda x: self.request(lane, x))
-            except _Aborted:
-                pass
-            except BaseException as exc:  # noqa: BLE001 - re-raised in the calling thread
-                errors.append(exc)
-                with self._cond:
-                    self._failed = True
-            finally:
-                self._finish(lane)
-
-        self._live = set(searches)
-        threads = [
-            threading.Thread(target=work, args=(lane, s), daemon=True)
-            for lane, s in searches.items()
-        ]
-        for thread in threads:
-            thread.start()
-        try:
-            while True:
-                with self._cond:
-                    while self._live and not self._failed and (
-                        set(self._pending) != self._live
-                    ):  # fmt: skip
-                        self._cond.wait()
-                    if not self._live or self._failed:
-                        break
-                    batch, self._pending = self._pending, {}
-                out = self._evaluate(batch)
-                with self._cond:
-                    self._results.update(out)
-                    self._cond.notify_all()
-        except BaseException:
-            with self._cond:
-                self._failed = True
-                self._cond.notify_all()
-            raise
-        finally:
-            for thread in threads:
-                thread.join()
-        if errors:
-            raise errors[0]
-        return results
-
-
-# ------------------------------------------------------------------------------ starts
-def _named_start(episodes: OracleEpisodes, j: int, start: str, random_seed: int) -> np.ndarray:
-    """The (E, T) currents of start name ``start`` (``starts[j]``)."""
-    if start not in START_NAMES:
-        raise ValueError(f"starts[{j}]: unknown start {start!r}; accepted: {START_NAMES}")
-    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
-    if start == "skyhook":
-        return episodes.skyhook_currents()
-    if start == "random":
-        rows = [
-            np.random.default_rng([random_seed, s]).uniform(0.0, i_max, t) for s in episodes.seeds
-        ]
-        return np.stack(rows)
-    return np.full((e, t), _START_LEVELS[start] * i_max)
-
-
-def _array_start(episodes: OracleEpisodes, j: int, start: Any) -> np.ndarray:
-    """The (E, T) currents of a given current array ``start`` (``starts[j]``), checked."""
-    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
-    if isinstance(start, (bool, np.bool_)) or not isinstance(start, (Sequence, np.ndarray)):
-        raise TypeError(
-            f"starts[{j}] must be a start name, a number (a constant current, A) or a "
-            f"current array, got {start!r} ({type(start).__name__})"
-        )
-    try:
-        a = np.asarray(start, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"starts[{j}]: a current array must hold numbers (A)") from None
-    if a.shape not in ((t,), (e, t)):
-        raise ValueError(
-            f"starts[{j}]: a current array must have shape ({t},) or ({e}, {t}) "
-            f"(episodes, steps), got {a.shape}"
-        )
-    if not np.all(np.isfinite(a)) or a.min() < 0.0 or a.max() > i_max:
-        raise ValueError(f"starts[{j}]: currents must be finite and in [0, {i_max}] A")
-    return np.broadcast_to(a, (e, t)).copy()
-
-
-def _starts(
-    episodes: OracleEpisodes, starts: Sequence[Any], random_seed: int
-) -> tuple[list[str], np.ndarray]:
-    """The named or given starts as an (S, E, T) array of currents, and their names."""
-    if isinstance(starts, (str, np.ndarray)) or not isinstance(starts, Sequence) or not starts:
-        kind = ValueError if isinstance(starts, Sequence) and not starts else TypeError
-        raise kind(
-            f"starts must be a non-empty sequence of start names {START_NAMES}, numbers "
-            f"(constant currents, A) or current arrays, got {starts!r}"
-        )
-    e, t, i_max = episodes.n_episodes, episodes.n_steps, episodes.i_max
-    names, arrays = [], []
-    for j, start in enumerate(starts):
-        if isinstance(start, str):
-            names.append(start)
-            arrays.append(_named_start(episodes, j, start, random_seed))
-        elif isinstance(start, (int, float, np.integer, np.floating)) and not isinstance(
-            start, bool
-        ):
-            level = float(start)
-            if not 0.0 <= level <= i_max:
-                raise ValueError(f"starts[{j}]: a constant current must be in [0, {i_max}] A")
-            names.append(f"constant:{level:g}")
-            arrays.append(np.full((e, t), level))
-        else:
-            arrays.append(_array_start(episodes, j, start))
-            names.append(f"given:{j}")
-    return names, np.stack(arrays)
 
 
 # ------------------------------------------------------------------------------ the search
@@ -366,6 +234,7 @@ def _check_arguments(
     check_integer("restarts", options["restarts"], 0, 100)
     check_integer("smooth_steps", options["smooth_steps"], 1, 1_000_000)
     check_integer("random_seed", options["random_seed"], 0, 2**63 - 1)
+    check_integer("searched_candidates", options["searched_candidates"], 0, 1_000_000)
     check_positive("tol", options["tol"])
     if options["max_stroke_m"] is not None:
         check_positive("max_stroke_m", options["max_stroke_m"])
@@ -374,7 +243,7 @@ def _check_arguments(
 
 
 class _Search:
-    """L-BFGS-B searches on the episodes' search plants, in lockstep (:class:`_Lockstep`); the
+    """L-BFGS-B searches on the episodes' search plants, in lockstep (:class:`Lockstep`); the
     objective of episode ``k`` is scaled by its Wk at zero current and the currents by
     ``i_max`` (both searched quantities near 1)."""
 
@@ -406,6 +275,15 @@ class _Search:
             out[lane] = (value / self.scale[k], grad * (i_max / self.scale[k]))
         return out
 
+    def env_wk(self, lanes: np.ndarray, currents: np.ndarray) -> np.ndarray:
+        """Wk of currents (L, T) on episodes ``lanes`` (L,) with the env's own substeps."""
+        outputs = self.episodes.run(lanes, currents, substeps="env")[1]
+        return self.objective.wk(outputs[:, :, OUT_BODY_ACC])
+
+    def ends(self, found: list[Any]) -> np.ndarray:
+        """The currents (L, T) (A) where the searches ``found`` (:meth:`optimise`) ended."""
+        return np.stack([np.clip(r.x, 0.0, 1.0) * self.episodes.i_max for r in found])
+
     def optimise(self, lane_episode: np.ndarray, currents: np.ndarray) -> list[Any]:
         """One search per lane (episode ``lane_episode[j]`` from currents ``currents[j]``);
         returns scipy's results, their ``x`` in units of ``i_max``."""
@@ -418,7 +296,7 @@ class _Search:
             )  # fmt: skip
 
         searches = {j: search(currents[j] / self.episodes.i_max) for j in range(len(currents))}
-        found = _Lockstep(lambda batch: self._evaluate(lane_episode, batch)).run(searches)
+        found = Lockstep(lambda batch: self._evaluate(lane_episode, batch)).run(searches)
         return [found[j] for j in range(len(currents))]
 
 
@@ -445,6 +323,8 @@ def clairvoyant_bound(
     max_stroke_m: float | None = None,
     stroke_penalty: float = 1000.0,
     random_seed: int = 0,
+    candidates: Mapping[str, Any] | None = None,
+    searched_candidates: int = 1,
 ) -> OracleResult:
     """The lowest Wk-weighted RMS body acceleration a multi-start local search finds for a
     clairvoyant controller, per episode: the applied coil-current sequence ``u_t`` in
@@ -491,6 +371,16 @@ def clairvoyant_bound(
         ``max_stroke_m`` and ``terminated`` in the result).
     random_seed
         Seed of the ``"random"`` start.
+    candidates
+        Named applied-current sequences, (T,) or (E, T) each (A), e.g. each evaluated
+        controller's :func:`applied_currents` on these episodes (``evaluate.py --oracle``
+        gives every controller on the oracle's plant). Each is replayed on every episode and
+        kept where it is the lowest of all, so the oracle is never above a candidate's own Wk
+        on the env's plant; per episode the ``searched_candidates`` of lowest own Wk are also
+        searched from (like ``starts``).
+    searched_candidates
+        How many candidates each episode is searched from (0: none; each costs about as
+        much as one start).
 
     Returns
     -------
@@ -506,7 +396,8 @@ def clairvoyant_bound(
         the argument and what it accepts.
     ValueError
         A value out of range (``episode_length_s=0`` or too short for the metrics'
-        spectra, ``max_iter=0``, an empty ``seeds``, an unknown start, an env argument the
+        spectra, ``max_iter=0``, an empty ``seeds``, an unknown start, a candidate named like
+        a start or of the wrong shape, ``searched_candidates=-1``, an env argument the
         env refuses, ``env_kwargs`` setting ``episode_length_s`` or ``num_envs``); the message
         names the argument and its accepted range. An unknown env argument raises
         :class:`~capsule_env.common.validation.UnexpectedArgumentError`, both a ``TypeError`` and a
@@ -516,6 +407,7 @@ def clairvoyant_bound(
         "episode_length_s": episode_length_s, "max_iter": max_iter, "tol": tol,
         "restarts": restarts, "smooth_steps": smooth_steps, "max_stroke_m": max_stroke_m,
         "stroke_penalty": stroke_penalty, "random_seed": random_seed,
+        "searched_candidates": searched_candidates,
     }  # fmt: skip
     env_args, seeds = _check_arguments(env_kwargs, seeds, options)
     t_start = time.perf_counter()
@@ -524,33 +416,24 @@ def clairvoyant_bound(
     limit = episodes.config.stroke_limit_m if max_stroke_m is None else float(max_stroke_m)
     options["max_stroke_m"] = limit
     objective = RideObjective(episodes.n_steps, episodes.dt_s, limit, stroke_penalty)
-    names, start_u = _starts(episodes, starts, random_seed)
-    n_starts, n_ep, n_steps = len(names), episodes.n_episodes, episodes.n_steps
-    i_max = episodes.i_max
+    names, start_u = named_starts(episodes, starts, random_seed)
+    own_names, own_u = candidate_starts(episodes, candidates, names)
+    options["candidates"] = list(own_names)
+    n_named, names = len(names), [*names, *own_names]
+    start_u = np.concatenate([start_u, own_u])
     search = _Search(episodes, objective, int(max_iter), float(tol))
-
-    def env_wk(lanes: np.ndarray, currents: np.ndarray) -> np.ndarray:
-        return objective.wk(episodes.run(lanes, currents, substeps="env")[1][:, :, OUT_BODY_ACC])
-
-    lanes = np.tile(np.arange(n_ep), n_starts)  # lane s * E + k: start s on episode k
-    found = search.optimise(lanes, start_u.reshape(-1, n_steps))
-    ends = np.stack([np.clip(r.x, 0.0, 1.0) * i_max for r in found])
-    final_wk = env_wk(lanes, ends).reshape(n_starts, n_ep).T
-    start_wk = env_wk(lanes, start_u.reshape(-1, n_steps)).reshape(n_starts, n_ep).T
-    iterations = np.array([r.nit for r in found]).reshape(n_starts, n_ep).T
-    messages = [[str(found[s * n_ep + k].message) for s in range(n_starts)] for k in range(n_ep)]
-    best_start = np.argmin(final_wk, axis=1)
-    best = np.stack([ends[best_start[k] * n_ep + k] for k in range(n_ep)])
-    best_wk = final_wk[np.arange(n_ep), best_start]
-    restart_wk = np.zeros((n_ep, restarts))
+    found = _from_starts(search, start_u, n_named, int(searched_candidates))
+    best, best_wk, best_index, stage = found.best()
+    restart_wk = np.zeros((episodes.n_episodes, restarts))
+    lanes = np.arange(episodes.n_episodes)
     for r in range(restarts):
-        found = search.optimise(np.arange(n_ep), _smooth(best, smooth_steps, i_max))
-        ends = np.stack([np.clip(res.x, 0.0, 1.0) * i_max for res in found])
-        restart_wk[:, r] = env_wk(np.arange(n_ep), ends)
+        ends = search.ends(search.optimise(lanes, _smooth(best, smooth_steps, episodes.i_max)))
+        restart_wk[:, r] = search.env_wk(lanes, ends)
         better = restart_wk[:, r] < best_wk
         best[better], best_wk[better] = ends[better], restart_wk[better, r]
+        stage[better] = "restart"
 
-    states, outputs = episodes.run(np.arange(n_ep), best, substeps="env")
+    states, outputs = episodes.run(lanes, best, substeps="env")
     signals = _signals(states, outputs, best)
     total = time.perf_counter() - t_start
     stroke = np.max(np.abs(signals["stroke_m"]), axis=1)
@@ -562,11 +445,14 @@ def clairvoyant_bound(
         signals=signals,
         wk_rms_body_acc_m_s2=objective.wk(signals["car_body_acceleration_m_s2"]),
         start_names=tuple(names),
-        start_wk_m_s2=start_wk,
-        final_wk_m_s2=final_wk,
+        start_wk_m_s2=found.start_wk,
+        final_wk_m_s2=found.final_wk,
+        searched=found.searched,
+        best_start=tuple(names[j] for j in best_index),
+        best_stage=tuple(str(v) for v in stage),
         restart_wk_m_s2=restart_wk,
-        iterations=iterations,
-        messages=messages,
+        iterations=found.iterations,
+        messages=found.messages,
         max_stroke_m=stroke,
         terminated=stroke > episodes.config.stroke_limit_m,
         time_s=total * search.evaluations / max(int(search.evaluations.sum()), 1),
@@ -574,6 +460,60 @@ def clairvoyant_bound(
         evaluations=search.evaluations.copy(),
         options=options,
     )
+
+
+@dataclass
+class _Searched:
+    """What the searches from the starts found (``S`` starts, ``E`` episodes, ``T`` steps):
+    the starts' currents and their ends, (S, E, T) (a start not searched from ends where it
+    began), and :class:`OracleResult`'s per-start fields."""
+
+    start_u: np.ndarray
+    end_u: np.ndarray
+    start_wk: np.ndarray
+    final_wk: np.ndarray
+    searched: np.ndarray
+    iterations: np.ndarray
+    messages: list[list[str]]
+
+    def best(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per episode the lowest Wk of every search's end and every start's own sequence:
+        ``(currents (E, T), Wk (E,), the start's index (E,), stage (E,))`` (stage
+        ``"search"`` or ``"own sequence"``; a tie goes to the search)."""
+        episodes = np.arange(self.start_wk.shape[0])
+        reached = np.where(self.searched, self.final_wk, np.inf)
+        by_search, by_own = np.argmin(reached, axis=1), np.argmin(self.start_wk, axis=1)
+        own = self.start_wk[episodes, by_own] < reached[episodes, by_search]
+        index = np.where(own, by_own, by_search)
+        currents = np.where(
+            own[:, None], self.start_u[by_own, episodes], self.end_u[by_search, episodes]
+        )
+        wk = np.where(own, self.start_wk[episodes, by_own], reached[episodes, by_search])
+        return currents, wk, index, np.where(own, "own sequence", "search").astype(object)
+
+
+def _from_starts(
+    search: _Search, start_u: np.ndarray, n_starts: int, per_episode: int
+) -> _Searched:
+    """Measure every start's own sequence (``start_u`` (S, E, T), the first ``n_starts`` the
+    ``starts``, the rest candidates) on the env's plant, then search each episode from the
+    starts :func:`~capsule_env.oracle.starts.searched_starts` picks, all in lockstep."""
+    n_all, n_ep, n_steps = start_u.shape
+    lanes = np.tile(np.arange(n_ep), n_all)  # lane s * E + k: start s on episode k
+    start_wk = search.env_wk(lanes, start_u.reshape(-1, n_steps)).reshape(n_all, n_ep).T
+    searched = searched_starts(start_wk, n_starts, per_episode)
+    pairs = np.argwhere(searched.T)  # rows (s, k), start-major
+    found = search.optimise(pairs[:, 1], start_u[pairs[:, 0], pairs[:, 1]])
+    end_u = start_u.copy()
+    end_u[pairs[:, 0], pairs[:, 1]] = search.ends(found)
+    final_wk = np.full((n_ep, n_all), np.nan)
+    final_wk[pairs[:, 1], pairs[:, 0]] = search.env_wk(pairs[:, 1], end_u[pairs[:, 0], pairs[:, 1]])
+    iterations = np.zeros((n_ep, n_all), dtype=np.int64)
+    messages = [["not searched"] * n_all for _ in range(n_ep)]
+    for (s, k), result in zip(pairs, found):
+        iterations[k, s] = result.nit
+        messages[k][s] = str(result.message)
+    return _Searched(start_u, end_u, start_wk, final_wk, searched, iterations, messages)
 
 
 def _signals(states: np.ndarray, outputs: np.ndarray, currents: np.ndarray) -> dict:
