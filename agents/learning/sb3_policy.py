@@ -100,7 +100,8 @@ def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
 def shipped_policies() -> dict[str, Controller]:
     """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
     ``ppo-measured``, ``ppo-preview``, ``ppo-trip``, ``residual-ppo-mpc`` and
-    ``residual-ppo-mpc-trip`` (the trip task's):
+    ``residual-ppo-mpc-trip`` (the trip task's) and ``residual-ppo-lqr-half-car`` (the half-car
+    task's, on its per-bogie clipped LQR, two actions):
     :class:`~capsule_env.agents.learning.residual.ResidualPolicy`, the MPC plus its learned correction).
     Each carries the env arguments it was trained with (``env_kwargs``: pass them to
     ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra; a residual on
