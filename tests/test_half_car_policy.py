@@ -124,3 +124,19 @@ def test_it_exports_with_a_contract_of_the_half_cars_columns(tmp_path):
     assert card["residual"]["law"] == "lqr-clipped-biexp-meas"
     assert card["residual"]["rig_provides_law"] is True  # not the 1/4-car's law written in C
     assert "capsule_law" not in files[f"{NAME}.c"].read_text()
+
+
+def test_the_selection_script_refuses_an_out_folder_that_is_not_there(tmp_path, capsys):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "half_car_select", ROOT / "experiments" / "half_car_select.py"
+    )
+    select = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(select)
+    assert select.VALIDATION_GUIDEWAY_SEED not in (0, 2026)  # not training's, not evaluation's
+    assert not set(select.VALIDATION_EPISODES) & set(range(1000, 1010))
+    with pytest.raises(SystemExit) as exit_:
+        select.main(["--out", str(tmp_path / "missing" / "x.json")])
+    assert exit_.value.code == 2 and "--out's folder must exist" in capsys.readouterr().err
+    assert not (tmp_path / "missing").exists()
