@@ -23,6 +23,12 @@ stderr and exit status 1 (2 for argument syntax, an unknown ``--task`` and a bad
 says how they combine with ``--setting``, ``--episode-length`` and each controller's own
 options); the tables and the JSON (``condition``) name them, and ``--plots DIR`` then writes
 into the sub-folder ``DIR/<task>+KEY=VALUE...`` so that the paper run's figures stay.
+
+``--task CapsuleHalfRide-v0`` (a declared vehicle, two dampers) runs the half-car's own
+evaluation (:mod:`capsule_env.evaluation.half_car`: its laws, its shipped policy, ``--oracle``
+the declared oracle) and writes the same JSON layout, the headline ``wk_rms_body_acc_m_s2``
+the floor's mean over its front, centre and rear; it takes ``--episodes``, ``--seed``,
+``--oracle``, ``--no-shipped-policy`` and ``--json``, and refuses any other option in one line.
 """
 
 from __future__ import annotations
