@@ -3,19 +3,28 @@ env with 1024 vehicles at >= 0.4x ``CapsuleRide-v0``'s vehicle-steps per second)
 
     python benchmarks/bench_half_car.py            # prints the table
     python benchmarks/bench_half_car.py --quick    # short windows (a smoke test)
+    NUMBA_NUM_THREADS=1 python benchmarks/bench_half_car.py --repeats 5   # one core each
 
-Measures, alternating windows of each (3 repeats, the median), zero actions:
+On a loaded machine the all-core figures measure the threads' wait at every step's barrier,
+not the kernels (every row of one run near 0.05-0.1 M vehicle-steps/s on the shared 2-core VM
+at load 9): compare kernels there with ``NUMBA_NUM_THREADS=1``.
+
+Measures, alternating windows of each (``--repeats``, 3 by default; the median), zero actions:
 
 1. ``CapsuleRide-v0`` and ``CapsuleHalfRide-v0`` native vector envs at N = 1024 (vehicle-steps
    per second, and their ratio);
-2. the declared plant alone at N = 1024 (all cores): on the quarter-car's declaration (beside
-   the first row: what the generic loops cost on the quarter-car's physics) and on the
-   half-car.
+2. ``CapsuleHalfRide-v0`` as it ran before the lanes kernel (the declared plant one vehicle at a
+   time, :func:`capsule_env.plant.declared.declared_step`, and the sensing in numpy: kept below
+   as :func:`_step_before`), the same numbers bit for bit (``tests/test_declared_lanes.py``);
+3. each plant alone at N = 1024 (the run's threads), one vehicle at a time and in lanes
+   (:mod:`capsule_env.plant.declared_lanes`): on the quarter-car's declaration (beside the
+   first row: what the generic loops cost on the quarter-car's physics) and on the half-car.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import statistics
 import subprocess
@@ -23,10 +32,13 @@ import time
 from typing import Any
 
 import gymnasium as gym
+import numba
 import numpy as np
 
 import capsule_env  # noqa: F401  (registers the tasks)
+from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD, _normals
 from capsule_env.plant.declared import declared_step_parallel
+from capsule_env.plant.declared_lanes import lanes_step_parallel, plant_form
 
 
 def _env_rate(env: Any, steps: int) -> float:
@@ -37,8 +49,10 @@ def _env_rate(env: Any, steps: int) -> float:
     return env.num_envs * steps / (time.perf_counter() - start)
 
 
-def _plant_rate(batch: Any, steps: int) -> float:
-    step = declared_step_parallel(batch.damper.code)
+def _plant_rate(batch: Any, steps: int, lanes: bool) -> float:
+    code = batch.damper.code
+    step = lanes_step_parallel(code, plant_form(batch.plant)) if lanes else (
+        declared_step_parallel(code))  # fmt: skip
     start = time.perf_counter()
     for _ in range(steps):
         step(batch.num_envs, batch.plant, batch.state, batch.command, batch.route, batch.dt,
@@ -58,30 +72,104 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--quick", action="store_true", help="short windows")
     p.add_argument("--num-envs", type=int, default=1024)
+    p.add_argument("--repeats", type=int, default=3, help="alternating windows (the median)")
     args = p.parse_args()
     n, steps = args.num_envs, (20 if args.quick else 300)
+    if args.quick:
+        args.repeats = 1
     ride = gym.make_vec("CapsuleRide-v0", num_envs=n, vectorization_mode="vector_entry_point")
     half = gym.make_vec("CapsuleHalfRide-v0", num_envs=n, vectorization_mode="vector_entry_point")
     for env in (ride, half):
         env.reset(seed=0)
         _env_rate(env, 3)  # compile
+    before = gym.make_vec("CapsuleHalfRide-v0", num_envs=n,
+                          vectorization_mode="vector_entry_point")  # fmt: skip
+    batch_before = before.unwrapped.batch
+    batch_before.step = lambda actions: _step_before(batch_before, actions)
+    before.reset(seed=0)
+    _env_rate(before, 3)
     qd = _declared_batch(n)
     qd.reset()
     half_batch = half.unwrapped.batch
-    _plant_rate(qd, 2), _plant_rate(half_batch, 2)
+    for lanes in (False, True):
+        _plant_rate(qd, 2, lanes), _plant_rate(half_batch, 2, lanes)
     rates = _median_windows({
         "CapsuleRide-v0 env": lambda: _env_rate(ride, steps),
-        "CapsuleHalfRide-v0 env": lambda: _env_rate(half, steps // 4),
-        "declared plant, quarter_car": lambda: _plant_rate(qd, steps // 2),
-        "declared plant, half_car": lambda: _plant_rate(half_batch, steps // 4),
-    }, 1 if args.quick else 3)  # fmt: skip
+        "CapsuleHalfRide-v0 env": lambda: _env_rate(half, steps // 2),
+        "CapsuleHalfRide-v0 env, before": lambda: _env_rate(before, steps // 4),
+        "declared plant, quarter_car": lambda: _plant_rate(qd, steps // 2, False),
+        "lanes plant, quarter_car": lambda: _plant_rate(qd, steps, True),
+        "declared plant, half_car": lambda: _plant_rate(half_batch, steps // 4, False),
+        "lanes plant, half_car": lambda: _plant_rate(half_batch, steps // 2, True),
+    }, args.repeats)  # fmt: skip
     cpu = _cpu()
-    print(f"{time.strftime('%Y-%m-%d')}, {cpu}, {platform.python_version()}, N = {n}")
+    print(f"{time.strftime('%Y-%m-%d %H:%M')}, {cpu}, {platform.python_version()}, N = {n}, "
+          f"{numba.get_num_threads()} thread(s), load {os.getloadavg()[0]:.1f}")  # fmt: skip
     print(f"{'what':32s} {'vehicle-steps/s':>16s}")
     for name, rate in rates.items():
         print(f"{name:32s} {rate:16.4g}")
     ratio = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleRide-v0 env"]
-    print(f"half-car / ride: {ratio:.3f} (bar: >= 0.4)")
+    gain = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleHalfRide-v0 env, before"]
+    print(f"half-car / ride: {ratio:.3f} (bar: >= 0.4); half-car now / before: {gain:.2f}")
+
+
+def _step_before(batch: Any, actions: np.ndarray) -> dict[str, np.ndarray]:
+    """``DeclaredBatch.step`` as it was before the lanes kernel (commit 42ef846): the declared
+    plant one vehicle at a time, the sensing in numpy (its ``_measure`` and ``_estimate``)."""
+    batch.requested[:] = batch.commands(actions)
+    if batch.delay_steps:
+        batch.command[:] = batch.delay[:, 0]
+        batch.delay[:, :-1] = batch.delay[:, 1:]
+        batch.delay[:, -1] = batch.requested
+    else:
+        batch.command[:] = batch.requested
+    assert batch.num_envs >= PARALLEL_THRESHOLD  # noqa: S101 - the threaded kernel
+    declared_step_parallel(batch.damper.code)(batch.num_envs, batch.plant, batch.state,
+                                              batch.command, batch.route, batch.dt, batch.out)  # fmt: skip
+    batch.step_count += 1
+    sig = _signals_before(batch)
+    n, ns = batch.num_envs, batch.n_slots
+    ends = sig["slot_end_acceleration_m_s2"].reshape(n, ns, 2)
+    true = np.stack([sig["stroke_m"], sig["stroke_rate_m_s"], ends[..., 0], ends[..., 1],
+                     sig["gap_m"]], axis=-1).reshape(n, -1)  # fmt: skip
+    if batch.noise_level > 0.0:
+        normals = np.empty((n, true.shape[1] + 1))
+        _normals(batch.noise_key, batch.step_count, normals)
+        true = true + batch._noise_std * normals[:, : true.shape[1]]
+    batch.measured[:] = true
+    acc = true.reshape(n, ns, N_SLOT_CHANNELS)[:, :, 2:4]
+    b0, b1, b2, a1, a2 = batch._estimator
+    s1, s2 = batch._estimator_state[..., 0], batch._estimator_state[..., 1]
+    y = b0 * acc + s1
+    s1[...] = b1 * acc - a1 * y + s2
+    s2[...] = b2 * acc - a2 * y
+    batch.estimates[:] = y
+    return sig
+
+
+def _combine_before(x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    out = np.zeros((x.shape[0], rows.shape[0]))
+    for j in range(rows.shape[1]):
+        out += x[:, j, None] * rows[None, :, j]
+    return out
+
+
+def _signals_before(batch: Any) -> dict[str, np.ndarray]:
+    """``DeclaredBatch.signals`` with its sums in numpy, as before."""
+    ns, nc = batch.n_slots, batch.n_coords
+    q, v = batch.positions_rates()
+    acc, zg = batch.out[:, ns : ns + nc], batch.out[:, ns + nc :]
+    return {
+        "stroke_m": _combine_before(q, batch.stroke_rows),
+        "stroke_rate_m_s": _combine_before(v, batch.stroke_rows),
+        "damper_force_n": batch.out[:, :ns].copy(),
+        "coil_current_a": batch.state[:, 2 * nc + 2 : 2 * nc + 3 * ns : 3].copy(),
+        "current_command_a": batch.requested.copy(),
+        "comfort_acceleration_m_s2": _combine_before(acc, batch.comfort_rows),
+        "slot_end_acceleration_m_s2": _combine_before(acc, batch.end_rows),
+        "guideway_elevation_m": zg.copy(),
+        "gap_m": _combine_before(q, batch.gap_rows) - _combine_before(zg, batch.gap_contacts),
+    }
 
 
 def _declared_batch(n: int) -> Any:
