@@ -39,7 +39,7 @@ from capsule_env.bounds.relaxation import (
     damper_envelope,
 )
 
-__all__ = ["FloorResult", "certified_floor", "floor_row", "DEFAULT_OPTIONS"]
+__all__ = ["DEFAULT_OPTIONS", "FloorResult", "certified_floor", "floor_row", "verify"]
 
 #: ``max_iterations``: L-BFGS-B iterations per episode; ``lam_scale``: the multipliers'
 #: scale (the optimiser's variables are ``lam / lam_scale``); ``lam_start``: the start, per
@@ -186,10 +186,12 @@ def verify(result: FloorResult) -> np.ndarray:
 
 
 def floor_row(result: FloorResult) -> dict[str, Any]:
-    """A results row, as evaluate.py's: ``wk_rms_body_acc_m_s2`` the mean over episodes,
+    """A results row, as evaluate.py's: ``wk_rms_body_acc_m_s2`` the mean over episodes and
+    ``std`` its spread (as :func:`~capsule_env.evaluation.episodes.episode_metrics`),
     ``per_episode`` the values, ``certified: True``, ``method``, the search's summary."""
     return {
         "wk_rms_body_acc_m_s2": result.mean_wk_m_s2,
+        "std": {"wk_rms_body_acc_m_s2": float(np.std(result.floor_wk_m_s2))},
         "per_episode": {"wk_rms_body_acc_m_s2": [float(v) for v in result.floor_wk_m_s2]},
         "certified": True,
         "method": result.method,
