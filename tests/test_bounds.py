@@ -180,3 +180,29 @@ def test_offset_sector_constant_is_an_upper_bound_and_tight(sim: OracleEpisodes)
         sampled = float(np.max((d - env.b_lo * v) * (d - m * v)))
         delta = offset_sector_constant(env, m)
         assert sampled <= delta <= 1.01 * sampled
+
+
+def test_dual_reaches_the_shor_sdp_optimum_at_its_multipliers() -> None:
+    """An independent solver (Clarabel's interior point on the Shor SDP) against the dual's
+    own evaluation: at the SDP's multipliers ``g`` is the SDP optimum (strong duality; the
+    assembly, the offsets' elimination and the certificate's margin), and L-BFGS-B's ``g`` is
+    below it (weak duality). A narrowed damper set (1 % of the yield force, no offset) so that
+    the optimum is well above 0: a check of the algebra, not of the model."""
+    from dataclasses import replace
+
+    from capsule_env.bounds import DEFAULT_OPTIONS
+    from capsule_env.bounds.dual import maximise
+    from capsule_env.bounds.sdp import solve_shor
+
+    ep = OracleEpisodes({"setting": "sim"}, [1000], 0.02)
+    lifted = lift_episode(ep, 0)
+    env = damper_envelope(ep.code, ep.damper_params[0])
+    env = replace(env, a_hi=0.01 * env.a_hi, c_lo=0.0, c_hi=0.0)
+    problem = DualProblem(lifted, constraint_matrices(env))
+    sdp = solve_shor(problem)
+    assert sdp.status == "Solved" and sdp.value > 0.0
+    g = problem.evaluate(sdp.multipliers).value
+    assert 0.99 * sdp.value <= g <= sdp.value * (1.0 + 1e-6)
+    lam0 = np.tile(np.array(DEFAULT_OPTIONS["lam_start"]), (lifted.n_forces, 1))
+    found = maximise(problem, lam0, 50, DEFAULT_OPTIONS["lam_scale"]).point.value
+    assert found <= sdp.value * (1.0 + 1e-6)
