@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 
 from capsule_env._fastmath import BORROWED, FAST
-from capsule_env._jit import specialised
+from capsule_env._jit import specialised, unique_symbol
 from capsule_env.dampers.base import COIL_TAU, I_MAX, N_DAMPER_PARAMS
 from capsule_env.dampers.dispatch import hysteresis_params, model_force, model_prepare
 from capsule_env.dampers.hysteresis import hysteresis_update
@@ -421,7 +421,10 @@ def lanes_step_parallel(code: int, form: int) -> Any:
     if (code, form) not in _PARALLEL:
         model, shape = code, form
 
-        @njit(parallel=True, cache=False)
+        # Cached on disk (a symbol of its own per variant: :func:`unique_symbol`); the
+        # one-at-a-time kernel's threaded entry compiles again in every process.
+        @njit(parallel=True, cache=True, no_cfunc_wrapper=True)
+        @unique_symbol(f"lanes_{code}_{form}")
         def step(n, plant, x, i_cmd, route, dt, out):  # pragma: no cover - numba
             for c in prange((n + LANES - 1) // LANES):
                 lo = c * LANES
