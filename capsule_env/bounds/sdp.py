@@ -6,8 +6,9 @@ Variables: the moment matrix ``X`` of ``u = (f, c, 1)`` (``2N + 1`` square, ``X 
 ``tr(E_s^T M_k E_s X) >= 0``, ``E_s`` mapping ``u`` to evaluation ``s``'s ``(d, c, v, x, 1)``.
 Its optimum is the best bound the Lagrangian dual can give (strong duality holds for this
 conic program when both sides are strictly feasible); its dual multipliers of the constraints
-are multipliers for :meth:`~capsule_env.bounds.dual.DualProblem.evaluate`. Dense: only for
-``N`` up to about 100 (``0.05 s`` of the ``sim`` setting).
+are multipliers for :meth:`~capsule_env.bounds.dual.DualProblem.evaluate`. Dense, and Clarabel's
+factorisation grows fast: 36 force evaluations (0.02 s of the ``sim`` setting) solve in about
+20 s; 90 (0.05 s) took more than 14 GB before it was stopped; refused beyond ``max_forces``.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def _lift(problem: DualProblem, s: int) -> np.ndarray:
     return e
 
 
-def solve_shor(problem: DualProblem, max_forces: int = 120) -> ShorSolution:
+def solve_shor(problem: DualProblem, max_forces: int = 60) -> ShorSolution:
     """Solve the Shor SDP of ``problem`` with Clarabel; ValueError beyond ``max_forces``."""
     import clarabel
 
