@@ -158,6 +158,7 @@ def test_floor_below_the_oracle_and_the_controllers() -> None:
         (({"setting": "sim"}, [-1], 0.1), {}, ValueError, "seeds"),
         (({"setting": "sim"}, "1000", 0.1), {}, TypeError, "seeds"),
         (({"setting": "sim"}, [1000], 0.0), {}, ValueError, "episode_length_s"),
+        (({"setting": "sim"}, [1000], 3.0), {}, ValueError, "at most 4000"),
         (({"setting": "sim"}, [1000], 0.1), {"max_iterations": -1}, ValueError, "max_iter"),
         (({"setting": "sim"}, [1000], 0.1), {"lam_scale": 0.0}, ValueError, "lam_scale"),
         (({"setting": "sim"}, [1000], 0.1), {"lam_start": (1.0,)}, ValueError, "lam_start"),

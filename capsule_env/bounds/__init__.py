@@ -32,21 +32,25 @@ from typing import Any
 import numpy as np
 
 from capsule_env.bounds.dual import DualProblem, DualSolution, maximise
-from capsule_env.bounds.lifted import LiftedEpisode, lift_episode
+from capsule_env.bounds.lifted import LiftedEpisode, check_liftable, lift_episode
 from capsule_env.bounds.relaxation import (
     constraint_matrices,
     constraint_names,
     damper_envelope,
 )
 
-__all__ = ["DEFAULT_OPTIONS", "FloorResult", "certified_floor", "floor_row", "verify"]
+__all__ = ["DEFAULT_OPTIONS", "MAX_FORCES", "FloorResult", "certified_floor", "floor_row", "verify"]
+
+#: Most force evaluations per episode (the dual's dense Hessian is ``N + 1`` square; 4000 is
+#: 2.2 s of the ``sim`` setting, about 130 MB per matrix and seconds per Cholesky).
+MAX_FORCES = 4000
 
 #: ``max_iterations``: L-BFGS-B iterations per episode; ``lam_scale``: the multipliers'
 #: scale (the optimiser's variables are ``lam / lam_scale``); ``lam_start``: the start, per
 #: constraint of :func:`~capsule_env.bounds.relaxation.constraint_names` (a positive definite
 #: one: the rate part's magnitude above the maximum slope and the offset's band).
 DEFAULT_OPTIONS: dict[str, Any] = {
-    "max_iterations": 200,
+    "max_iterations": 30,
     "lam_scale": 1e-6,
     "lam_start": tuple(
         1e-7 if n in ("rate_part_above_max_slope", "offset_band") else 0.0
@@ -156,6 +160,13 @@ def certified_floor(
     episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
     for k in range(len(seeds_t)):  # refuse before any long computation
         damper_envelope(episodes.code, episodes.damper_params[k])
+        n_forces = episodes.n_steps * (4 * check_liftable(episodes, k) + 1)
+        if n_forces > MAX_FORCES:
+            raise ValueError(
+                f"episode_length_s {length:g} s needs {n_forces} force evaluations per episode; "
+                f"the certified floor takes at most {MAX_FORCES} (about "
+                f"{MAX_FORCES / n_forces * length:.2g} s here)"
+            )
     floors, values, lams, evals = [], [], [], []
     for k in range(len(seeds_t)):
         lifted, problem = _problem(episodes, k)
