@@ -207,3 +207,13 @@ def test_dual_reaches_the_shor_sdp_optimum_at_its_multipliers() -> None:
     lam0 = np.tile(np.array(DEFAULT_OPTIONS["lam_start"]), (lifted.n_forces, 1))
     found = maximise(problem, lam0, 50, DEFAULT_OPTIONS["lam_scale"]).point.value
     assert found <= sdp.value * (1.0 + 1e-6)
+
+
+def test_cli_refuses_the_hils_plant_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    from capsule_env.bounds.__main__ import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--setting", "hils", "--episodes", "1", "--episode-length", "0.1"])
+    message = str(exc.value.code)
+    assert message.startswith("python -m capsule_env.bounds: error:") and "\n" not in message
+    assert "supported" in message and capsys.readouterr().out == ""

@@ -22,13 +22,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-iterations", type=int, default=100, help="L-BFGS-B iterations")
     args = p.parse_args(argv)
     if args.episodes < 1 or args.seed < 0:
-        p.error(f"--episodes must be >= 1 and --seed >= 0, got {args.episodes}, {args.seed}")
+        sys.exit(f"{p.prog}: error: --episodes must be >= 1 and --seed >= 0, got "
+                 f"{args.episodes}, {args.seed}")  # fmt: skip
     seeds = list(range(args.seed, args.seed + args.episodes))
     try:
         result = certified_floor({"setting": args.setting}, seeds, args.episode_length,
                                  max_iterations=args.max_iterations)  # fmt: skip
     except (ValueError, TypeError) as exc:
-        p.error(str(exc))
+        sys.exit(f"{p.prog}: error: {exc}")
     print(json.dumps(result.summary(), indent=1))
     return 0
 
