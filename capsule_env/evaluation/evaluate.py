@@ -27,8 +27,10 @@ into the sub-folder ``DIR/<task>+KEY=VALUE...`` so that the paper run's figures 
 ``--task CapsuleHalfRide-v0`` (a declared vehicle, two dampers) runs the half-car's own
 evaluation (:mod:`capsule_env.evaluation.half_car`: its laws, its shipped policy, ``--oracle``
 the declared oracle) and writes the same JSON layout, the headline ``wk_rms_body_acc_m_s2``
-the floor's mean over its front, centre and rear; it takes ``--episodes``, ``--seed``,
-``--oracle``, ``--no-shipped-policy`` and ``--json``, and refuses any other option in one line.
+the floor's mean over its front, centre and rear; ``--task CapsuleHalfRidePreview-v0`` the
+same rows and the survey-preview LQ's (:mod:`capsule_env.evaluation.half_car_preview`). They
+take ``--episodes``, ``--seed``, ``--oracle``, ``--no-shipped-policy`` and ``--json``, and
+refuse any other option in one line.
 """
 
 from __future__ import annotations
@@ -100,7 +102,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="evaluate on a registered task (capsule_env.tasks: "
                    + ", ".join(t.env_id for t in TASKS + DECLARED_TASKS) + "): its env options, "
                    "its setting (a declared vehicle's task: its own evaluation, "
-                   "capsule_env.evaluation.half_car)")  # fmt: skip
+                   "capsule_env.evaluation.half_car, half_car_preview)")  # fmt: skip
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help="one env option of the evaluated env (VALUE JSON or a Python literal, "
                    "a bare word a string; over the --task's), repeatable, as train.py's: "
@@ -474,15 +476,22 @@ def _progress(done: int, total: int, label: str, elapsed: float) -> None:
 DECLARED_OPTIONS = "--episodes (>= 2), --seed, --oracle, --no-shipped-policy and --json"
 
 
+def _declared_evaluations() -> dict[str, Any]:
+    """The declared vehicles' tasks that ``evaluate.py`` evaluates, each with its evaluation's
+    module (``evaluation_results``, ``format_rows``, ``ORACLE_ITERATIONS``)."""
+    from capsule_env.evaluation import half_car, half_car_preview
+
+    return {half_car.TASK_ID: half_car, half_car_preview.TASK_ID: half_car_preview}
+
+
 def _declared_refusal(args: argparse.Namespace) -> str:
     """Why ``args`` (``--task`` a declared vehicle's task) cannot run ("" when they can): the
-    half-car's evaluation runs its own laws and the task's shipped policies on the ``hils``
-    plant, 10 s episodes; the other options of ``evaluate.py`` are refused, each named."""
-    from capsule_env.evaluation.half_car import TASK_ID
-
-    if args.task != TASK_ID:
+    half-car's evaluations run their own laws and the half-car task's shipped policies on the
+    ``hils`` plant, 10 s episodes; the other options of ``evaluate.py`` are refused, each named."""
+    evaluated = _declared_evaluations()
+    if args.task not in evaluated:
         return (f"evaluate.py does not evaluate {args.task} yet (of the declared vehicles' "
-                f"tasks, {TASK_ID} only)")  # fmt: skip
+                f"tasks, {' and '.join(evaluated)} only)")  # fmt: skip
     given = {"--setting": args.setting not in (None, "hils"), "--env": bool(args.env),
              "--controllers": args.controllers != ",".join(DEFAULT_CONTROLLERS),
              "--policy": bool(args.policy), "--allow-unnormalized": args.allow_unnormalized,
@@ -491,7 +500,7 @@ def _declared_refusal(args: argparse.Namespace) -> str:
     refused = [option for option, set_ in given.items() if set_]
     if refused:
         return (f"{', '.join(refused)} not supported with --task {args.task} (its evaluation, "
-                "capsule_env.evaluation.half_car, runs its own laws and shipped policies on the "
+                f"{evaluated[args.task].__name__}, runs its own laws and shipped policies on the "
                 f"hils plant, 10 s episodes); it takes {DECLARED_OPTIONS}")  # fmt: skip
     if args.episodes < 2:
         return (f"--episodes must be >= 2 with --task {args.task} (intervals over the "
@@ -505,8 +514,6 @@ def _declared_main(args: argparse.Namespace) -> int:
     """``--task`` a declared vehicle's task: its evaluation's rows (``evaluate.py``'s JSON
     layout, the headline ``wk_rms_body_acc_m_s2`` the floor's mean over three points), a
     table on stdout, the JSON with ``--json``. Bad options: one line, exit status 2."""
-    from capsule_env.evaluation import half_car
-
     problem = _declared_refusal(args)
     try:
         if not problem and args.json is not None:
@@ -516,15 +523,16 @@ def _declared_main(args: argparse.Namespace) -> int:
     if problem:
         print(f"evaluate.py: error: {problem}", file=sys.stderr)
         return 2
+    evaluation = _declared_evaluations()[args.task]
     options = [f"--task {args.task}", f"--episodes {args.episodes}", f"--seed {args.seed}"]
     options += ["--oracle"] * args.oracle + ["--no-shipped-policy"] * args.no_shipped_policy
     options += [f"--json {args.json}"] if args.json is not None else []
-    results = half_car.evaluation_results(
+    results = evaluation.evaluation_results(
         list(range(args.seed, args.seed + args.episodes)),
-        half_car.ORACLE_ITERATIONS if args.oracle else 0, not args.no_shipped_policy,
+        evaluation.ORACLE_ITERATIONS if args.oracle else 0, not args.no_shipped_policy,
         "python -m capsule_env.evaluation.evaluate " + " ".join(options),
     )  # fmt: skip
-    print(half_car.format_rows(results))
+    print(evaluation.format_rows(results))
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=1))
         print(f"\nwrote {args.json}")

@@ -40,7 +40,7 @@ from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
 
 __all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "shipped_policies",
-           "evaluate", "evaluation_results", "format_rows", "main"]  # fmt: skip
+           "evaluate", "evaluation_results", "layout", "format_rows", "run_cli", "main"]  # fmt: skip
 
 #: The task evaluated here, and its options (``capsule_env.tasks.DECLARED_TASKS``).
 TASK_ID = "CapsuleHalfRide-v0"
@@ -168,14 +168,16 @@ def _describe(law: Any, name: str) -> dict[str, Any]:
     return {"observation": law.observation,
             "uses_unmeasured_signals": bool(law.uses_unmeasured_signals),
             "preview": bool(law.preview), "gains": law.gains(),
-            "gains_tuned": name in ("lqr-clipped-biexp-meas", "lqr-coupled-biexp-meas"),
+            "gains_tuned": name in ("lqr-clipped-biexp-meas", "lqr-coupled-biexp-meas")
+            or bool(getattr(law, "gains_tuned", False)),
             "env_kwargs": {**TASK_KWARGS, **law.env_kwargs}}  # fmt: skip
 
 
 def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int = 0,
-             shipped: bool = True) -> dict:  # fmt: skip
+             shipped: bool = True, survey_laws: dict[str, Any] | None = None) -> dict:  # fmt: skip
     """Every row's metrics (means and intervals over the episodes ``seeds``) and what it
-    reads; the shipped policies trained on the task among them when ``shipped``."""
+    reads; the shipped policies trained on the task among them when ``shipped``;
+    ``survey_laws`` (name -> law, on ``CapsuleHalfRidePreview-v0``) rows after the laws."""
     from capsule_env.agents.controllers.declared_lqr import (
         DeclaredClippedLQR,
         IndependentClippedLQR,
@@ -192,6 +194,7 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
             "lq-discrete-biexp-meas": WheelbasePreviewLQ(*w, preview=False),
             "wheelbase-lq-biexp-meas": WheelbasePreviewLQ(*w),
             "wheelbase-lq-biexp-exact": WheelbaseExactPreviewLQ(*w)}  # fmt: skip
+    laws.update(survey_laws or {})
     classical = list(laws)
     if shipped:
         laws.update(shipped_policies())
@@ -199,7 +202,8 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
     metrics = {name: episode_metrics(r) for name, r in rolls.items()}
     if oracle_iterations:
         starts = {n: rolls[n] for n in classical}  # the oracle starts from a law's currents
-        metrics["oracle"] = _oracle(seeds, starts, metrics, oracle_iterations)
+        metrics["oracle"] = _oracle(seeds, starts, metrics, oracle_iterations,
+                                    set(survey_laws or ()))  # fmt: skip
     reference = metrics["lqr-clipped-biexp-meas"]["wk_rms_body_acc_m_s2"]
     rows = {}
     for name, m in metrics.items():
@@ -213,16 +217,24 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
     return rows
 
 
-def _oracle(seeds: list[int], rolls: dict, metrics: dict, iterations: int) -> dict:
+def _oracle(seeds: list[int], rolls: dict, metrics: dict, iterations: int,
+            survey: set[str] | frozenset[str] = frozenset()) -> dict:  # fmt: skip
     """The oracle's metrics (its applied currents replayed on the plant), started from the
-    best law's own applied currents (so never worse than it)."""
+    best law's own applied currents (so never worse than it) and, when the best law is one of
+    ``survey`` (the preview task's), also from the best law's without it: the search of
+    ``CapsuleHalfRide-v0``'s oracle on the same plant and episodes (the survey changes what a
+    law reads, not the plant), so the preview task's oracle is never above that one either."""
     from capsule_env.oracle.declared import DeclaredEpisodes, declared_oracle
 
+    def best_of(names: list[str]) -> str:
+        return min(names, key=lambda n: metrics[n]["wk_rms_body_acc_m_s2"].mean())
+
     laws = [n for n in rolls if n != "passive" and not n.endswith("-exact")]
-    best = min(laws, key=lambda n: metrics[n]["wk_rms_body_acc_m_s2"].mean())
+    starts = list(dict.fromkeys([best_of([n for n in laws if n not in survey]), best_of(laws)]))
     kwargs = dict(TASK_KWARGS, guideway_seed=EVALUATION_GUIDEWAY_SEED)
-    result = declared_oracle(kwargs, seeds, starts=[rolls[best]["currents"]],
+    result = declared_oracle(kwargs, seeds, starts=[rolls[n]["currents"] for n in starts],
                              max_iterations=iterations)  # fmt: skip
+    best = starts[0]
     episodes = DeclaredEpisodes(kwargs, seeds)
     states, outs = episodes.run(np.arange(len(seeds)), result.currents)
     limit = episodes.objective.max_stroke_m
@@ -234,18 +246,25 @@ def _oracle(seeds: list[int], rolls: dict, metrics: dict, iterations: int) -> di
 
 def evaluation_results(seeds: list[int], oracle_iterations: int = 0, shipped: bool = True,
                        command: str = "", tune: bool = False) -> dict[str, Any]:  # fmt: skip
-    """The evaluation of the episodes ``seeds`` in ``evaluate.py``'s layout: ``condition``,
-    ``episodes`` (their number), ``seeds`` (first and last), ``policies`` (each shipped
-    policy's file) and ``settings.hils.controllers`` (a row per law, policy and the oracle),
+    """The evaluation of the episodes ``seeds`` in ``evaluate.py``'s layout (:func:`layout`),
     and the half-car's own: the guideway bank and the coupled law's weights."""
-    from capsule_env.agents.learning.policy_files import shown_path
-
     coupled = tune_coupled() if tune else dict(TUNED_COUPLED)
     rows = evaluate(seeds, coupled, oracle_iterations, shipped)
+    return layout(TASK_ID, TASK_KWARGS, seeds, rows, command, coupled, shipped)
+
+
+def layout(task_id: str, task_kwargs: dict[str, Any], seeds: list[int], rows: dict,
+           command: str, coupled: dict[str, float], shipped: bool) -> dict[str, Any]:  # fmt: skip
+    """``evaluate.py``'s JSON layout of a half-car task's ``rows``: ``condition``, ``episodes``
+    (their number), ``seeds`` (first and last), ``policies`` (each shipped policy's file) and
+    ``settings.hils.controllers`` (a row per law, policy and the oracle), with the guideway
+    bank and the coupled law's weights."""
+    from capsule_env.agents.learning.policy_files import shown_path
+
     policies = _own_shipped() if shipped else {}
-    return {"task": TASK_ID, "command": command,
-            "condition": {"task": TASK_ID, "task_env_kwargs": dict(TASK_KWARGS),
-                          "env_overrides": {}, "env_kwargs": dict(TASK_KWARGS),
+    return {"task": task_id, "command": command,
+            "condition": {"task": task_id, "task_env_kwargs": dict(task_kwargs),
+                          "env_overrides": {}, "env_kwargs": dict(task_kwargs),
                           "settings": ["hils"], "episode_length_s": 10.0},
             "episodes": len(seeds), "seeds": [seeds[0], seeds[-1]],
             "guideway_seed": EVALUATION_GUIDEWAY_SEED, "coupled_weights": coupled,
@@ -276,10 +295,19 @@ def write_json(path: str, text: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    return run_cli(argv, "half_car", __doc__.split("\n\n")[0], evaluation_results,
+                   "re-tune the coupled law's weights")  # fmt: skip
+
+
+def run_cli(argv: list[str] | None, module: str, description: str, results: Any,
+            tune_help: str) -> int:  # fmt: skip
+    """A half-car task's evaluation on the command line (``python -m
+    capsule_env.evaluation.<module>``): ``results`` (:func:`evaluation_results`'s signature)
+    as a table, into ``--out`` as JSON. Bad input: one line on stderr, exit status 2."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("--out", default="", help="JSON file to write (atomically)")
     p.add_argument("--episodes", type=int, default=10, help="evaluation episodes (>= 2)")
-    p.add_argument("--tune", action="store_true", help="re-tune the coupled law's weights")
+    p.add_argument("--tune", action="store_true", help=tune_help)
     p.add_argument("--oracle-iterations", type=int, default=0, help="L-BFGS-B iterations (0: none)")
     p.add_argument("--no-shipped-policy", action="store_true", help="no shipped policy's row")
     args = p.parse_args(argv)
@@ -289,9 +317,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
         print(f"error: --out's folder must exist, got {args.out!r}", file=sys.stderr)
         return 2
-    command = "python -m capsule_env.evaluation.half_car " + " ".join(argv or sys.argv[1:])
-    result = evaluation_results(list(range(1000, 1000 + args.episodes)), args.oracle_iterations,
-                                not args.no_shipped_policy, command, args.tune)  # fmt: skip
+    command = f"python -m capsule_env.evaluation.{module} " + " ".join(argv or sys.argv[1:])
+    result = results(list(range(1000, 1000 + args.episodes)), args.oracle_iterations,
+                     not args.no_shipped_policy, command, args.tune)  # fmt: skip
     if args.out:
         write_json(args.out, json.dumps(result, indent=1))
     print(format_rows(result))

@@ -1,40 +1,50 @@
-"""Evaluate the survey-preview LQ on ``CapsuleHalfRidePreview-v0`` beside the laws without it.
+"""Evaluate ``CapsuleHalfRidePreview-v0``: the survey-preview LQ beside the laws without it.
 
-The metric, the banks, the episodes and the intervals are :mod:`capsule_env.evaluation.half_car`'s
-(the evaluation bank, ``guideway_seed`` 2026, episode seeds 1000..; 95 % bootstrap intervals,
-paired for ratios). Rows: the passive damper, the independent clipped LQRs (the ratios' base),
-the discrete LQ and the wheelbase-preview LQ of the half-car task (no survey), and
-``survey-preview-lq-biexp-meas`` (:class:`capsule_env.agents.controllers.wheelbase.SurveyPreviewLQ`,
-the task's 32 points over 0.5 s per bogie), its weights tuned on the training bank
-(``guideway_seed`` 0, episode seeds 0..9) on a grid of 48 (:data:`_GRID`).
+The metric, the banks, the episodes, the intervals, the rows without the survey and the JSON
+layout are :mod:`capsule_env.evaluation.half_car`'s (``evaluate.py``'s layout; the evaluation
+bank, ``guideway_seed`` 2026, episode seeds 1000..; 95 % bootstrap intervals, paired for
+ratios): the survey changes what a law reads, not the plant, so every row without it equals
+its row in ``CapsuleHalfRide-v0``'s file. Added: ``survey-preview-lq-biexp-meas``
+(:class:`capsule_env.agents.controllers.wheelbase.SurveyPreviewLQ`, the task's 32 points over
+0.5 s per bogie), its weights tuned on the training bank (``guideway_seed`` 0, episode seeds
+0..9) on a grid of 48 (:data:`_GRID`), with its ratio to the best law without the survey;
+the oracle (``--oracle``) is also started from its currents.
 
-    python -m capsule_env.evaluation.half_car_preview --out docs/figures/evaluation-CapsuleHalfRidePreview-v0.json
+    python -m capsule_env.evaluation.evaluate --task CapsuleHalfRidePreview-v0 --oracle --json F
+    python -m capsule_env.evaluation.half_car_preview --oracle-iterations 30 --out F  # the same
 """
 
 from __future__ import annotations
 
-import argparse
 import itertools
-import json
-import os
 import sys
-import tempfile
 from typing import Any
 
 import numpy as np
 
 from capsule_env.evaluation.half_car import (
-    EVALUATION_GUIDEWAY_SEED,
+    ORACLE_ITERATIONS,
+    TASK_KWARGS,
     TRAINING_GUIDEWAY_SEED,
     TUNED_COUPLED,
-    _interval,
+    _own_shipped,
     _ratio_interval,
     episode_metrics,
+    evaluate,
+    format_rows,
+    layout,
     rollout,
+    run_cli,
 )
 
-__all__ = ["TUNED_SURVEY", "tune_survey", "evaluate", "main"]
+__all__ = ["TASK_ID", "PREVIEW_KWARGS", "TUNED_SURVEY", "SURVEY_LAW", "ORACLE_ITERATIONS",
+           "tune_survey", "evaluation_results", "format_rows", "main"]  # fmt: skip
 
+#: The task evaluated here, and its options (``capsule_env.tasks.DECLARED_TASKS``).
+TASK_ID = "CapsuleHalfRidePreview-v0"
+PREVIEW_KWARGS: dict[str, Any] = {**TASK_KWARGS, "preview_points": 32, "preview_horizon_s": 0.5}
+#: The survey law's row name.
+SURVEY_LAW = "survey-preview-lq-biexp-meas"
 #: The survey-preview LQ's weights when not re-tuned: ``--tune``'s result (docs/half-car.md).
 TUNED_SURVEY = {"q_stroke": 10.0, "q_levitation": 10.0, "r_force": 1e-7}
 _GRID = {"q_stroke": (0.01, 0.1, 1.0, 10.0), "q_levitation": (0.1, 1.0, 10.0),
@@ -44,7 +54,11 @@ _GRID = {"q_stroke": (0.01, 0.1, 1.0, 10.0), "q_levitation": (0.1, 1.0, 10.0),
 def _survey_law(weights: dict[str, float]) -> Any:
     from capsule_env.agents.controllers.wheelbase import SurveyPreviewLQ
 
-    return SurveyPreviewLQ(weights["q_stroke"], weights["q_levitation"], weights["r_force"])
+    law = SurveyPreviewLQ(weights["q_stroke"], weights["q_levitation"], weights["r_force"],
+                          preview_points=PREVIEW_KWARGS["preview_points"],
+                          preview_horizon_s=PREVIEW_KWARGS["preview_horizon_s"])  # fmt: skip
+    law.gains_tuned = True  # the grid's best on the training bank (:func:`tune_survey`)
+    return law
 
 
 def tune_survey(seeds: list[int] | None = None) -> tuple[dict[str, float], float]:
@@ -60,65 +74,32 @@ def tune_survey(seeds: list[int] | None = None) -> tuple[dict[str, float], float
     return best, best_wk
 
 
-def evaluate(seeds: list[int], survey: dict[str, float]) -> dict:
-    """Every row's metrics (means and intervals over the episodes ``seeds``); ratios to the
-    independent clipped LQRs and to the best law without the survey."""
-    from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
-    from capsule_env.agents.controllers.wheelbase import WheelbasePreviewLQ
-
-    w = (TUNED_COUPLED["q_stroke"], TUNED_COUPLED["q_levitation"], TUNED_COUPLED["r_force"])
-    laws = {"passive": None, "lqr-clipped-biexp-meas": IndependentClippedLQR(),
-            "lq-discrete-biexp-meas": WheelbasePreviewLQ(*w, preview=False),
-            "wheelbase-lq-biexp-meas": WheelbasePreviewLQ(*w),
-            "survey-preview-lq-biexp-meas": _survey_law(survey)}  # fmt: skip
-    metrics = {name: episode_metrics(rollout(law, seeds, EVALUATION_GUIDEWAY_SEED))
-               for name, law in laws.items()}  # fmt: skip
-    head = {name: m["wk_rms_body_acc_m_s2"] for name, m in metrics.items()}
-    without = [n for n in laws if n not in ("passive", "survey-preview-lq-biexp-meas")]
-    best = min(without, key=lambda n: head[n].mean())
-    rows: dict[str, Any] = {}
-    for name, m in metrics.items():
-        row = {k: float(np.mean(v)) for k, v in m.items()}
-        row["wk_rms_body_acc_m_s2_ci95"] = _interval(head[name])
-        for key, base in (
-            ("independent_lqr", "lqr-clipped-biexp-meas"),
-            ("best_without_survey", best),
-        ):
-            row[f"ratio_to_{key}"] = float(head[name].mean() / head[base].mean())
-            row[f"ratio_to_{key}_ci95"] = _ratio_interval(head[name], head[base])
-        row["per_episode_wk_m_s2"] = head[name].tolist()
-        rows[name] = row
-    return {"best_without_survey": best, "rows": rows}
+def evaluation_results(seeds: list[int], oracle_iterations: int = 0, shipped: bool = True,
+                       command: str = "", tune: bool = False) -> dict[str, Any]:  # fmt: skip
+    """The evaluation of the episodes ``seeds`` in ``evaluate.py``'s layout
+    (:func:`capsule_env.evaluation.half_car.layout`): the half-car task's rows (its laws, its
+    shipped policies when ``shipped``, the oracle with ``oracle_iterations``) and the survey
+    law's (its weights re-tuned when ``tune``); ``best_without_survey`` names the law of the
+    lowest Wk without the survey and the survey law's row has its ratio to it."""
+    survey, training_wk = tune_survey() if tune else (dict(TUNED_SURVEY), None)
+    rows = evaluate(seeds, dict(TUNED_COUPLED), oracle_iterations, shipped,
+                    survey_laws={SURVEY_LAW: _survey_law(survey)})  # fmt: skip
+    others = {"passive", "oracle", SURVEY_LAW, *(_own_shipped() if shipped else ())}
+    laws = [n for n, r in rows.items() if n not in others and not r["uses_unmeasured_signals"]]
+    best = min(laws, key=lambda n: rows[n]["wk_rms_body_acc_m_s2"])
+    mine, base = (np.array(rows[n]["per_episode_wk_m_s2"]) for n in (SURVEY_LAW, best))
+    rows[SURVEY_LAW]["ratio_to_best_without_survey"] = float(mine.mean() / base.mean())
+    rows[SURVEY_LAW]["ratio_to_best_without_survey_ci95"] = _ratio_interval(mine, base)
+    result = layout(TASK_ID, PREVIEW_KWARGS, seeds, rows, command, dict(TUNED_COUPLED), shipped)
+    result.update(best_without_survey=best, survey_weights=survey)
+    if training_wk is not None:  # re-tuned: the tuned weights' Wk on the training bank
+        result["survey_training_wk_m_s2"] = training_wk
+    return result
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="", help="JSON file to write (atomically)")
-    p.add_argument("--episodes", type=int, default=10, help="evaluation episodes (>= 2)")
-    p.add_argument("--tune", action="store_true", help="re-tune the survey law's weights")
-    args = p.parse_args(argv)
-    if args.episodes < 2:
-        print("error: --episodes must be >= 2", file=sys.stderr)
-        return 2
-    if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
-        print(f"error: --out's folder must exist, got {args.out!r}", file=sys.stderr)
-        return 2
-    survey, training_wk = tune_survey() if args.tune else (dict(TUNED_SURVEY), None)
-    seeds = list(range(1000, 1000 + args.episodes))
-    result = {"task": "CapsuleHalfRidePreview-v0", "episodes": seeds,
-              "guideway_seed": EVALUATION_GUIDEWAY_SEED, "survey_weights": survey,
-              "survey_training_wk_m_s2": training_wk,
-              "command": "python -m capsule_env.evaluation.half_car_preview "
-              + " ".join(sys.argv[1:] if argv is None else argv),
-              **evaluate(seeds, survey)}  # fmt: skip
-    text = json.dumps(result, indent=1)
-    if args.out:
-        folder = os.path.dirname(os.path.abspath(args.out))
-        with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
-            f.write(text)
-        os.replace(f.name, args.out)
-    print(text)
-    return 0
+    return run_cli(argv, "half_car_preview", __doc__.split("\n\n")[0], evaluation_results,
+                   "re-tune the survey law's weights")  # fmt: skip
 
 
 if __name__ == "__main__":
