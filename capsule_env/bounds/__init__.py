@@ -39,7 +39,15 @@ from capsule_env.bounds.relaxation import (
     damper_envelope,
 )
 
-__all__ = ["DEFAULT_OPTIONS", "MAX_FORCES", "FloorResult", "certified_floor", "floor_row", "verify"]
+__all__ = [
+    "DEFAULT_OPTIONS",
+    "MAX_FORCES",
+    "FloorResult",
+    "certified_floor",
+    "check_floor",
+    "floor_row",
+    "verify",
+]
 
 #: Most force evaluations per episode (the dual's dense Hessian is ``N + 1`` square; 4000 is
 #: 2.2 s of the ``sim`` setting, about 130 MB per matrix and seconds per Cholesky).
@@ -142,6 +150,30 @@ def _problem(episodes: Any, k: int) -> tuple[LiftedEpisode, DualProblem]:
     return lifted, DualProblem(lifted, mats)
 
 
+def check_floor(
+    env_kwargs: Mapping[str, Any], seeds: Sequence[int], episode_length_s: float
+) -> tuple[Any, tuple[int, ...], float]:
+    """Check that :func:`certified_floor` can run these episodes (a supported plant damper,
+    one substep count at every current, at most :data:`MAX_FORCES` force evaluations per
+    episode) before anything long runs; returns the episodes
+    (:class:`~capsule_env.oracle.plant.OracleEpisodes`), the seeds and the length. ValueError
+    naming what fails."""
+    from capsule_env.oracle.plant import OracleEpisodes
+
+    seeds_t, length = _check(seeds, episode_length_s)
+    episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
+    for k in range(len(seeds_t)):
+        damper_envelope(episodes.code, episodes.damper_params[k])
+        n_forces = episodes.n_steps * (4 * check_liftable(episodes, k) + 1)
+        if n_forces > MAX_FORCES:
+            raise ValueError(
+                f"episode_length_s {length:g} s needs {n_forces} force evaluations per episode; "
+                f"the certified floor takes at most {MAX_FORCES} (about "
+                f"{MAX_FORCES / n_forces * length:.2g} s here)"
+            )
+    return episodes, seeds_t, length
+
+
 def certified_floor(
     env_kwargs: Mapping[str, Any],
     seeds: Sequence[int],
@@ -152,21 +184,10 @@ def certified_floor(
     lower bound on the Wk-weighted RMS body acceleration that any controller reaches:
     :class:`FloorResult`. ``options``: :data:`DEFAULT_OPTIONS`. ValueError for a plant with
     no relaxation (``hils``: Spencer's hysteretic damper) or bad arguments."""
-    from capsule_env.oracle.plant import OracleEpisodes
-
-    seeds_t, length = _check(seeds, episode_length_s)
     opts = _options(options)
     t0 = time.perf_counter()
-    episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
-    for k in range(len(seeds_t)):  # refuse before any long computation
-        damper_envelope(episodes.code, episodes.damper_params[k])
-        n_forces = episodes.n_steps * (4 * check_liftable(episodes, k) + 1)
-        if n_forces > MAX_FORCES:
-            raise ValueError(
-                f"episode_length_s {length:g} s needs {n_forces} force evaluations per episode; "
-                f"the certified floor takes at most {MAX_FORCES} (about "
-                f"{MAX_FORCES / n_forces * length:.2g} s here)"
-            )
+    # refuse before any long computation
+    episodes, seeds_t, length = check_floor(env_kwargs, seeds, episode_length_s)
     floors, values, lams, evals = [], [], [], []
     for k in range(len(seeds_t)):
         lifted, problem = _problem(episodes, k)

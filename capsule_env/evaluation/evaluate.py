@@ -132,11 +132,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "local search knowing the guideway; a reference, not a proven limit) on the "
                    "same episodes: an 'oracle' row per setting and each controller's share of the "
                    "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
+    p.add_argument("--floor", action="store_true",
+                   help="also compute the certified floor (capsule_env.bounds: a proven lower "
+                   "bound on every controller's Wk on the same episodes) per setting: a 'floor' "
+                   "block; the sim plant only (Bi-exponential or passive damper) and short "
+                   "episodes (--episode-length <= about 2.2 s); slow (minutes per episode)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
                    "--task or --env: to its sub-folder named after them)")  # fmt: skip
     args = p.parse_args(argv)
     if args.task in {t.env_id for t in DECLARED_TASKS}:  # its own evaluation (main)
+        if args.floor:
+            p.error(f"--floor is not supported with --task {args.task}: the certified floor "
+                    "covers the quarter-car's sim plant (docs/fair-comparison.md)")  # fmt: skip
         args.condition = None
         return args
     try:  # the evaluated env: --task, --setting, --episode-length, --env (eval_condition.py)
@@ -159,10 +167,47 @@ def check_args(args: argparse.Namespace) -> None:
     if not [n for n in args.controllers.split(",") if n.strip()]:
         raise ValueError(f"--controllers names no controller (got {args.controllers!r}): give "
                          "comma-separated names, or 'all'")  # fmt: skip
+    if getattr(args, "floor", False):
+        check_floor_args(args)
     if args.json is not None:
         check_writable_file(args.json, "--json")
     if args.plots is not None:
         check_writable_dir(plots_dir(args), "--plots")
+
+
+def _floor_kwargs(args: argparse.Namespace, setting: str) -> dict:
+    """The env arguments of the certified floor's episodes: the oracle's (the evaluated
+    condition in ``setting``)."""
+    return {**_condition(args).env_kwargs, "setting": setting}
+
+
+def check_floor_args(args: argparse.Namespace) -> None:
+    """``--floor``: every setting's plant and the episode length must be ones the certified
+    floor covers (:func:`capsule_env.bounds.check_floor`); ValueError naming ``--floor``."""
+    from capsule_env.bounds import check_floor
+
+    seeds = range(args.seed, args.seed + args.episodes)
+    for setting in _condition(args).settings:
+        try:
+            check_floor(_floor_kwargs(args, setting), seeds, args.episode_length)
+        except ValueError as exc:
+            raise ValueError(f"--floor in the {setting} setting: {exc}") from None
+
+
+def add_floor(block: dict, setting: str, args: argparse.Namespace) -> None:
+    """Add the certified floor (:func:`capsule_env.bounds.certified_floor` on the same
+    episodes) to a setting's results as ``block["floor"]``: a row with
+    ``wk_rms_body_acc_m_s2`` (the mean over episodes), per-episode values and the method, and
+    ``floor_to_oracle`` (the floor over the oracle's Wk) when the block has an oracle row."""
+    from capsule_env.bounds import certified_floor, floor_row
+
+    seeds = range(args.seed, args.seed + args.episodes)
+    result = certified_floor(_floor_kwargs(args, setting), seeds, args.episode_length)
+    row = floor_row(result)
+    oracle = block["controllers"].get("oracle")
+    if oracle is not None and oracle["wk_rms_body_acc_m_s2"] > 0:
+        row["floor_to_oracle"] = row["wk_rms_body_acc_m_s2"] / oracle["wk_rms_body_acc_m_s2"]
+    block["floor"] = row
 
 
 def plots_dir(args: argparse.Namespace) -> Path:
@@ -360,6 +405,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             _progress(done, total, f"{setting}/oracle (search)", time.perf_counter() - t0)
             own = {name: rollouts[(setting, name)] for name in ctrls}
             add_oracle(results["settings"][setting], setting, args, passive, ctrls, own)
+        if getattr(args, "floor", False):
+            _progress(done, total, f"{setting}/floor (dual)", time.perf_counter() - t0)
+            add_floor(results["settings"][setting], setting, args)
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
@@ -552,6 +600,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.exit(f"evaluate.py: error: {exc}")
     results = evaluate(args, ctrls)
     print(format_tables(results))
+    for setting, block in results["settings"].items():
+        if "floor" in block:
+            print(f"\n{setting}: certified floor {block['floor']['wk_rms_body_acc_m_s2']:.4f} "
+                  "m/s^2 (a proven lower bound for every controller; docs/fair-comparison.md)")  # fmt: skip
     if args.json:
         try:
             atomic_write_text(args.json, json.dumps(results, indent=2))

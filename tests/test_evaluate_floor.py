@@ -1,0 +1,49 @@
+"""evaluate.py --floor: the certified floor (capsule_env.bounds) as a block of each setting,
+below the oracle and every controller on the same episodes; refused, in one line and before
+anything runs, where the floor does not cover the plant or the length."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from capsule_env.evaluation.evaluate import main
+
+
+def test_floor_block_lies_below_the_oracle_and_every_controller(tmp_path, monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
+    out = tmp_path / "floor.json"
+    argv = ["--setting", "sim", "--controllers", "passive,mr-0A,lqr-clipped-biexp-meas",
+            "--no-shipped-policy", "--episodes", "1", "--episode-length", "0.4",
+            "--oracle", "--floor", "--json", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    block = json.loads(out.read_text())["settings"]["sim"]
+    floor = block["floor"]
+    assert floor["certified"] is True
+    assert len(floor["per_episode"]["wk_rms_body_acc_m_s2"]) == 1
+    rows = block["controllers"]
+    assert floor["wk_rms_body_acc_m_s2"] >= 0.0
+    for name, row in rows.items():  # the oracle and every controller ran the same episode
+        assert floor["wk_rms_body_acc_m_s2"] <= row["wk_rms_body_acc_m_s2"], name
+    assert floor["floor_to_oracle"] == pytest.approx(
+        floor["wk_rms_body_acc_m_s2"] / rows["oracle"]["wk_rms_body_acc_m_s2"]
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--task", "CapsuleRide-v0", "--episode-length", "0.5"], "'reference'"),
+        (["--setting", "sim"], "at most 4000"),
+        (["--task", "CapsuleHalfRide-v0"], "--floor is not supported"),
+    ],
+)
+def test_floor_refused_in_one_line_before_anything_runs(argv, needle, tmp_path, capsys):
+    out = tmp_path / "never.json"
+    with pytest.raises(SystemExit) as err:
+        main([*argv, "--floor", "--json", str(out)])
+    message = str(err.value.code) if err.value.code not in (2,) else capsys.readouterr().err
+    assert needle in message and "--floor" in message
+    assert message.strip().count("\n") == 0 or message.strip().startswith("usage")
+    assert not out.exists()
