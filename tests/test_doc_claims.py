@@ -48,18 +48,21 @@ def test_the_paper_studys_stated_time_and_held_out_rows_are_its_jsons():
     held = json.loads((FIGURES / "paper_sensitivity-heldout.json").read_text())
     assert held["config"]["seed"] == 1010 and held["config"]["episodes"] == 10
     rows = re.findall(r"^\| (today's reproduction|current terms × 0\.3[^|]*|c_max[^|]*|longest"
-                      r"[^|]*) \|((?: [−+\d.]+ \|){6})$", (DOCS / "paper-reproduction.md")
-                      .read_text(), flags=re.M)  # fmt: skip
+                      r"[^|]*) \|((?: [−+\d.]+ ± [\d.]+ \|){6})$",
+                      (DOCS / "paper-reproduction.md").read_text(), flags=re.M)  # fmt: skip
     assert len(rows) == 6
     for label, cells in rows:
-        figures = [float(c.replace("−", "-")) for c in cells.split("|") if c.strip()]
+        figures = [[float(x.replace("−", "-")) for x in c.split("±")]
+                   for c in cells.split("|") if c.strip()]  # fmt: skip
         for data, at in ((study, 0), (held, 3)):
             name = label.replace("×", "x").replace("1.4e5", "1.4e+05")
             (point,) = [v for v in data["results"].values()
                         if v["setting"] == "sim" and v["label"] == name]  # fmt: skip
-            expected = (point["csdc"]["vre_body_mode1_pct"], point["biexp"]["vre_body_mode1_pct"],
-                        point["gap_body_mode1_pct"])  # fmt: skip
-            assert figures[at : at + 3] == pytest.approx(expected, abs=0.051), label
+            for k, (side, key) in enumerate((("csdc", "vre"), ("biexp", "vre"), ("gap", "gap"))):
+                key = f"{key}_body_mode1_pct"
+                value = point[key] if side == "gap" else point[side][key]
+                low, high = point["ci95"][side][key]  # the 95 % interval over the episodes
+                assert figures[at + k] == pytest.approx([value, (high - low) / 2], abs=0.051)
 
 
 def test_the_trip_groups_interval_is_its_json_and_called_level_with():

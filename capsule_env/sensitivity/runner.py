@@ -258,7 +258,5 @@ def _tornado_row(row_axes: Any, s: str, rs: list[dict[str, Any]], textwrap: Any)
     ax.axvline(PAPER_GAP[s], color="k", ls="--", lw=0.8)
     ax.set_yticks(y, [""] * len(rs))
     ax.set_ylim(-0.7, len(rs) - 0.3)
-    ax.set_xlabel(
-        f"{s}: gap Bi-exp - CSDC (points)\n95 % paired CI; dashed: the paper's {PAPER_GAP[s]:.1f}"
-    )
+    ax.set_xlabel(f"{s}: gap Bi-exp - CSDC (points)\n95 % CI; dashed: paper's {PAPER_GAP[s]:.1f}")
     ax.grid(alpha=0.3)
