@@ -154,6 +154,12 @@ _USE_HALF = (
     "1.004 x, the wheelbase-preview LQ 1.000 x), a gain vector per bogie and a clip, the law "
     "the shipped residual policy rides on."
 )
+_USE_HALF_PREVIEW = (
+    "`survey-preview-lq-biexp-meas`, the half-car's discrete LQ plus Tomizuka's preview gains "
+    "on each bogie's own survey, weights tuned on the training bank: 0.953 x the per-bogie "
+    "clipped LQR (`lqr-clipped-biexp-meas`, the lowest Wk without the survey; every row without "
+    "it is its `CapsuleHalfRide-v0` row), gain matrices and a clip, no solver."
+)
 DECLARED_TASKS: tuple[Task, ...] = (
     Task("CapsuleHalfRide-v0",
          "The half-car capsule on the ride task: car body heave and pitch on two bogies, two "
@@ -176,6 +182,7 @@ DECLARED_TASKS: tuple[Task, ...] = (
          {"vehicle": "half_car", "setting": "hils", "observation": "measured",
           "preview_points": 32, "preview_horizon_s": 0.5}, "hils",
          "survey-preview-lq-biexp-meas", "", "evaluation-CapsuleHalfRidePreview-v0.json",
+         use=_USE_HALF_PREVIEW, metric=_METRIC_HALF,
          headline="the half-car ride task + 0.5 s of surveyed guideway ahead of each bogie"),
 )  # fmt: skip
 

@@ -12,7 +12,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from capsule_env.evaluation import evaluate
+from capsule_env.evaluation.task_cards import CARDED, load_results, readme_table, task_cards
 from capsule_env.tasks import DECLARED_TASKS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,3 +65,48 @@ def test_the_preview_tasks_other_options_are_refused_by_name(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("evaluate.py: error: --env not supported")
     assert "half_car_preview" in err and not out.exists()
+
+
+def test_the_preview_file_is_the_half_car_files_rows_and_the_surveys():
+    half, preview = (json.loads((FIGURES / t.results).read_text()) for t in (HALF, TASK))
+    assert preview["condition"]["env_kwargs"] == TASK.kwargs
+    assert (preview["seeds"], preview["guideway_seed"]) == (half["seeds"], half["guideway_seed"])
+    assert preview["policies"] == half["policies"]
+    rows, half_rows = _rows(preview), _rows(half)
+    assert set(rows) == set(half_rows) | {SURVEY}
+    for name, row in half_rows.items():
+        if name != "oracle":
+            assert rows[name] == row, name
+    # the oracle: per episode at or below every row, and never above the half-car task's
+    oracle = np.array(rows["oracle"]["per_episode_wk_m_s2"])
+    for name, row in rows.items():
+        assert np.all(oracle <= np.array(row["per_episode_wk_m_s2"]) * (1 + 1e-12)), name
+    assert np.all(oracle <= np.array(half_rows["oracle"]["per_episode_wk_m_s2"]) * (1 + 1e-12))
+    assert preview["command"].startswith(
+        f"python -m capsule_env.evaluation.evaluate --task {TASK.env_id} --episodes 10"
+    )
+
+
+def test_the_preview_task_is_carded_from_its_file():
+    assert TASK in CARDED
+    results = load_results(FIGURES)
+    page = (ROOT / "docs" / "tasks.md").read_text()
+    cards = task_cards(results)
+    assert cards in page and readme_table(results) in (ROOT / "README.md").read_text()
+    card = cards[cards.index(f"## `{TASK.env_id}`") :]
+    assert "ISO 2631-1 Wk" in card and "`wk_rms_body_acc_m_s2`" in card
+    wk = {n: r["wk_rms_body_acc_m_s2"] for n, r in _rows(results[TASK.results]).items()}
+    score = (wk["passive"] - wk[SURVEY]) / (wk["passive"] - wk["oracle"])
+    assert (f"| `{SURVEY}` | best tuned classical law | measured + preview (0.5 s) | "
+            f"{wk[SURVEY]:.4f} | {score:.3f} |") in card  # fmt: skip
+    # the card's best law: the lowest Wk of the laws on measured signals and the survey
+    laws = {n: w for n, w in wk.items() if n not in ("oracle", "passive", *_policies(results))
+            and not _rows(results[TASK.results])[n]["uses_unmeasured_signals"]}  # fmt: skip
+    assert min(laws, key=laws.__getitem__) == TASK.best_classical == SURVEY
+    # the advice quotes the file's ratio to the best law without the survey
+    best = results[TASK.results]["best_without_survey"]
+    assert best == "lqr-clipped-biexp-meas" and f"{wk[SURVEY] / wk[best]:.3f} x" in TASK.use
+
+
+def _policies(results: dict) -> list[str]:
+    return list(results[TASK.results].get("policies", {}))

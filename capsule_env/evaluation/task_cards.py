@@ -6,9 +6,9 @@
 ``evaluate.py --oracle --json``): per task, the Wk-weighted RMS car-body acceleration and the
 normalised score of the passive damper, the task's best tuned classical law, its shipped policy
 and the oracle, with what each reads. The declared vehicles' tasks that ``evaluate.py``
-evaluates (``DECLARED_TASKS``: the half-car's) are carded from their own files, in its layout
-(``evaluate.py --task CapsuleHalfRide-v0 --oracle --json``), with the comfort metric their
-card states (``Task.metric``).
+evaluates (``DECLARED_TASKS``: the half-car's, ``CapsuleHalfRide-v0`` and
+``CapsuleHalfRidePreview-v0``) are carded from their own files, in its layout (``evaluate.py
+--task ID --oracle --json``), with the comfort metric their card states (``Task.metric``).
 """
 
 from __future__ import annotations
@@ -18,11 +18,14 @@ import sys
 from pathlib import Path
 
 from capsule_env.evaluation.half_car import TASK_ID as HALF_CAR_TASK
+from capsule_env.evaluation.half_car_preview import TASK_ID as HALF_CAR_PREVIEW_TASK
 from capsule_env.tasks import DECLARED_TASKS, TASKS, Task, normalised_score
 
 #: Every carded task: the quarter-car's, then the declared vehicles' that ``evaluate.py
-#: --task`` evaluates (their file in its layout): the half-car's.
-CARDED = TASKS + tuple(t for t in DECLARED_TASKS if t.env_id == HALF_CAR_TASK)
+#: --task`` evaluates (their file in its layout): the half-car's, without and with the survey.
+CARDED = TASKS + tuple(
+    t for t in DECLARED_TASKS if t.env_id in (HALF_CAR_TASK, HALF_CAR_PREVIEW_TASK)
+)
 
 __all__ = ["task_cards", "readme_table", "load_results", "sync_page"]
 
