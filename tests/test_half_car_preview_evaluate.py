@@ -88,7 +88,9 @@ def test_the_preview_file_is_the_half_car_files_rows_and_the_surveys():
 
 
 def test_the_preview_task_is_carded_from_its_file():
-    assert TASK in CARDED
+    # every declared task is carded, and evaluate.py evaluates each (its card's file)
+    assert TASK in CARDED and all(t in CARDED for t in DECLARED_TASKS)
+    assert set(evaluate._declared_evaluations()) == {t.env_id for t in DECLARED_TASKS}
     results = load_results(FIGURES)
     page = (ROOT / "docs" / "tasks.md").read_text()
     cards = task_cards(results)

@@ -250,6 +250,7 @@ COMMANDS = (
     "evaluation/evaluate.py",
     "evaluation/tables.py",
     "evaluation/half_car.py",  # the half-car task's evaluation (a command) and its figure
+    "evaluation/half_car_preview.py",  # the preview variant's, on half_car.py's
     "evaluation/half_car_figure.py",
     "sweep/",
     "export/",
@@ -257,7 +258,7 @@ COMMANDS = (
 )  # + evaluate.py's tables
 #: Their modules, which nothing below them imports.
 UPPER = ("capsule_env.agents", "capsule_env.evaluation.evaluate", "capsule_env.evaluation.tables",
-         "capsule_env.evaluation.half_car")  # fmt: skip
+         "capsule_env.evaluation.half_car", "capsule_env.evaluation.half_car_preview")  # fmt: skip
 
 
 def test_the_library_never_imports_the_controllers_or_the_scripts():

@@ -17,15 +17,11 @@ import json
 import sys
 from pathlib import Path
 
-from capsule_env.evaluation.half_car import TASK_ID as HALF_CAR_TASK
-from capsule_env.evaluation.half_car_preview import TASK_ID as HALF_CAR_PREVIEW_TASK
 from capsule_env.tasks import DECLARED_TASKS, TASKS, Task, normalised_score
 
-#: Every carded task: the quarter-car's, then the declared vehicles' that ``evaluate.py
-#: --task`` evaluates (their file in its layout): the half-car's, without and with the survey.
-CARDED = TASKS + tuple(
-    t for t in DECLARED_TASKS if t.env_id in (HALF_CAR_TASK, HALF_CAR_PREVIEW_TASK)
-)
+#: Every carded task: the quarter-car's, then the declared vehicles' (``evaluate.py --task``
+#: evaluates each, their file in its layout): the half-car's, without and with the survey.
+CARDED = TASKS + DECLARED_TASKS
 
 __all__ = ["task_cards", "readme_table", "load_results", "sync_page"]
 
