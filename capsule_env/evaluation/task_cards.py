@@ -59,20 +59,41 @@ def _card(task: Task, results: dict) -> list[str]:
              *([f"- Comfort metric: {task.metric}."] if task.metric else []),
              f"- Use as the baseline: {task.use}",
              ""]  # fmt: skip
+    floor_wk, floor_says = _floor(results["settings"][task.setting])
     if not has_oracle:
         lines += ["No normalised score: the results file has no oracle row (`evaluate.py "
                   "--oracle`), so the scale has no upper end.", ""]  # fmt: skip
-    lines += ["| controller | what it is | reads | Wk (m/s²) | normalised score |",
-              "|---|---|---|---|---|"]  # fmt: skip
+    else:
+        lines += [f"Bracket on the clairvoyant semi-active optimum: [{floor_wk:.4f}, "
+                  f"{wk['oracle']:.4f}] m/s² (below: {floor_says}; above: the oracle, a "
+                  "local search's best). Normalised score: passive 0, oracle 1; against the "
+                  "floor: the share of the gap passive -> floor closed.", ""]  # fmt: skip
+    lines += ["| controller | what it is | reads | Wk (m/s²) | normalised score | "
+              "against the floor |", "|---|---|---|---|---|---|"]  # fmt: skip
     for name, what in rows:
         score = (
             f"{normalised_score(wk[name], wk['passive'], wk['oracle']):.3f}"
             if has_oracle
             else "n/a"
         )
+        to_floor = (wk["passive"] - wk[name]) / (wk["passive"] - floor_wk)
         lines.append(f"| `{name}` | {what} | {_reads(controllers[name])} | {wk[name]:.4f} | "
-                     f"{score} |")  # fmt: skip
+                     f"{score} | {to_floor:.3f} |")  # fmt: skip
     return lines + [""]
+
+
+def _floor(block: dict) -> tuple[float, str]:
+    """The lower end of a card's bracket and what it is: the certified floor of the results
+    (``evaluate.py --floor``) where it was run, else 0, which every Wk is above (the
+    certified floor covers only the ``sim`` plant on episodes of at most 2.2 s, and there it
+    proves 0: docs/fair-comparison.md)."""
+    if "floor" in block:
+        return float(block["floor"]["wk_rms_body_acc_m_s2"]), "the certified floor"
+    return 0.0, (
+        "0, the only floor proven for these episodes: the certified floor (`capsule_env.bounds`, "
+        "docs/fair-comparison.md) covers the `sim` plant on episodes of at most 2.2 s, and "
+        "there it proves 0 too"
+    )
 
 
 def load_results(folder: Path) -> dict[str, dict]:
