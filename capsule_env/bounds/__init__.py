@@ -138,6 +138,9 @@ def _check(seeds: Sequence[int], episode_length_s: float) -> tuple[tuple[int, ..
     out = tuple(seeds)
     if not out or not all(isinstance(s, (int, np.integer)) and s >= 0 for s in out):
         raise ValueError(f"seeds must be a non-empty sequence of integers >= 0, got {seeds!r}")
+    if isinstance(episode_length_s, bool) or not isinstance(episode_length_s, int | float):
+        raise TypeError(f"episode_length_s must be a number of seconds in (0, 10], got "
+                        f"{episode_length_s!r}")  # fmt: skip
     length = float(episode_length_s)
     if not 0.0 < length <= 10.0:
         raise ValueError(f"episode_length_s must be in (0, 10] s, got {episode_length_s!r}")
@@ -157,10 +160,15 @@ def check_floor(
     one substep count at every current, at most :data:`MAX_FORCES` force evaluations per
     episode) before anything long runs; returns the episodes
     (:class:`~capsule_env.oracle.plant.OracleEpisodes`), the seeds and the length. ValueError
-    naming what fails."""
+    naming what fails (an ``episode_length_s`` in ``env_kwargs`` other than the argument too);
+    TypeError for seeds that are not a sequence of integers or a length that is not a number."""
     from capsule_env.oracle.plant import OracleEpisodes
 
     seeds_t, length = _check(seeds, episode_length_s)
+    own = dict(env_kwargs).get("episode_length_s", length)
+    if own != length:  # OracleEpisodes would run the env's, the result name the argument's
+        raise ValueError(f"env_kwargs['episode_length_s'] ({own!r}) contradicts episode_length_s "
+                         f"({length:g} s): give the length once, as episode_length_s")  # fmt: skip
     episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
     for k in range(len(seeds_t)):
         damper_envelope(episodes.code, episodes.damper_params[k])

@@ -5,6 +5,8 @@ for the quarter-car: an episode resets in the step that ends it, its last observ
 ``infos[n]["terminal_observation"]``, ``infos[n]["TimeLimit.truncated"]`` telling a time limit
 from the bump stop. ``seed(s)`` gives the vehicles ``SeedSequence(s).spawn(num_envs)``: vehicle
 ``n`` runs the episodes of the single env seeded from that stream, whatever the batch.
+``step_async`` before the first ``reset`` raises ``gymnasium.error.ResetNeeded``; actions of
+another shape, NaN or infinity raise ``ValueError`` (the others are clipped to [-1, 1]).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from capsule_env.engine.config import check_num_envs, check_seed
@@ -34,6 +37,7 @@ class DeclaredSB3VecEnv(VecEnv):
         super().__init__(num_envs, observation_space, action_space)
         self._actions = np.zeros((num_envs, self.batch.n_slots))
         self._seed: int | None = None
+        self._needs_reset = True
         self._obs = np.zeros((num_envs, observation_space.shape[0]), dtype=np.float32)
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
@@ -45,13 +49,18 @@ class DeclaredSB3VecEnv(VecEnv):
             self.batch.seed(self._seed)
             self._seed = None
         self.batch.reset()
+        self._needs_reset = False
         self._obs = self.batch.observe(self.batch.signals())
         return self._obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
+        if self._needs_reset:
+            raise ResetNeeded("call reset() before step()")
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != self._actions.shape:
             raise ValueError(f"actions must have shape {self._actions.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("actions must be finite (no NaN or infinity)")
         self._actions = np.clip(a, -1.0, 1.0)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:

@@ -8,7 +8,8 @@ Gymnasium's ``NEXT_STEP`` mode (the step after an episode ends resets that vehic
 its first observation, reward 0, ``terminated = truncated = False``; its action is ignored).
 ``reset(seed=s)`` gives the vehicles the streams ``SeedSequence(s).spawn(num_envs)`` (vehicle 0
 is the single env seeded ``s``); ``reset(seed=[s_0, ...])`` gives vehicle ``n`` the single
-env's stream of ``s_n``. ``info``: a dict of arrays, one row per vehicle.
+env's stream of ``s_n``. ``info``: a dict of arrays, one row per vehicle. ``step`` before the
+first ``reset`` raises ``gymnasium.error.ResetNeeded``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -58,6 +60,7 @@ class DeclaredVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.observation_names = batch.observation_names()
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._started = False
 
     @property
     def batch(self) -> Any:
@@ -74,12 +77,15 @@ class DeclaredVectorEnv(VectorEnv):
             self._batch.seed(seed)
         self._batch.reset()
         self._autoreset[:] = False
+        self._started = True
         sig = self._batch.signals()
         return self._batch.observe(sig), dict(sig)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """One control step of every vehicle, ``actions`` of shape ``(num_envs, slots)``:
         ``(observations, rewards, terminated, truncated, info)`` (``NEXT_STEP`` autoreset)."""
+        if not self._started:
+            raise ResetNeeded("call reset() before step()")
         batch = self._batch
         shape = (self.num_envs, batch.n_slots)
         try:

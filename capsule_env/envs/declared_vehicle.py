@@ -143,7 +143,7 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
             check_seed("seed", seed)
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
-        super().reset(seed=seed)
+        super().reset(seed=None if seed is None else int(seed))  # Gymnasium wants an int
         if seed is not None:
             self._batch.seed(seed)
         self._batch.reset()
@@ -154,7 +154,8 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One control step: ``(observation, reward, terminated, truncated, info)``; ``action``
         has the action space's shape (one number per damper slot; a bare number for one slot),
-        is clipped to [-1, 1]; another shape, NaN or infinity raises ``ValueError``. ``info``:
+        is clipped to [-1, 1]; another shape, NaN or infinity raises ``ValueError``, complex
+        numbers ``TypeError``. ``info``:
         the physical signals (arrays per slot, point or contact) and the reward's terms."""
         if self._needs_reset:
             raise ResetNeeded(
@@ -198,6 +199,8 @@ def _params(model: Any, overrides: dict[str, Any]) -> Any:
 def _checked_action(action: Any, n: int) -> np.ndarray:
     """The action of shape ``(n,)`` (a number too where ``n`` is 1), finite, clipped to [-1, 1];
     any other shape is refused, not reshaped (a batch of one is a mistake here)."""
+    if np.iscomplexobj(action):  # numpy would drop the imaginary part with a warning
+        raise TypeError(f"action must be {n} real numbers, got complex ones")
     try:
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
