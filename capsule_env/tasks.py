@@ -4,17 +4,21 @@
 ``sim`` setting). The tasks below fix the options a result depends on, so that a score quoted
 for ``CapsuleRide-v0`` means one thing:
 
-============================  =============================================================
-``CapsuleSuspension-v0``      the paper's setting: ``sim`` plant (ideal sensors, no delay),
-                              three accelerometer/stroke sensors as the observation
-``CapsuleRide-v0``            the realistic ride task: ``hils`` plant (coil lag, sensor noise,
-                              one-step delay) and the ``measured`` signals a capsule has
-``CapsuleRidePreview-v0``     the same with the surveyed guideway ahead (32 points, 0.5 s)
-``CapsuleTrip-v0``            the ride task across the operating envelope: EDS levitation
-                              against speed, 10 s windows of a trip from lift-off (150 km/h)
-                              to cruise (1000 km/h), the tube's spans on pylons, the payload
-                              randomised (-30 % to +40 % of the car body mass)
-============================  =============================================================
+==============================  =============================================================
+``CapsuleSuspension-v0``        the paper's setting: ``sim`` plant (ideal sensors, no delay),
+                                three accelerometer/stroke sensors as the observation
+``CapsuleRide-v0``              the realistic ride task: ``hils`` plant (coil lag, sensor noise,
+                                one-step delay) and the ``measured`` signals a capsule has
+``CapsuleRidePreview-v0``       the same with the surveyed guideway ahead (32 points, 0.5 s)
+``CapsuleTrip-v0``              the ride task across the operating envelope: EDS levitation
+                                against speed, 10 s windows of a trip from lift-off (150 km/h)
+                                to cruise (1000 km/h), the tube's spans on pylons, the payload
+                                randomised (-30 % to +40 % of the car body mass)
+``CapsuleHalfRide-v0``          the half-car capsule (pitch, two bogies, two dampers) on the ride
+                                task: ``hils``, measured signals; scored at the floor's front,
+                                centre and rear (``DECLARED_TASKS``)
+``CapsuleHalfRidePreview-v0``   the same with the surveyed guideway ahead of each bogie
+==============================  =============================================================
 
 Every task keeps the env's reward (docs/env.md) and is reported with the ISO 2631-1
 Wk-weighted RMS car-body acceleration (m/s^2), mean over the evaluation bank's guideway seeds
@@ -23,8 +27,9 @@ oracle)``: 0 is the passive damper, 1 the clairvoyant oracle on the same episode
 multi-start local search that reads the whole guideway: a reference, not a proven limit).
 The reference scores of each card (passive, the best tuned classical law, the shipped policy,
 the oracle) are read from ``docs/figures/evaluation.json``, the file the results page is built
-from (the trip task's from its own file, ``Task.results``), by :mod:`capsule_env.evaluation.task_cards`
-(``python -m capsule_env.evaluation.task_cards docs/tasks.md``; a test checks the page is in sync).
+from (the trip and half-car tasks' from their own files, ``Task.results``), by
+:mod:`capsule_env.evaluation.task_cards` (``python -m capsule_env.evaluation.task_cards
+docs/tasks.md``; a test checks the page is in sync).
 
 Names and versions follow Gymnasium's conventions: a change of a task's options or of the
 physics under it gets a new version; the old id keeps its meaning.
@@ -136,9 +141,9 @@ TASKS: tuple[Task, ...] = (
 
 #: Tasks over a declared vehicle of another form than the 1/4-car's: their env is
 #: ``DeclaredVehicleEnv`` (``DeclaredVectorEnv`` batched), their evaluation
-#: :mod:`capsule_env.evaluation.half_car` (``docs/half-car.md``), which ``evaluate.py --task``
-#: runs (the JSON's layout and headline ``wk_rms_body_acc_m_s2`` the 1/4-car tasks'); carded
-#: in ``docs/tasks.md`` as the others.
+#: :mod:`capsule_env.evaluation.half_car` (and ``half_car_preview``; ``docs/half-car.md``),
+#: which ``evaluate.py --task`` runs (the JSON's layout and headline ``wk_rms_body_acc_m_s2``
+#: the 1/4-car tasks'); carded in ``docs/tasks.md`` as the others.
 _METRIC_HALF = (
     "ISO 2631-1 Wk-weighted RMS vertical acceleration of the car body's floor at three points, "
     "over the front bogie, at the centre of mass and over the rear bogie, and their mean (the "
