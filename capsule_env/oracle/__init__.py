@@ -42,11 +42,12 @@ The method (:mod:`capsule_env.oracle.plant`, :mod:`capsule_env.oracle.search`):
 
 How far from the global optimum: the problem is not convex (the damper force is a nonlinear,
 hysteretic function of the current and the motion), so a local search gives an *upper* bound
-on the clairvoyant optimum, and a lower bound on no controller (a certified floor is not
-computed). :class:`OracleResult` reports
+on the clairvoyant optimum, and a lower bound on no controller (the certified floor of
+:mod:`capsule_env.bounds` covers short episodes of the ``sim`` plant only, and proves 0 there).
+:class:`OracleResult` reports
 how much the answer depends on the start (``spread_m_s2``, the range over the starts of what
-each reached) and what the restarts added (``restart_gain_m_s2``); the README quotes both for
-the evaluation seeds. A spread of a few per cent means the true optimum may lie a few per cent
+each reached) and what the restarts added (``restart_gain_m_s2``); docs/fair-comparison.md
+quotes both for the evaluation seeds. A spread of a few per cent means the true optimum may lie a few per cent
 lower still; read fractions of the "headroom" with that margin.
 """
 
