@@ -65,3 +65,23 @@ def test_floor_refuses_a_second_episode_length_in_env_kwargs():
 def test_floor_refuses_a_non_number_episode_length(length):
     with pytest.raises(TypeError, match="episode_length_s"):
         check_floor({"setting": "sim"}, [1000], length)
+
+
+def test_floor_cli_uses_the_library_default_iterations(monkeypatch, capsys):
+    # the CLI ran 100 L-BFGS-B iterations where certified_floor's documented default is 30
+    import capsule_env.bounds.__main__ as cli
+    from capsule_env.bounds import DEFAULT_OPTIONS
+
+    seen = {}
+
+    def fake(env_kwargs, seeds, length, **options):
+        seen.update(options)
+        raise ValueError("stop")
+
+    monkeypatch.setattr(cli, "certified_floor", fake)
+    with pytest.raises(SystemExit):
+        cli.main(["--episodes", "1", "--episode-length", "0.1"])
+    assert seen["max_iterations"] == DEFAULT_OPTIONS["max_iterations"] == 30
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    assert "2.2 s" in capsys.readouterr().out  # the length it takes, not just "(0, 10]"

@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from capsule_env.bounds import certified_floor
+from capsule_env.bounds import DEFAULT_OPTIONS, MAX_FORCES, certified_floor
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -18,8 +18,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--setting", default="sim", help="env setting (sim; hils is refused)")
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
     p.add_argument("--episodes", type=int, default=10, help="episodes (>= 1)")
-    p.add_argument("--episode-length", type=float, default=1.0, help="s, in (0, 10]")
-    p.add_argument("--max-iterations", type=int, default=100, help="L-BFGS-B iterations")
+    p.add_argument("--episode-length", type=float, default=1.0,
+                   help=f"s (default 1): at most {MAX_FORCES} force evaluations per episode, "
+                        "about 2.2 s of the sim setting")  # fmt: skip
+    iterations = DEFAULT_OPTIONS["max_iterations"]
+    p.add_argument("--max-iterations", type=int, default=iterations,
+                   help=f"L-BFGS-B iterations per episode (default {iterations})")  # fmt: skip
     args = p.parse_args(argv)
     if args.episodes < 1 or args.seed < 0:
         sys.exit(f"{p.prog}: error: --episodes must be >= 1 and --seed >= 0, got "
