@@ -26,6 +26,17 @@ def test_sb3_vecenv_refuses_non_finite_actions():
             venv.step_async(actions)
 
 
+def test_batched_envs_refuse_complex_actions():
+    venv = DeclaredVectorEnv(2, **HALF)
+    venv.reset(seed=0)
+    with pytest.raises(TypeError, match="complex"):
+        venv.step(np.zeros((2, 2)) + 1j)
+    sb3 = DeclaredSB3VecEnv(2, **HALF)
+    sb3.reset()
+    with pytest.raises(TypeError, match="complex"):
+        sb3.step_async(np.zeros((2, 2)) + 1j)
+
+
 def test_sb3_vecenv_step_before_reset_raises():
     venv = DeclaredSB3VecEnv(2, **HALF)
     with pytest.raises(ResetNeeded):

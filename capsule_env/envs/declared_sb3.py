@@ -6,7 +6,8 @@ for the quarter-car: an episode resets in the step that ends it, its last observ
 from the bump stop. ``seed(s)`` gives the vehicles ``SeedSequence(s).spawn(num_envs)``: vehicle
 ``n`` runs the episodes of the single env seeded from that stream, whatever the batch.
 ``step_async`` before the first ``reset`` raises ``gymnasium.error.ResetNeeded``; actions of
-another shape, NaN or infinity raise ``ValueError`` (the others are clipped to [-1, 1]).
+another shape, NaN or infinity raise ``ValueError``, complex ones ``TypeError`` (the others
+are clipped to [-1, 1]).
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ class DeclaredSB3VecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         if self._needs_reset:
             raise ResetNeeded("call reset() before step()")
+        if np.iscomplexobj(actions):  # numpy would drop the imaginary part with a warning
+            raise TypeError("actions must be real numbers, got complex ones")
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != self._actions.shape:
             raise ValueError(f"actions must have shape {self._actions.shape}, got {a.shape}")

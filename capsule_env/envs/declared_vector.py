@@ -88,6 +88,8 @@ class DeclaredVectorEnv(VectorEnv):
             raise ResetNeeded("call reset() before step()")
         batch = self._batch
         shape = (self.num_envs, batch.n_slots)
+        if np.iscomplexobj(actions):  # numpy would drop the imaginary part with a warning
+            raise TypeError(f"actions must be real numbers of shape {shape}, got complex ones")
         try:
             a = np.asarray(actions, dtype=np.float64)
         except (TypeError, ValueError):
