@@ -40,3 +40,16 @@ def test_a_floor_block_sets_the_lower_end_and_the_shares():
     assert f"[0.1000, {oracle:.4f}]" in card and "the certified floor" in card
     assert _row(card, "oracle")[-1] == f"{(passive - oracle) / (passive - 0.1):.3f}"
     assert _row(card, "passive")[-1] == "0.000"
+
+
+def test_the_cards_command_refuses_a_missing_page_in_one_line(tmp_path, capsys):
+    import pytest
+
+    from capsule_env.evaluation.task_cards import main
+
+    with pytest.raises(SystemExit) as err:
+        main([str(tmp_path / "nope" / "tasks.md")])
+    assert err.value.code == 2
+    message = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "does not exist" in message and "Traceback" not in message
+    assert not (tmp_path / "nope").exists()

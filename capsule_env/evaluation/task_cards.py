@@ -160,10 +160,30 @@ def sync_readme(readme: Path, figures: Path) -> bool:
     return _replace_block(readme, README_BEGIN, README_END, readme_table(load_results(figures)))
 
 
-if __name__ == "__main__":  # python -m capsule_env.evaluation.task_cards docs/tasks.md [README.md]
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/tasks.md")
-    figures = target.parent / "figures"
-    print(("updated " if sync_page(target, figures / "evaluation.json") else "unchanged ")
-          + str(target))  # fmt: skip
-    readme = Path(sys.argv[2]) if len(sys.argv) > 2 else target.parent.parent / "README.md"
-    print(("updated " if sync_readme(readme, figures) else "unchanged ") + str(readme))
+def main(argv: list[str] | None = None) -> int:
+    """``python -m capsule_env.evaluation.task_cards [docs/tasks.md [README.md]]``: rewrite the
+    cards and the README's table; a missing file or folder: one line, exit status 2."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m capsule_env.evaluation.task_cards",
+                                description="Rewrite docs/tasks.md's task cards and the "
+                                "README's table of the tasks from docs/figures/*.json.")  # fmt: skip
+    p.add_argument("page", nargs="?", type=Path, default=Path("docs/tasks.md"))
+    p.add_argument("readme", nargs="?", type=Path, default=None)
+    args = p.parse_args(argv)
+    figures = args.page.parent / "figures"
+    readme = args.readme or args.page.parent.parent / "README.md"
+    for path in (args.page, readme, figures):
+        if not path.exists():
+            p.error(f"{path} does not exist (give docs/tasks.md, and README.md beside docs/)")
+    try:
+        changed = sync_page(args.page, figures / "evaluation.json")
+        print(("updated " if changed else "unchanged ") + str(args.page))
+        print(("updated " if sync_readme(readme, figures) else "unchanged ") + str(readme))
+    except (OSError, ValueError, KeyError) as exc:
+        p.error(f"cannot make the cards: {exc}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
