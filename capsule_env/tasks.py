@@ -203,7 +203,12 @@ def task_named(env_id: str) -> Task:
         if task.env_id == env_id:
             return task
     names = ", ".join(t.env_id for t in TASKS)
-    raise ValueError(f"task must be one of {names}, got {env_id!r}")
+    declared = ", ".join(t.env_id for t in DECLARED_TASKS)
+    if env_id in {t.env_id for t in DECLARED_TASKS}:
+        raise ValueError(f"{env_id} is a declared vehicle's task ({declared}); this takes "
+                         f"the 1/4-car's tasks: {names}")  # fmt: skip
+    raise ValueError(f"task must be one of {names} (the declared vehicles' tasks, {declared}, "
+                     f"have their own evaluation: evaluate.py --task), got {env_id!r}")  # fmt: skip
 
 
 def register_tasks() -> None:

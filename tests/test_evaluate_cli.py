@@ -23,7 +23,7 @@ import pytest
 from capsule_env import metrics
 from capsule_env.evaluation import condition as eval_condition
 from capsule_env.evaluation import evaluate
-from capsule_env.tasks import TASKS, Task
+from capsule_env.tasks import DECLARED_TASKS, TASKS, Task
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Two 1 s episodes on the evaluation bank's first seeds, no shipped policy (seconds per run).
@@ -163,7 +163,7 @@ def test_the_script_itself_says_one_line_without_traceback():
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr == (
         "evaluate.py: error: --task must be one of "
-        + ", ".join(t.env_id for t in TASKS)
+        + ", ".join(t.env_id for t in TASKS + DECLARED_TASKS)
         + ", got 'Capsule-v9'\n"
     )
 

@@ -47,3 +47,18 @@ def test_floor_refused_in_one_line_before_anything_runs(argv, needle, tmp_path, 
     assert needle in message and "--floor" in message
     assert message.strip().count("\n") == 0 or message.strip().startswith("usage")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--episodes", "1", "--episode-length", "0.1"],  # refused by the controllers' check
+        ["--policy", "/nonexistent/policy.zip"],
+    ],
+)
+def test_a_refused_run_creates_no_output_folder(argv, tmp_path):
+    out = tmp_path / "new" / "sub" / "results.json"
+    with pytest.raises(SystemExit) as err:
+        main([*argv, "--json", str(out)])
+    assert str(err.value.code).startswith("evaluate.py: error: ")
+    assert not (tmp_path / "new").exists()

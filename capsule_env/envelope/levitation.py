@@ -171,7 +171,7 @@ def check_levitating(name: str, speed_m_s: np.ndarray | float, coil: EdsCoil) ->
         raise ValueError(
             f"{name} must be at least the lift-off speed {m_s_to_kmh(coil.lift_off_speed_m_s):.1f} km/h "
             f"with levitation='eds' (below it the capsule rolls on its wheels), got "
-            f"{m_s_to_kmh(low):.1f} km/h"
+            f"{m_s_to_kmh(low):.10g} km/h"
         )
 
 

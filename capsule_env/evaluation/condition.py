@@ -35,7 +35,7 @@ from typing import Any
 from capsule_env.common.cli import parse_env_item
 from capsule_env.engine.config import SETTINGS, EnvConfig
 from capsule_env.evaluation.episodes import check_episode_length
-from capsule_env.tasks import TASKS
+from capsule_env.tasks import DECLARED_TASKS, TASKS
 
 __all__ = [
     "Condition",
@@ -181,6 +181,9 @@ def build_condition(
     ``--episode-length`` (None when not given). Checks every option with
     :class:`~capsule_env.engine.config.EnvConfig` in each setting; raises ``ValueError`` (or
     ``TypeError``) naming the option and what it accepts."""
+    known = [t.env_id for t in TASKS + DECLARED_TASKS]  # evaluate.py runs the declared ones
+    if task is not None and task not in known:
+        raise ValueError(f"--task must be one of {', '.join(known)}, got {task!r}")
     task_kwargs = task_env_kwargs(task) if task is not None else {}
     overrides = _env_items(env_items)
     if overrides.get("setting") == "both":  # --setting's word, not an env option

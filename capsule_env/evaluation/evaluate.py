@@ -121,7 +121,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         action="store_true",
         help="do not add the pretrained policies shipped with the package (those trained in the evaluated physics whose observation fits)",
     )
-    p.add_argument("--episodes", type=int, default=10, help="guideway seeds per controller (>= 1)")
+    p.add_argument(
+        "--episodes",
+        type=int,
+        default=10,
+        help="guideway seeds per controller (>= 1; >= 2 with a half-car task)",
+    )
     p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
     p.add_argument("--episode-length", type=float, default=None,
                    help="seconds per episode (default: the --task's or --env's "
@@ -156,8 +161,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def check_args(args: argparse.Namespace) -> None:
-    """Check the values, and that the ``--json``/``--plots`` paths can be written, before
-    anything runs; raises ``ValueError`` naming the option."""
+    """Check the values before anything runs (the output paths: :func:`check_outputs`, last);
+    raises ``ValueError`` naming the option."""
     if args.episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
     last = 2**63 - args.episodes  # episode k uses seed + k, an int64 of the kernels
@@ -169,6 +174,11 @@ def check_args(args: argparse.Namespace) -> None:
                          "comma-separated names, or 'all'")  # fmt: skip
     if getattr(args, "floor", False):
         check_floor_args(args)
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Check that the ``--json``/``--plots`` paths can be written (creating their folders):
+    the last check before the run, so that a refused run creates nothing."""
     if args.json is not None:
         check_writable_file(args.json, "--json")
     if args.plots is not None:
@@ -342,7 +352,7 @@ def check_controllers(
 
 def prepare(args: argparse.Namespace) -> dict:
     """Every check made before the run (:func:`check_args`, :func:`build_controllers`,
-    :func:`check_controllers`); returns the controllers."""
+    :func:`check_controllers`, :func:`check_outputs`); returns the controllers."""
     check_args(args)
     names = [n.strip() for n in args.controllers.split(",") if n.strip()]
     condition = _condition(args)
@@ -353,6 +363,7 @@ def prepare(args: argparse.Namespace) -> dict:
         allow_unnormalized=args.allow_unnormalized, env_kwargs=condition.env_kwargs,
     )  # fmt: skip
     check_controllers(ctrls, list(condition.settings), args.episode_length, condition.env_kwargs)
+    check_outputs(args)
     return ctrls
 
 
