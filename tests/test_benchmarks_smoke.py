@@ -228,7 +228,8 @@ def test_bench_compile_times_both_and_checks_its_arithmetic(tmp_path):
 
 @pytest.mark.slow
 def test_bench_half_car_quick_runs():
-    """The half-car benchmark runs both envs and both plants and reports their ratio."""
+    """The half-car benchmark runs both envs (and the env's path before the lanes kernel) and
+    both plants in both layouts, and reports the ratios."""
     env = dict(
         os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
     )
@@ -237,9 +238,15 @@ def test_bench_half_car_quick_runs():
                             text=True)  # fmt: skip
     assert result.returncode == 0, result.stderr[-3000:]
     lines = result.stdout.splitlines()
-    rates = {line[:32].strip(): float(line[32:]) for line in lines[2:6]}
+    last = next(i for i, line in enumerate(lines) if line.startswith("half-car / ride"))
+    rates = {line[:32].strip(): float(line[32:]) for line in lines[2:last]}
     assert set(rates) == {"CapsuleRide-v0 env", "CapsuleHalfRide-v0 env",
-                          "declared plant, quarter_car", "declared plant, half_car"}  # fmt: skip
-    ratio = float(lines[6].split(":")[1].split()[0])
+                          "CapsuleHalfRide-v0 env, before", "declared plant, quarter_car",
+                          "lanes plant, quarter_car", "declared plant, half_car",
+                          "lanes plant, half_car"}  # fmt: skip
+    ratio = float(lines[last].split(":")[1].split()[0])
     expected = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleRide-v0 env"]
     assert abs(ratio - expected) <= 0.0005 + 1e-3 * expected  # printed to 3 decimals
+    speedup = float(lines[last].split(":")[-1])
+    expected = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleHalfRide-v0 env, before"]
+    assert abs(speedup - expected) <= 0.005 + 1e-3 * expected  # printed to 2 decimals
