@@ -60,6 +60,7 @@ from capsule_env.evaluation.condition import (
     tuned_condition_changes,
 )
 from capsule_env.evaluation.episodes import check_episode_length, episode_metrics, run_episodes
+from capsule_env.evaluation.floor_block import add_floor, check_floor_settings
 from capsule_env.evaluation.tables import format_markdown, format_tables, group_of  # noqa: F401
 from capsule_env.metrics import DEFAULT_BANDS_HZ
 from capsule_env.tasks import DECLARED_TASKS, TASKS, task_named
@@ -173,7 +174,9 @@ def check_args(args: argparse.Namespace) -> None:
         raise ValueError(f"--controllers names no controller (got {args.controllers!r}): give "
                          "comma-separated names, or 'all'")  # fmt: skip
     if getattr(args, "floor", False):
-        check_floor_args(args)
+        condition = _condition(args)
+        seeds = range(args.seed, args.seed + args.episodes)
+        check_floor_settings(condition.env_kwargs, condition.settings, seeds, args.episode_length)
 
 
 def check_outputs(args: argparse.Namespace) -> None:
@@ -183,41 +186,6 @@ def check_outputs(args: argparse.Namespace) -> None:
         check_writable_file(args.json, "--json")
     if args.plots is not None:
         check_writable_dir(plots_dir(args), "--plots")
-
-
-def _floor_kwargs(args: argparse.Namespace, setting: str) -> dict:
-    """The env arguments of the certified floor's episodes: the oracle's (the evaluated
-    condition in ``setting``)."""
-    return {**_condition(args).env_kwargs, "setting": setting}
-
-
-def check_floor_args(args: argparse.Namespace) -> None:
-    """``--floor``: every setting's plant and the episode length must be ones the certified
-    floor covers (:func:`capsule_env.bounds.check_floor`); ValueError naming ``--floor``."""
-    from capsule_env.bounds import check_floor
-
-    seeds = range(args.seed, args.seed + args.episodes)
-    for setting in _condition(args).settings:
-        try:
-            check_floor(_floor_kwargs(args, setting), seeds, args.episode_length)
-        except ValueError as exc:
-            raise ValueError(f"--floor in the {setting} setting: {exc}") from None
-
-
-def add_floor(block: dict, setting: str, args: argparse.Namespace) -> None:
-    """Add the certified floor (:func:`capsule_env.bounds.certified_floor` on the same
-    episodes) to a setting's results as ``block["floor"]``: a row with
-    ``wk_rms_body_acc_m_s2`` (the mean over episodes), per-episode values and the method, and
-    ``floor_to_oracle`` (the floor over the oracle's Wk) when the block has an oracle row."""
-    from capsule_env.bounds import certified_floor, floor_row
-
-    seeds = range(args.seed, args.seed + args.episodes)
-    result = certified_floor(_floor_kwargs(args, setting), seeds, args.episode_length)
-    row = floor_row(result)
-    oracle = block["controllers"].get("oracle")
-    if oracle is not None and oracle["wk_rms_body_acc_m_s2"] > 0:
-        row["floor_to_oracle"] = row["wk_rms_body_acc_m_s2"] / oracle["wk_rms_body_acc_m_s2"]
-    block["floor"] = row
 
 
 def plots_dir(args: argparse.Namespace) -> Path:
@@ -418,7 +386,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             add_oracle(results["settings"][setting], setting, args, passive, ctrls, own)
         if getattr(args, "floor", False):
             _progress(done, total, f"{setting}/floor (dual)", time.perf_counter() - t0)
-            add_floor(results["settings"][setting], setting, args)
+            seeds = range(args.seed, args.seed + args.episodes)
+            floor_kwargs = {**condition.env_kwargs, "setting": setting}
+            add_floor(results["settings"][setting], floor_kwargs, seeds, args.episode_length)
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
