@@ -64,7 +64,9 @@ def test_every_force_of_a_rollout_satisfies_every_constraint(sim: OracleEpisodes
         lifted, forces = _replay(sim, 0, currents)
         x, v = lifted.affine(lifted.x_rows, forces), lifted.affine(lifted.v_rows, forces)
         d, c = model_force_parts(sim.code, sim.damper_params[0], x, v, currents[lifted.step_of])
-        assert np.allclose(d + c, forces, rtol=1e-12, atol=1e-9)
+        # numpy's exp against the kernel's fast exp (a few ulp, libm differs across CPUs):
+        # 1e-9 relative, far below any force that matters here
+        assert np.allclose(d + c, forces, rtol=1e-9, atol=1e-6)
         xi = np.stack([d / FORCE_SCALE_N, c / FORCE_SCALE_N, v, x, np.ones_like(v)], axis=1)
         assert constraint_values(mats, xi).min() >= 0.0
 
@@ -85,7 +87,8 @@ def test_weighting_matrix_is_the_metric() -> None:
     a = np.random.default_rng(1).normal(size=64) + 3.0
     w = weighting_matrix(64, 0.005)
     assert math.isclose(float(np.sqrt(np.mean((w @ a) ** 2))),
-                        float(metrics.wk_weighted_rms(a, 0.005)), rel_tol=1e-12)  # fmt: skip
+                        float(metrics.wk_weighted_rms(a, 0.005)), rel_tol=1e-9)  # fmt: skip
+    # an FFT against a BLAS matrix product: rounding differs across CPUs, so 1e-9, not bits
 
 
 def test_unconstrained_dual_is_the_regularised_preview_optimum(sim: OracleEpisodes) -> None:
