@@ -7,7 +7,8 @@ from the bump stop. ``seed(s)`` gives the vehicles ``SeedSequence(s).spawn(num_e
 ``n`` runs the episodes of the single env seeded from that stream, whatever the batch.
 ``step_async`` before the first ``reset`` raises ``gymnasium.error.ResetNeeded``; actions of
 another shape, NaN or infinity raise ``ValueError``, complex ones ``TypeError`` (the others
-are clipped to [-1, 1]).
+are clipped to [-1, 1]). ``set_options`` refuses any option by name (``reset`` takes none), as
+the quarter-car's does (:func:`capsule_env.envs.sb3.check_vec_options`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from capsule_env.engine.config import check_num_envs, check_seed
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces
+from capsule_env.envs.sb3 import check_vec_options
 
 __all__ = ["DeclaredSB3VecEnv"]
 
@@ -45,10 +47,17 @@ class DeclaredSB3VecEnv(VecEnv):
         self._seed = None if seed is None else check_seed("seed", seed)
         return [self._seed] * self.num_envs
 
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """``reset`` takes no option: ``None``, ``{}`` or empty dicts pass, any key raises
+        ``ValueError`` here rather than being dropped at the next reset."""
+        check_vec_options(options, self.num_envs)
+        super().set_options(options)
+
     def reset(self) -> np.ndarray:
         if self._seed is not None:
             self.batch.seed(self._seed)
             self._seed = None
+        self._reset_options()
         self.batch.reset()
         self._needs_reset = False
         self._obs = self.batch.observe(self.batch.signals())

@@ -22,10 +22,28 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from capsule_env.engine.batch import CapsuleBatch
 from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed
 from capsule_env.engine.layout import SIGNAL_NAMES
-from capsule_env.envs.capsule_suspension import env_spaces, render_fps
+from capsule_env.envs.capsule_suspension import _check_options, env_spaces, render_fps
 from capsule_env.envs.render import render_vehicle
 
-__all__ = ["CapsuleSuspensionSB3VecEnv", "make_sb3_vec_env"]
+__all__ = ["CapsuleSuspensionSB3VecEnv", "check_vec_options", "make_sb3_vec_env"]
+
+
+def check_vec_options(options: Any, num_envs: int) -> None:
+    """Check ``VecEnv.set_options(options)`` for envs whose ``reset`` takes no option: ``None``,
+    an empty dict, or a list of ``num_envs`` empty dicts pass; an option is refused by name
+    (``ValueError``) when it is set, rather than dropped at the next reset; another type or
+    length raises ``TypeError``."""
+    if options is None or isinstance(options, dict):
+        _check_options(options)
+        return
+    if not isinstance(options, list | tuple) or len(options) != num_envs:
+        raise TypeError(
+            f"options must be None, a dict or a list of {num_envs} dicts (one per env), "
+            f"got {type(options).__name__}"
+            + (f" of length {len(options)}" if isinstance(options, list | tuple) else "")
+        )
+    for env_options in options:
+        _check_options(env_options)
 
 
 class CapsuleSuspensionSB3VecEnv(VecEnv):
@@ -67,6 +85,12 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         """Seed the next ``reset``: the vehicles get ``SeedSequence(seed).spawn(num_envs)``."""
         self._seed = None if seed is None else check_seed("seed", seed)
         return [self._seed] * self.num_envs
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """The env's ``reset`` takes no option: ``None``, ``{}`` or empty dicts pass; any key is
+        refused here (:func:`check_vec_options`), not silently dropped at the next reset."""
+        check_vec_options(options, self.num_envs)
+        super().set_options(options)
 
     def reset(self) -> np.ndarray:
         if self._seed is not None:
