@@ -38,6 +38,7 @@ from capsule_env.bounds.relaxation import (
     constraint_names,
     damper_envelope,
 )
+from capsule_env.engine.config import check_seed
 
 __all__ = [
     "DEFAULT_OPTIONS",
@@ -132,19 +133,30 @@ def _options(options: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _check(seeds: Sequence[int], episode_length_s: float) -> tuple[tuple[int, ...], float]:
-    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Sequence | range):
-        raise TypeError(f"seeds must be a sequence of integers, got {seeds!r}")
-    out = tuple(seeds)
-    if not out or not all(isinstance(s, (int, np.integer)) and s >= 0 for s in out):
-        raise ValueError(f"seeds must be a non-empty sequence of integers >= 0, got {seeds!r}")
+_SEEDS = "a non-empty list, tuple, range or 1-D numpy array of integers in [0, 2**63)"
+
+
+def _check_seeds(seeds: Any) -> tuple[int, ...]:
+    """``seeds`` as ints, as :func:`capsule_env.oracle.clairvoyant_bound` takes them (numpy
+    integers and integer arrays too), each checked as the env checks a seed."""
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Sequence | np.ndarray):
+        raise TypeError(f"seeds must be {_SEEDS}, got {seeds!r}")
+    if isinstance(seeds, np.ndarray) and seeds.ndim != 1:
+        raise TypeError(f"seeds must be {_SEEDS}, got an array of shape {seeds.shape}")
+    if len(seeds) == 0:
+        raise ValueError(f"seeds must be {_SEEDS}, got an empty one")
+    return tuple(check_seed(f"seeds[{k}]", s) for k, s in enumerate(seeds))
+
+
+def _check(seeds: Any, episode_length_s: float) -> tuple[tuple[int, ...], float]:
+    out = _check_seeds(seeds)
     if isinstance(episode_length_s, bool) or not isinstance(episode_length_s, int | float):
         raise TypeError(f"episode_length_s must be a number of seconds in (0, 10], got "
                         f"{episode_length_s!r}")  # fmt: skip
     length = float(episode_length_s)
     if not 0.0 < length <= 10.0:
         raise ValueError(f"episode_length_s must be in (0, 10] s, got {episode_length_s!r}")
-    return tuple(int(s) for s in out), length
+    return out, length
 
 
 def _problem(episodes: Any, k: int) -> tuple[LiftedEpisode, DualProblem]:
@@ -154,14 +166,17 @@ def _problem(episodes: Any, k: int) -> tuple[LiftedEpisode, DualProblem]:
 
 
 def check_floor(
-    env_kwargs: Mapping[str, Any], seeds: Sequence[int], episode_length_s: float
+    env_kwargs: Mapping[str, Any], seeds: Sequence[int] | np.ndarray, episode_length_s: float
 ) -> tuple[Any, tuple[int, ...], float]:
     """Check that :func:`certified_floor` can run these episodes (a supported plant damper,
     one substep count at every current, at most :data:`MAX_FORCES` force evaluations per
     episode) before anything long runs; returns the episodes
     (:class:`~capsule_env.oracle.plant.OracleEpisodes`), the seeds and the length. ValueError
     naming what fails (an ``episode_length_s`` in ``env_kwargs`` other than the argument too);
-    TypeError for seeds that are not a sequence of integers or a length that is not a number."""
+    ``seeds``: a non-empty list, tuple, range or 1-D numpy array of integers (numpy integers
+    too), each in ``[0, 2**63)`` as the env's ``reset(seed=...)`` takes; TypeError or ValueError
+    naming ``seeds`` (``seeds[k]``) and that range otherwise, TypeError for a length that is not
+    a number."""
     from capsule_env.oracle.plant import OracleEpisodes
 
     seeds_t, length = _check(seeds, episode_length_s)
@@ -184,7 +199,7 @@ def check_floor(
 
 def certified_floor(
     env_kwargs: Mapping[str, Any],
-    seeds: Sequence[int],
+    seeds: Sequence[int] | np.ndarray,
     episode_length_s: float,
     **options: Any,
 ) -> FloorResult:

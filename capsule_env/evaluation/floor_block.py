@@ -6,14 +6,20 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 __all__ = ["add_floor", "check_floor_settings"]
 
 
 def check_floor_settings(
-    env_kwargs: Mapping[str, Any], settings: Sequence[str], seeds: Sequence[int], length_s: float
+    env_kwargs: Mapping[str, Any],
+    settings: Sequence[str],
+    seeds: Sequence[int] | np.ndarray,
+    length_s: float,
 ) -> None:
     """Every setting's plant and the episode length must be ones the certified floor covers
-    (:func:`capsule_env.bounds.check_floor`); ValueError naming ``--floor`` and the setting."""
+    (:func:`capsule_env.bounds.check_floor`, which takes numpy integer seeds too); ValueError
+    naming ``--floor`` and the setting."""
     from capsule_env.bounds import check_floor
 
     for setting in settings:
@@ -24,7 +30,7 @@ def check_floor_settings(
 
 
 def add_floor(
-    block: dict, env_kwargs: Mapping[str, Any], seeds: Sequence[int], length_s: float
+    block: dict, env_kwargs: Mapping[str, Any], seeds: Sequence[int] | np.ndarray, length_s: float
 ) -> None:
     """Add the certified floor (:func:`capsule_env.bounds.certified_floor` on the same
     episodes, ``env_kwargs`` with the block's setting) to a setting's results as
