@@ -171,7 +171,7 @@ def lq_terms(
 @dataclass(frozen=True)
 class CondensedQP:
     """The condensed problem of one weight set (see the module docstring). Shapes: ``N``
-    horizon, ``W`` blocked moves, ``n`` state size, ``R`` rises read."""
+    horizon (times ``inputs``), ``W`` blocked moves, ``n`` state size, ``R`` rises read."""
 
     h: np.ndarray  # (W, W) Hessian (of 1/2 w'Hw)
     f_z: np.ndarray  # (W, n) linear term on z_0
@@ -185,6 +185,10 @@ class CondensedQP:
     stroke_d: np.ndarray  # (N, R)
     lq_gain: np.ndarray  # (n,) the unconstrained law u = -K z - K_d D (the fallback)
     lq_rise_gain: np.ndarray  # (R,)
+    #: Inputs (dampers) planned: the rows of ``blocking`` and ``rate_*``/``stroke_*`` are
+    #: input-major (input ``i``'s interval ``j`` at ``i N + j``, ``N`` the rows per input);
+    #: ``lq_gain`` is then ``(inputs, n)`` (:mod:`capsule_env.agents.controllers.half_car_mpc`).
+    inputs: int = 1
 
 
 def blocking_matrix(horizon: int, blocks: tuple[int, ...] | None) -> np.ndarray:

@@ -165,9 +165,10 @@ class BandQP:
         csc = sparse.csc_matrix(self._pattern())
         self.rows = csc.indices.copy()
         self.cols = np.repeat(np.arange(csc.shape[1]), np.diff(csc.indptr))
-        self.unconstrained = np.flatnonzero(
-            np.arange(n_steps) >= (options.constrained_steps or n_steps)
-        )
+        per = n_steps // qp.inputs  # intervals per input (the rows are input-major)
+        interval = np.arange(n_steps) % per
+        self.unconstrained = np.flatnonzero(interval >= (options.constrained_steps or per))
+        self.first = interval == 0  # each input's interval 0: the band at the measured rate
         self.fixed = np.all(qp.rate_w == 0.0, axis=1)  # intervals whose rate the plan cannot move
         self.backend = _module(options.backend)
         self._last: np.ndarray | None = None  # DAQP's warm start: the previous solution
@@ -288,14 +289,15 @@ class BandQP:
         self,
         z0: np.ndarray,
         rises: np.ndarray,
-        rate_now_m_s: float,
-        stroke_now_m: float,
+        rate_now_m_s: float | np.ndarray,
+        stroke_now_m: float | np.ndarray,
         reference_rate_m_s: np.ndarray,
         reference_stroke_m: np.ndarray,
     ) -> PlanResult:
         """The plan from state ``z0`` with ``rises`` (R,) ahead; the band at interval 0 at the
-        measured ``rate_now_m_s`` and ``stroke_now_m``; ``reference_*``: the previous plan's
-        predictions (N,) for the sign pattern and the linearisation of the later intervals.
+        measured ``rate_now_m_s`` and ``stroke_now_m`` (a float, or one per input);
+        ``reference_*``: the previous plan's predictions (N,) for the sign pattern and the
+        linearisation of the later intervals.
         A non-finite input is not solved (``"failed"``, no solve) and leaves the warm start
         as it was."""
         given = (z0, rises, rate_now_m_s, stroke_now_m, reference_rate_m_s, reference_stroke_m)
@@ -307,9 +309,10 @@ class BandQP:
         free_stroke = qp.stroke_z @ z0 + qp.stroke_d @ rises
         ref_rate = np.where(self.fixed, free_rate, reference_rate_m_s)
         ref_stroke = np.where(self.fixed, free_stroke, reference_stroke_m)
-        ref_rate[0], ref_stroke[0] = rate_now_m_s, stroke_now_m
+        ref_rate[self.first], ref_stroke[self.first] = rate_now_m_s, stroke_now_m
         free_rate = free_rate.copy()
-        free_rate[0] = rate_now_m_s
+        free_rate[self.first] = rate_now_m_s
+        later = ~self.first
         for solves in range(1, self.options.max_passes + 1):
             w, status = self._solve(free_rate, free_stroke, ref_rate, ref_stroke, linear)
             if w is None:
@@ -317,8 +320,8 @@ class BandQP:
             w = w * self.scale
             rate = free_rate + qp.rate_w @ w
             stroke = free_stroke + qp.stroke_w @ w
-            same = np.array_equal(rate[1:] >= 0.0, ref_rate[1:] >= 0.0)
-            ref_rate[1:], ref_stroke[1:] = rate[1:], stroke[1:]
+            same = np.array_equal(rate[later] >= 0.0, ref_rate[later] >= 0.0)
+            ref_rate[later], ref_stroke[later] = rate[later], stroke[later]
             if same:
                 break
         return PlanResult(qp.blocking @ w, rate, stroke, solves, "solved")

@@ -1,0 +1,164 @@
+"""The half-car's semi-active MPC (capsule_env.agents.controllers.half_car_mpc).
+
+The independent check: unconstrained, the plan's first moves are the coupled discrete LQ law
+of capsule_env.agents.controllers.wheelbase (``lq-discrete-biexp-meas`` and
+``wheelbase-lq-biexp-meas``), whose model and Riccati design are built by other code."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from capsule_env.agents.controllers.half_car_mpc import (
+    HalfCarMPC,
+    condense_coupled,
+    coupled_lq,
+    coupled_model,
+)
+from capsule_env.agents.controllers.mpc_qp import band_edges
+from capsule_env.agents.controllers.mpc_solver import BandQP
+from capsule_env.agents.controllers.wheelbase import wheelbase_gains
+
+from capsule_env.envs.declared_vehicle import DeclaredVehicleEnv
+
+W = (0.001, 0.1, 3e-8)
+
+
+@pytest.mark.parametrize("preview", [False, True])
+def test_unconstrained_plan_is_the_discrete_lq_law(preview: bool) -> None:
+    """Without a coil lag (the wheelbase module's design has none), the MPC's LQ gain is the
+    coupled discrete LQ law's (``lq-discrete-biexp-meas``; with the window, the wheelbase
+    preview law's) to 1e-9 of the largest gain, and the unconstrained minimiser of the
+    condensed QP's first moves is ``-K z`` (to 1e-7) for horizons of 1 and 12 intervals: the
+    terminal cost is the infinite-horizon cost-to-go."""
+    model = coupled_model(coil_time_constant_s=0.0, preview=preview)
+    theirs = wheelbase_gains("half_car", 0.005, 225.0, *W, preview=preview)
+    k_lq = np.concatenate([theirs.k_x, theirs.k_u, theirs.k_p], axis=1)
+    k_mpc = coupled_lq(model, *W)[-1]
+    assert k_mpc.shape == k_lq.shape == (2, 10 + (18 if preview else 0))
+    np.testing.assert_allclose(k_mpc, k_lq, rtol=0, atol=1e-9 * abs(k_lq).max())
+    z = (
+        np.random.default_rng(3).normal(size=(5, model.size))
+        * np.r_[[1e-3] * 8, [1e3] * 2, [1e-3] * (model.size - 10)]
+    )
+    for horizon in (1, 12):
+        qp = condense_coupled(model, W, horizon)
+        w = -np.linalg.solve(qp.h, qp.f_z @ z.T)
+        first = (qp.blocking @ w).reshape(2, horizon, -1)[:, 0]
+        expected = -k_lq @ z.T
+        np.testing.assert_allclose(first, expected, rtol=0, atol=1e-7 * abs(expected).max())
+
+
+def test_the_coil_lag_changes_the_law_and_keeps_the_horizon_out() -> None:
+    """With the ``hils`` coil lag the design differs from the lag-free one (the check above
+    is not vacuous), and its unconstrained plan is still its own LQ law at any horizon."""
+    model = coupled_model()
+    assert model.lag and model.size == 12
+    k = coupled_lq(model, *W)[-1]
+    lag_free = wheelbase_gains("half_car", 0.005, 225.0, *W, preview=False).k_x
+    assert np.abs(k[:, :8] - lag_free).max() > 1e-3 * np.abs(lag_free).max()
+    z = np.random.default_rng(4).normal(size=model.size) * np.r_[[1e-3] * 8, [1e3] * 4]
+    for horizon in (1, 10):
+        qp = condense_coupled(model, W, horizon)
+        first = (qp.blocking @ -np.linalg.solve(qp.h, qp.f_z @ z)).reshape(2, horizon)[:, 0]
+        np.testing.assert_allclose(first, -k @ z, rtol=1e-7)
+
+
+def _recording(monkeypatch: pytest.MonkeyPatch) -> list:
+    """Every plan (``z0``, measured rate and stroke, result) made by any BandQP."""
+    plans: list = []
+    original = BandQP.plan
+
+    def spy(self, z0, rises, rate, stroke, ref_rate, ref_stroke):  # type: ignore[no-untyped-def]
+        result = original(self, z0, rises, rate, stroke, ref_rate, ref_stroke)
+        plans.append((np.array(rate, dtype=float), np.array(stroke, dtype=float), result))
+        return result
+
+    monkeypatch.setattr(BandQP, "plan", spy)
+    return plans
+
+
+@pytest.mark.parametrize("preview", [False, True])
+def test_plans_are_dissipative_and_inside_each_dampers_band(monkeypatch, preview: bool) -> None:
+    """Over 1.5 s on the hils plant: each damper's force planned now is dissipative at its own
+    measured stroke rate and inside the band of the inverted model at its own measured stroke
+    and rate (exact there: no linearisation), wherever that band has a dissipative part; the
+    band is active on both dampers (the plan is not the LQ law)."""
+    plans = _recording(monkeypatch)
+    law = HalfCarMPC(*W, preview=preview)
+    env = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="measured",
+                             action_mode="force", max_force_n=law.max_force_n,
+                             episode_length_s=1.5)  # fmt: skip
+    obs, _ = env.reset(seed=11)
+    for _ in range(299):
+        obs, _, terminated, truncated, _ = env.step(law.predict(obs[None])[0][0])
+        assert not (terminated or truncated)
+    assert len(plans) == 299 and law.counters["fallback_steps"] == 0
+    active = np.zeros(2, dtype=int)
+    damper = law.damper
+    for rate, stroke, result in plans:
+        u = result.u.reshape(2, -1)[:, 0]
+        edges = band_edges(damper, stroke, rate)
+        lo = np.where(rate >= 0, np.maximum(edges[0], 0.0), edges[1])
+        hi = np.where(rate >= 0, edges[1], np.minimum(edges[0], 0.0))
+        tol = 1e-6 * law.max_force_n
+        assert np.all(u * np.sign(rate) >= -tol)  # dissipative
+        meetable = lo <= hi
+        assert np.all((u >= lo - tol)[meetable]) and np.all((u <= hi + tol)[meetable])
+        active += (np.abs(u - lo) < tol) | (np.abs(u - hi) < tol)
+    assert np.all(active > 30)
+
+
+def test_an_episode_on_the_task_env_rides_like_the_discrete_lq() -> None:
+    """End to end on ``CapsuleHalfRide-v0``: 2 s, finite actions of shape (2,), no fallback,
+    and a ride (RMS of the comfort accelerations) within 3 % of the clipped discrete LQ law's
+    on the same episode; the coil current the law estimates (from the task's command columns
+    through the lag) is the plant's."""
+    import gymnasium as gym
+    from capsule_env.agents.controllers.wheelbase import WheelbasePreviewLQ
+
+    acc, est, true = {}, [], []
+    mpc = HalfCarMPC(*W)
+    for law in (mpc, WheelbasePreviewLQ(*W, preview=False)):
+        env = gym.make("CapsuleHalfRide-v0", episode_length_s=2.0)
+        obs, _ = env.reset(seed=3)
+        batch = env.unwrapped.batch
+        rows = []
+        for _ in range(399):
+            action = law.predict(obs[None])[0][0]
+            assert action.shape == (2,) and np.all(np.isfinite(action))
+            obs, _, _, _, info = env.step(action)
+            rows.append(info["comfort_acceleration_m_s2"].ravel())
+            if law is mpc:
+                est.append(law._memory["current"].reshape(-1).copy())
+                true.append(np.array(batch.signals()["coil_current_a"]).reshape(-1))
+        acc[law.name] = np.sqrt(np.mean(np.array(rows)[100:] ** 2))
+    assert mpc.counters["vehicle_steps"] == 399 and mpc.counters["fallback_steps"] == 0
+    # the estimate at step k+1 (read from the commands) is the plant's current after step k,
+    # up to the float32 observation of the commands (observed 4e-8 A)
+    np.testing.assert_allclose(np.array(est)[1:], np.array(true)[:-1], rtol=0, atol=1e-5)
+    assert np.ptp(np.array(true)) > 0.5  # the currents move (A)
+    ratio = acc["mpc-coupled-biexp-meas"] / acc["lq-discrete-biexp-meas"]
+    assert 0.97 < ratio < 1.03
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"delay_steps": True}, "delay_steps"),
+        ({"r_force": 0.0}, "r_force"),
+        ({"horizon_steps": 0}, "horizon_steps"),
+        ({"q_stroke": -1.0}, "q_stroke"),
+        ({"horizon_steps": 2.5}, "horizon_steps"),
+        ({"q_levitation": float("nan")}, "q_levitation"),
+        ({"coil_time_constant_s": -0.1}, "coil_time_constant_s"),
+        ({"speed_kmh": 0.0}, "speed_kmh"),
+        ({"max_force_n": 0.0}, "max_force_n"),
+        ({"preview": "yes"}, "preview"),
+        ({"move_blocks": (3, 3)}, "move_blocks"),
+        ({"solver": {"backend": "cvx"}}, "backend"),
+        ({"solver": {"max_passes": 0}}, "max_passes"),
+    ],
+)
+def test_bad_input_names_the_parameter(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        HalfCarMPC(**kwargs)
