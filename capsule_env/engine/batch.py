@@ -37,6 +37,7 @@ from capsule_env.engine.layout import (
     BOGIE_DISP,
     DAMP_LEVITATION,
     MASS_BODY,
+    MASS_BOGIE,
     N_PLANT_OUTPUTS,
     N_SIGNALS,
     N_VEHICLE_PARAMS,
@@ -420,9 +421,16 @@ class CapsuleBatch:
         key: the vehicle's own stream draws what it draws without a trip) and EDS levitation
         (``k_p``, ``c_p`` at its speed now)."""
         env, envelope = self.env_state.envelope, self.envelope
+        if envelope.coil is not None:
+            env[ENV_LIMIT, n] = self.vehicle_params[n, STIFF_LEVITATION] / envelope.reference_shape
         if envelope.trip is not None:
             rng = np.random.default_rng([int(self.noise_key[n]), 1])
-            t0 = draw_window_start_s(rng, self.config.episode_length_s, envelope.trip)
+            own = None  # with lift_off='payload', the windows where it is at or above its own
+            if envelope.payload_lift_off:
+                own = envelope.vehicle_lift_off_m_s(self.vehicle_params[n, MASS_BODY],
+                                                    self.vehicle_params[n, MASS_BOGIE],
+                                                    env[ENV_LIMIT, n])  # fmt: skip
+            t0 = draw_window_start_s(rng, self.config.episode_length_s, envelope.trip, own)
             env[ENV_T0, n] = t0
             env[ENV_START, n] = self.start_position[n]
             env[ENV_SPEED, n] = self.speed[n] = float(trip_speed_m_s(t0, envelope.trip))
@@ -430,9 +438,7 @@ class CapsuleBatch:
             self.obs[n, column] = self.speed[n]
             self.obs[n, column + 1] = float(trip_acceleration_m_s2(t0, envelope.trip))
         if envelope.coil is not None:
-            limit = self.vehicle_params[n, STIFF_LEVITATION] / envelope.reference_shape
-            env[ENV_LIMIT, n] = limit
-            k_p, c_p = envelope.levitation_at(limit, self.speed[n])
+            k_p, c_p = envelope.levitation_at(env[ENV_LIMIT, n], self.speed[n])
             self.vehicle_params[n, STIFF_LEVITATION] = k_p
             self.vehicle_params[n, DAMP_LEVITATION] = c_p
 

@@ -44,6 +44,11 @@ pitch 1.35 m (the Yamanashi line's magnets; ``lambda = 2.7 m``) gives ``tau``. W
 vehicle this is ``v_c = 57.6 m/s`` (207 km/h) and ``tau = 7.5 ms``. Below the lift-off speed the
 capsule rolls on its wheels and is not levitating: :func:`check_levitating` refuses such speeds.
 
+**Lift-off under payload.** The coil is calibrated on the unladen vehicle; a vehicle of weight
+``W`` (a payload, a randomised vehicle) leaves its wheels where its sag ``W / k_p(v)`` equals the
+travel: :func:`lift_off_speed_m_s`. ``EdsParams.lift_off="unladen"`` (the default) levitates
+every vehicle from the calibration's lift-off speed; ``"payload"`` from its own.
+
 Pure numpy, no Gym import.
 """
 
@@ -55,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
-from capsule_env.common.validation import check_choice, check_in_range
+from capsule_env.common.validation import check_choice, check_in_range, check_positive
 from capsule_env.vehicles import VehicleParams
 
 __all__ = [
@@ -65,6 +70,8 @@ __all__ = [
     "EdsCoil",
     "eds_coil",
     "check_levitating",
+    "LIFT_OFF_MODES",
+    "lift_off_speed_m_s",
     "levitation_stiffness_n_per_m",
     "levitation_damping_n_s_per_m",
     "equilibrium_sag_m",
@@ -76,6 +83,9 @@ __all__ = [
 GRAVITY_M_S2 = 9.80665
 #: Coil geometries of :class:`EdsParams` (only ``null_flux`` is calibrated for the env).
 EDS_GEOMETRIES = ("null_flux",)
+#: Whose lift-off speed a vehicle levitates from (:class:`EdsParams`): the unladen vehicle's
+#: (the calibration's ``lift_off_speed_kmh``, for every payload) or each vehicle's own.
+LIFT_OFF_MODES = ("unladen", "payload")
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,9 @@ class EdsParams:
     levitation_travel_m : sag below the null line at the lift-off speed, the clearance the
         landing wheels leave (0.1 m).
     pole_pitch_m : magnet pole pitch (1.35 m; the Yamanashi line), ``lambda = 2 pole_pitch_m``.
+    lift_off : ``"unladen"`` (every vehicle levitates from ``lift_off_speed_kmh``, the unladen
+        vehicle's) or ``"payload"`` (each vehicle from its own lift-off speed, where the coil
+        carries its weight at the travel: :func:`lift_off_speed_m_s`).
     """
 
     geometry: str = "null_flux"
@@ -98,9 +111,11 @@ class EdsParams:
     lift_off_speed_kmh: float = 150.0
     levitation_travel_m: float = 0.1
     pole_pitch_m: float = 1.35
+    lift_off: str = "unladen"
 
     def __post_init__(self) -> None:
         check_choice("geometry", self.geometry, EDS_GEOMETRIES)
+        check_choice("lift_off", self.lift_off, LIFT_OFF_MODES)
         check_in_range("reference_speed_kmh", self.reference_speed_kmh, 1.0, 2000.0)
         check_in_range("lift_off_speed_kmh", self.lift_off_speed_kmh, 1.0, 2000.0)
         check_in_range("levitation_travel_m", self.levitation_travel_m, 1e-3, 1.0)
@@ -173,6 +188,23 @@ def check_levitating(name: str, speed_m_s: np.ndarray | float, coil: EdsCoil) ->
             f"with levitation='eds' (below it the capsule rolls on its wheels), got "
             f"{m_s_to_kmh(low):.10g} km/h"
         )
+
+
+def lift_off_speed_m_s(coil: EdsCoil, weight_n: float, travel_m: float,
+                       stiffness_limit_n_per_m: float | None = None) -> float:  # fmt: skip
+    """The speed (m/s) at which the sag ``weight_n / k_p(v)`` equals ``travel_m``: from
+    ``k_p = K_inf r^2 / (1 + r^2)``, ``r^2 = k / (K_inf - k)`` with ``k = W / travel``.
+    ``K_inf`` is the coil's unless ``stiffness_limit_n_per_m`` is given (a randomised
+    vehicle's); ``inf`` when even ``K_inf`` leaves a sag over the travel."""
+    check_positive("weight_n", weight_n)
+    check_positive("travel_m", travel_m)
+    limit = (
+        coil.stiffness_limit_n_per_m if stiffness_limit_n_per_m is None else stiffness_limit_n_per_m
+    )
+    needed = weight_n / travel_m
+    if needed >= limit:
+        return math.inf
+    return coil.characteristic_speed_m_s * math.sqrt(needed / (limit - needed))
 
 
 def levitation_stiffness_n_per_m(speed_m_s: np.ndarray | float, coil: EdsCoil):

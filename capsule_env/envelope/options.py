@@ -28,15 +28,23 @@ Pure numpy; the compiled per-step part is :mod:`capsule_env.envelope.kernel`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+import math
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
 
-from capsule_env.common.units import kmh_to_m_s
+from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
 from capsule_env.common.validation import check_choice
-from capsule_env.envelope.levitation import EdsCoil, EdsParams, check_levitating, eds_coil
-from capsule_env.envelope.trips import TripParams
+from capsule_env.envelope.levitation import (
+    GRAVITY_M_S2,
+    EdsCoil,
+    EdsParams,
+    check_levitating,
+    eds_coil,
+    lift_off_speed_m_s,
+)
+from capsule_env.envelope.trips import TripParams, own_trip_s
 from capsule_env.guideway.spans import SPAN_SHAPES, SpanParams
 from capsule_env.vehicles import VehicleParams
 
@@ -129,9 +137,73 @@ class Envelope:
         k = np.asarray(limit_n_per_m, dtype=float)
         return k * r2 / (1.0 + r2), k * self.coil.time_constant_s * (1.0 - r2) / (1.0 + r2) ** 2
 
+    @property
+    def payload_lift_off(self) -> bool:
+        """Whether each vehicle levitates from its own lift-off speed
+        (``levitation_params['lift_off']='payload'``)."""
+        return self.eds is not None and self.eds.lift_off == "payload"
+
+    def vehicle_lift_off_m_s(self, body_kg: float, bogie_kg: float, limit_n_per_m: float) -> float:
+        """The lift-off speed (m/s) of a vehicle of these masses whose coil's stiffness limit
+        is ``limit_n_per_m`` (:func:`capsule_env.envelope.levitation.lift_off_speed_m_s`)."""
+        assert self.coil is not None and self.eds is not None
+        weight = (body_kg + bogie_kg) * GRAVITY_M_S2
+        return lift_off_speed_m_s(self.coil, weight, self.eds.levitation_travel_m, limit_n_per_m)
+
+    def lift_off_range_m_s(self, config: Any) -> tuple[float, float]:
+        """The lowest and highest lift-off speeds (m/s) of the vehicles ``config`` draws: the
+        payload and the randomisation at their lightest (with the stiffest coil) and heaviest
+        (with the softest), in the order of operations of a vehicle's reset."""
+        vehicle = config.packed_vehicle
+        r = config.vehicle_randomization
+        lo, hi = config.payload_range or (0.0, 0.0)
+        light = self.vehicle_lift_off_m_s(vehicle[0] * (1.0 - r) * (1.0 + lo),
+                                          vehicle[1] * (1.0 - r),
+                                          vehicle[3] * (1.0 + r) / self.reference_shape)  # fmt: skip
+        heavy = self.vehicle_lift_off_m_s(vehicle[0] * (1.0 + r) * (1.0 + hi),
+                                          vehicle[1] * (1.0 + r),
+                                          vehicle[3] * (1.0 - r) / self.reference_shape)  # fmt: skip
+        return light, heavy
+
     def highest_speed_m_s(self, speed_high_m_s: float) -> float:
         """The highest speed a vehicle reaches (m/s): the trip's cruise, else the given one."""
         return kmh_to_m_s(self.trip.cruise_speed_kmh) if self.trip is not None else speed_high_m_s
+
+
+def _payload_lift_off(config: Any, envelope: Envelope) -> TripParams:
+    """With ``levitation_params['lift_off']='payload'``: refuse a constant speed below the
+    heaviest vehicle's lift-off speed (the payload and the randomisation at their heaviest);
+    return the trip that runs from the lightest vehicle's lift-off speed (each vehicle's
+    windows then lie where the trip is at or above its own, :meth:`Envelope.window_lift_off_m_s`)."""
+    low, high = envelope.lift_off_range_m_s(config)
+    what = (f"the lift-off speed of the heaviest vehicle that payload_range "
+            f"{config.payload_range} and vehicle_randomization {config.vehicle_randomization:g} "
+            f"allow, with levitation_params['lift_off']='payload'")  # fmt: skip
+    if not math.isfinite(high):
+        raise ValueError(f"payload_range must leave every vehicle a lift-off speed: {what} does "
+                         "not exist (the coil's K_inf does not carry that weight at the travel)")  # fmt: skip
+    trip = envelope.trip
+    assert trip is not None
+    if config.speed_profile == "constant":
+        name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"
+        if not config.speed_range_mps[0] >= high:
+            raise ValueError(f"{name} must be at least {m_s_to_kmh(high):.2f} km/h, {what}; got "
+                             f"{m_s_to_kmh(config.speed_range_mps[0]):.10g} km/h")  # fmt: skip
+        return trip
+    if "lift_off_speed_kmh" in config.trip_params:
+        raise ValueError("trip_params['lift_off_speed_kmh'] must not be set with "
+                         "levitation_params['lift_off']='payload': each vehicle's trip runs from "
+                         "and to its own lift-off speed")  # fmt: skip
+    if not kmh_to_m_s(trip.cruise_speed_kmh) > high:
+        raise ValueError(f"trip_params['cruise_speed_kmh'] must be above {m_s_to_kmh(high):.2f} "
+                         f"km/h, {what}; got {trip.cruise_speed_kmh}")  # fmt: skip
+    trip = replace(trip, lift_off_speed_kmh=m_s_to_kmh(low))
+    start, end = own_trip_s(trip, high)
+    if end - start < config.episode_length_s:
+        raise ValueError(f"episode_length_s must be at most {end - start:.1f} s, the trip of the "
+                         f"heaviest vehicle (its lift-off {m_s_to_kmh(high):.1f} km/h), got "
+                         f"{config.episode_length_s}")  # fmt: skip
+    return trip
 
 
 def build_envelope(config: Any) -> Envelope:
@@ -141,7 +213,10 @@ def build_envelope(config: Any) -> Envelope:
     check_choice("speed_profile", config.speed_profile, SPEED_PROFILES)
     check_choice("spans", config.spans, SPAN_OPTIONS)
     eds = _build("levitation_params", EdsParams, config.levitation_params)
-    trip = _build("trip_params", TripParams, config.trip_params)
+    trip_params = config.trip_params
+    if eds.lift_off == "payload" and isinstance(trip_params, dict):  # set by _payload_lift_off
+        trip_params = {"lift_off_speed_kmh": 0.0, **trip_params}
+    trip = _build("trip_params", TripParams, trip_params)
     if config.speed_profile == "trip" and config.speed_kmh != 810.0:
         raise ValueError(
             f"speed_kmh must be left at its default (810) with speed_profile='trip': the trip "
@@ -171,7 +246,10 @@ def build_envelope(config: Any) -> Envelope:
                 f"{eds.reference_speed_kmh:g} km/h, lift-off {eds.lift_off_speed_kmh:g} km/h): "
                 f"{exc}"
             ) from None
-        if config.speed_profile == "trip":
+        if eds.lift_off == "payload":
+            trip = _payload_lift_off(config, Envelope(config.levitation, config.speed_profile,
+                                                      config.spans, eds, coil, trip, None))  # fmt: skip
+        elif config.speed_profile == "trip":
             check_levitating("trip_params['lift_off_speed_kmh']", kmh_to_m_s(trip.lift_off_speed_kmh),
                              coil)  # fmt: skip
         else:

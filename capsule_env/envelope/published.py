@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
-from capsule_env.common.validation import check_in_range, check_positive
+from capsule_env.common.validation import check_in_range
 from capsule_env.envelope.levitation import (
     GRAVITY_M_S2,
     EdsCoil,
@@ -54,6 +54,7 @@ from capsule_env.envelope.levitation import (
     equilibrium_sag_m,
     levitation_damping_n_s_per_m,
     levitation_stiffness_n_per_m,
+    lift_off_speed_m_s,
 )
 from capsule_env.guideway.random import fra_psd
 from capsule_env.metrics import wk_weighting
@@ -98,20 +99,6 @@ def magnet_length_gain(wavelength_m, magnet_length_m: float) -> np.ndarray:
     ``sin(x) / x``, ``x = pi L / lambda`` (signed; 1 for ``L = 0``)."""
     check_in_range("magnet_length_m", magnet_length_m, 0.0, 100.0)
     return np.sinc(magnet_length_m / np.asarray(wavelength_m, dtype=float))
-
-
-def lift_off_speed_m_s(coil: EdsCoil, weight_n: float, travel_m: float) -> float:
-    """The speed (m/s) at which the sag ``weight_n / k_p(v)`` equals ``travel_m``: from
-    ``k_p = K_inf r^2 / (1 + r^2)``, ``r^2 = k / (K_inf - k)`` with ``k = W / travel``.
-    ``inf`` when even ``K_inf`` leaves a sag over the travel."""
-    check_positive("weight_n", weight_n)
-    check_positive("travel_m", travel_m)
-    needed = weight_n / travel_m
-    if needed >= coil.stiffness_limit_n_per_m:
-        return math.inf
-    return coil.characteristic_speed_m_s * math.sqrt(
-        needed / (coil.stiffness_limit_n_per_m - needed)
-    )
 
 
 def lift_over_drag(speed_m_s, coil: EdsCoil) -> np.ndarray:

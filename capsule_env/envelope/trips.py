@@ -25,7 +25,7 @@ from capsule_env.common.units import kmh_to_m_s
 from capsule_env.common.validation import check_in_range
 
 __all__ = ["TripParams", "trip_speed_m_s", "trip_position_m", "trip_acceleration_m_s2",
-           "draw_window_start_s"]  # fmt: skip
+           "draw_window_start_s", "own_trip_s"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,22 @@ def trip_position_m(t_s: np.ndarray | float, trip: TripParams) -> np.ndarray:
                     np.where(t < t2, x1 + v1 * (t - t1), x2 + v1 * tb - 0.5 * b * tb * tb))  # fmt: skip
 
 
-def draw_window_start_s(rng: np.random.Generator, episode_s: float, trip: TripParams) -> float:
-    """A uniformly drawn start time of an episode of ``episode_s`` seconds inside the trip."""
-    check_in_range("episode_s", episode_s, 0.0, trip.duration_s)
-    return float(rng.uniform(0.0, trip.duration_s - episode_s))
+def own_trip_s(trip: TripParams, lift_off_m_s: float) -> tuple[float, float]:
+    """``(start, end)``: the times (s from ``trip``'s start) between which ``trip`` is at or
+    above ``lift_off_m_s`` (at or above its own ends). At constant rates this part of the trip is
+    the trip from and to that lift-off speed, shifted in time."""
+    v0 = kmh_to_m_s(trip.lift_off_speed_kmh)
+    dv = max(lift_off_m_s - v0, 0.0)
+    return dv / trip.acceleration_m_s2, trip.duration_s - dv / trip.braking_m_s2
+
+
+def draw_window_start_s(rng: np.random.Generator, episode_s: float, trip: TripParams,
+                        lift_off_m_s: float | None = None) -> float:  # fmt: skip
+    """A uniformly drawn start time of an episode of ``episode_s`` seconds inside the trip; with
+    ``lift_off_m_s``, inside the part of the trip at or above that speed (:func:`own_trip_s`)."""
+    if lift_off_m_s is None:
+        check_in_range("episode_s", episode_s, 0.0, trip.duration_s)
+        return float(rng.uniform(0.0, trip.duration_s - episode_s))
+    start, end = own_trip_s(trip, lift_off_m_s)
+    check_in_range("episode_s", episode_s, 0.0, end - start)
+    return float(rng.uniform(start, end - episode_s))
