@@ -58,8 +58,11 @@ MAX_FORCES = 4000
 #: scale (the optimiser's variables are ``lam / lam_scale``); ``lam_start``: the start, per
 #: constraint of :func:`~capsule_env.bounds.relaxation.constraint_names` (a positive definite
 #: one: the rate part's magnitude above the maximum slope and the offset's band).
+#: ``branch_nodes``: when > 0, also a branch and bound over the stroke rate's sign with at
+#: most this many node QPs per episode (:mod:`.branch`); the floor is the larger of the two.
 DEFAULT_OPTIONS: dict[str, Any] = {
     "max_iterations": 30,
+    "branch_nodes": 0,
     "lam_scale": 1e-6,
     "lam_start": tuple(
         1e-7 if n in ("rate_part_above_max_slope", "offset_band") else 0.0
@@ -73,8 +76,10 @@ class FloorResult:
     """What :func:`certified_floor` found.
 
     floor_wk_m_s2 : (E,) the certified floors (m/s^2); ``mean_wk_m_s2`` their mean.
-    dual_value : (E,) ``g`` at the certificate's multipliers ((m/s^2)^2; the floor is
-    ``sqrt(max(g, 0))``). multipliers : per episode, (N, K) ``lam`` (the certificate: with
+    dual_value : (E,) ``g`` at the certificate's multipliers ((m/s^2)^2; without branching
+    the floor is ``sqrt(max(g, 0))``). branch : per episode, the branch and bound's summary
+    (``floor_j`` its bound on ``J``; the floor is then ``sqrt(max(g, floor_j, 0))``), empty
+    when ``branch_nodes`` is 0. multipliers : per episode, (N, K) ``lam`` (the certificate: with
     the env, the seeds and the length, :func:`verify` recomputes ``g`` from them).
     """
 
@@ -89,6 +94,7 @@ class FloorResult:
     evaluations: tuple[int, ...]
     constraints: tuple[str, ...] = field(default_factory=constraint_names)
     method: str = "lifted-RK4 Shor/Lagrangian dual, L-BFGS-B over the multipliers"
+    branch: tuple[dict, ...] = ()
 
     @property
     def mean_wk_m_s2(self) -> float:
@@ -110,6 +116,7 @@ class FloorResult:
             },  # fmt: skip
             "dual_evaluations": list(self.evaluations),
             "runtime_s": self.runtime_s,
+            **({"branch": [dict(b) for b in self.branch]} if self.branch else {}),
         }
 
 
@@ -119,9 +126,10 @@ def _options(options: Mapping[str, Any]) -> dict[str, Any]:
         raise TypeError(f"certified_floor: unknown options {sorted(unknown)}; accepted: "
                         f"{sorted(DEFAULT_OPTIONS)}")  # fmt: skip
     out = {**DEFAULT_OPTIONS, **options}
-    it = out["max_iterations"]
-    if isinstance(it, bool) or not isinstance(it, int) or it < 0:
-        raise ValueError(f"max_iterations must be an integer >= 0, got {it!r}")
+    for name in ("max_iterations", "branch_nodes"):
+        it = out[name]
+        if isinstance(it, bool) or not isinstance(it, int) or it < 0:
+            raise ValueError(f"{name} must be an integer >= 0, got {it!r}")
     scale = out["lam_scale"]
     if not isinstance(scale, (int, float)) or not 0.0 < float(scale) < math.inf:
         raise ValueError(f"lam_scale must be a finite number > 0, got {scale!r}")
@@ -211,20 +219,38 @@ def certified_floor(
     t0 = time.perf_counter()
     # refuse before any long computation
     episodes, seeds_t, length = check_floor(env_kwargs, seeds, episode_length_s)
-    floors, values, lams, evals = [], [], [], []
+    floors, values, lams, evals, branch = [], [], [], [], []
     for k in range(len(seeds_t)):
         lifted, problem = _problem(episodes, k)
         lam0 = np.tile(np.array(opts["lam_start"]), (lifted.n_forces, 1))
         sol: DualSolution = maximise(problem, lam0, opts["max_iterations"], opts["lam_scale"])
         g = sol.point.value
         values.append(g)
+        if opts["branch_nodes"] > 0:
+            branch.append(_branch(episodes, k, lifted, opts["branch_nodes"]))
+            g = max(g, branch[-1]["floor_j"])
         floors.append(math.sqrt(max(g, 0.0)))
         lams.append(sol.lam)
         evals.append(sol.evaluations)
+    method = FloorResult.method + (BRANCH_METHOD if branch else "")
     return FloorResult(
         dict(env_kwargs), seeds_t, length, np.array(floors), np.array(values), tuple(lams),
-        opts, time.perf_counter() - t0, tuple(evals),
+        opts, time.perf_counter() - t0, tuple(evals), method=method, branch=tuple(branch),
     )  # fmt: skip
+
+
+BRANCH_METHOD = "; and branch and bound over the stroke rate's sign (Clarabel QPs, dual-certified)"
+
+
+def _branch(episodes: Any, k: int, lifted: LiftedEpisode, max_nodes: int) -> dict[str, Any]:
+    """The branch and bound of episode ``k`` (:func:`.branch.branch_and_bound`), summarised."""
+    from capsule_env.bounds.branch import BranchProblem, branch_and_bound
+
+    env = damper_envelope(episodes.code, episodes.damper_params[k])
+    res = branch_and_bound(BranchProblem(lifted, env), max_nodes)
+    return {"floor_j": res.floor_j, "root_j": res.root_j, "nodes": res.nodes,
+            "open_nodes": res.open_nodes, "complete": res.complete,
+            "runtime_s": res.runtime_s}  # fmt: skip
 
 
 def verify(result: FloorResult) -> np.ndarray:

@@ -24,6 +24,9 @@ def main(argv: list[str] | None = None) -> int:
     iterations = DEFAULT_OPTIONS["max_iterations"]
     p.add_argument("--max-iterations", type=int, default=iterations,
                    help=f"L-BFGS-B iterations per episode (default {iterations})")  # fmt: skip
+    p.add_argument("--branch-nodes", type=int, default=0,
+                   help="also branch on the stroke rate's sign, at most this many node QPs "
+                        "per episode (default 0: off)")  # fmt: skip
     args = p.parse_args(argv)
     if args.episodes < 1 or args.seed < 0:
         sys.exit(f"{p.prog}: error: --episodes must be >= 1 and --seed >= 0, got "
@@ -31,7 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     seeds = list(range(args.seed, args.seed + args.episodes))
     try:
         result = certified_floor({"setting": args.setting}, seeds, args.episode_length,
-                                 max_iterations=args.max_iterations)  # fmt: skip
+                                 max_iterations=args.max_iterations,
+                                 branch_nodes=args.branch_nodes)  # fmt: skip
     except (ValueError, TypeError) as exc:
         sys.exit(f"{p.prog}: error: {exc}")
     print(json.dumps(result.summary(), indent=1))
