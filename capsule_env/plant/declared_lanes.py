@@ -150,12 +150,17 @@ def _rates(model, form, plant, g, na, xs, z, ic, pre, zgv, zgr, k, forces):
 @specialised("model", "form")
 def _advance_z(model, form, g, na, z, xs, u0, out):
     """Each slot's hysteretic variable after the deformation from ``u0`` to the stage's
-    ``stroke - y`` (``declared._advance_z``, lane by lane)."""
+    ``stroke - y`` (``declared._advance_z``, lane by lane; :func:`_advance_z_split` where the
+    chunk's hysteresis has a linear unloading branch)."""
     hysteretic, m = model_of_code(model).hysteresis is not None, model
     nc, _, ns, _ = form_dims(form)
+    f = form
 
     def impl(model, form, g, na, z, xs, u0, out):
         srow, dpar = g[3], g[5]
+        if hysteretic and g[8][0] == 1:
+            _advance_z_split(f, g, na, z, xs, u0, out)
+            return
         for s in range(ns):
             for i in range(na):
                 if hysteretic:
@@ -167,6 +172,74 @@ def _advance_z(model, form, g, na, z, xs, u0, out):
                     out[s, i] = hysteresis_update(z[s, i], du, a, gamma, beta)
                 else:
                     out[s, i] = z[s, i]
+
+    return impl
+
+
+@specialised("form")
+def _advance_z_split(form, g, na, z, xs, u0, out):
+    """:func:`hysteresis_update`'s operations, in its order, for a chunk whose every lane has a
+    linear unloading branch (``beta - gamma == 0``) and a loading one with ``gamma + beta > 0``
+    (:func:`_hysteresis_constants`), in three loops over the lanes: the plain arithmetic before
+    ``tanh`` (vectorised), the C library's ``tanh`` lane by lane, the arithmetic after it
+    (vectorised). The same bits as the branchy call per lane: the same operations on the same
+    values (``sqrt(A / p)`` and ``sqrt(A p)`` computed once a step, not at every call), each
+    lane's result chosen among the branches' rather than branched to."""
+    nc, _, ns, _ = form_dims(form)
+
+    def impl(form, g, na, z, xs, u0, out):
+        srow, hc, tmp = g[3], g[6], g[7]
+        for s in range(ns):
+            for i in range(na):
+                d = 0.0
+                for r in range(nc):
+                    d += srow[s, r, i] * xs[r, i]
+                du = d - xs[2 * nc + s, i] - u0[s, i]
+                sign = 1.0 if du > 0.0 else -1.0
+                q = sign * z[s, i]
+                path = abs(du)
+                m_zero = -q / hc[s, 0, i]  # _path_to_zero with p = 0
+                tmp[0, i] = hc[s, 2, i] * (path - m_zero if q < 0.0 else path)
+                tmp[1, i] = du
+            for i in range(na):
+                tmp[2, i] = math.tanh(tmp[0, i])
+            for i in range(na):
+                du, big_t, a, r = tmp[1, i], tmp[2, i], hc[s, 0, i], hc[s, 1, i]
+                sign = 1.0 if du > 0.0 else -1.0
+                q = sign * z[s, i]
+                path = abs(du)
+                m_zero = -q / a
+                unloading = q < 0.0
+                t0 = (0.0 if unloading else q) / r
+                loaded = sign * (r * (t0 + big_t) / (1.0 + t0 * big_t))
+                stays = sign * (q + a * path)  # _riccati with p = 0
+                res = stays if (unloading and path <= m_zero) else loaded
+                out[s, i] = z[s, i] if du == 0.0 else res
+
+    return impl
+
+
+@specialised("model", "form")
+def _hysteresis_constants(model, form, na, g):
+    """Each lane's and slot's ``A``, ``sqrt(A / p)`` and ``sqrt(A p)`` (``p = gamma + beta``,
+    :func:`capsule_env.dampers.hysteresis._riccati`'s) into ``g[6]``, and into ``g[8][0]``
+    whether every lane has ``beta - gamma == 0`` and ``gamma + beta > 0`` (then
+    :func:`_advance_z_split` applies)."""
+    hysteretic, m = model_of_code(model).hysteresis is not None, model
+    _, _, ns, _ = form_dims(form)
+
+    def impl(model, form, na, g):
+        hc, flag = g[6], g[8]
+        flag[0] = 1 if hysteretic else 0
+        if not hysteretic:
+            return
+        for s in range(ns):
+            for i in range(na):
+                a, gamma, beta = hysteresis_params(m, _lane_row(g[5][s], i))
+                p = gamma + beta
+                hc[s, 0, i], hc[s, 1, i], hc[s, 2, i] = a, math.sqrt(a / p), math.sqrt(a * p)
+                if not (beta - gamma == 0.0 and p > 0.0):
+                    flag[0] = 0
 
     return impl
 
@@ -275,13 +348,16 @@ def _lane_params(nc, ne, ns, nk, n_params):
         np.empty((ns, nc, lanes)),
         np.empty((nc, lanes)),
         np.empty((ns, n_params, lanes)),
+        np.empty((ns, 3, lanes)),
+        np.empty((3, lanes)),
+        np.zeros(1, np.int64),
     )
 
 
 @njit(**FAST, **BORROWED)
 def _gather(plant, na, veh, g):
     """The rows of the lanes' vehicles ``veh`` into ``g`` (:func:`_lane_params`)."""
-    erow, econ, ecoef, srow, inv, dpar = g
+    erow, econ, ecoef, srow, inv, dpar = g[0], g[1], g[2], g[3], g[4], g[5]
     ns = srow.shape[0]
     for i in range(na):
         n = veh[i]
@@ -304,7 +380,7 @@ def _gather(plant, na, veh, g):
 def _load(model, form, lo, hi, plant, x, i_cmd, route, dt, w, g, veh, n_sub, h):
     """Vehicles ``lo .. hi-1`` into the lanes, sorted by their substep count (most first, in
     vehicle order within a count); returns the largest count."""
-    uses_current = model_of_code(model).uses_current
+    uses_current, m, f = model_of_code(model).uses_current, model, form
     nc, _, ns, _ = form_dims(form)
 
     def impl(model, form, lo, hi, plant, x, i_cmd, route, dt, w, g, veh, n_sub, h):
@@ -347,6 +423,7 @@ def _load(model, form, lo, hi, plant, x, i_cmd, route, dt, w, g, veh, n_sub, h):
                 x0[j, i] = x[n, j]
             t[i] = x[n, base + 3 * ns]
         _gather(plant, hi - lo, veh, g)
+        _hysteresis_constants(m, f, hi - lo, g)
         _elevations(plant, route, hi - lo, veh, t, 0.0, h, zg[0])  # t + 0.0 h: t
         return most
 
