@@ -150,3 +150,38 @@ def test_certified_floor_with_branching_is_at_least_without() -> None:
     assert summary["branch"][0]["nodes"] == 5 and "branch" not in plain.summary()
     with pytest.raises(ValueError, match="branch_nodes"):
         certified_floor({"setting": "sim"}, seeds, length, branch_nodes=-1)
+
+
+def test_sparse_lift_reproduces_the_dense_lift(sim: OracleEpisodes) -> None:
+    """Forward-substituting the sparse substep relations gives the dense lift's stroke
+    rates and accelerations (the dense lift is checked against the compiled env)."""
+    from scipy.sparse.linalg import spsolve_triangular
+
+    from capsule_env.bounds.sparse import sparse_lift
+
+    lifted, forces = _rollout(sim, np.random.default_rng(2).uniform(0, 1.5, sim.n_steps))
+    sl = sparse_lift(lifted)
+    x = spsolve_triangular(sl.dyn[:, : sl.n_x].tocsr(), sl.dyn_rhs - sl.dyn[:, sl.n_x :] @ forces)
+    v = sl.v_x @ x + sl.v_f @ forces + sl.v_c
+    acc = sl.acc_x @ x + sl.acc_f @ forces + sl.acc_c
+    assert np.allclose(v, lifted.affine(lifted.v_rows, forces), rtol=0, atol=1e-12)
+    assert np.allclose(acc, lifted.affine(lifted.acc_rows, forces), rtol=0, atol=1e-12)
+
+
+def test_any_multipliers_certify_a_bound_below_the_trajectory(window: OracleEpisodes) -> None:
+    """Weak duality: random multipliers, not the solver's, still bound the 0 A
+    trajectory's J from below (its leaf's cuts hold there)."""
+    env = damper_envelope(window.code, window.damper_params[0])
+    lifted, forces = _rollout(window, np.zeros(window.n_steps))
+    problem = BranchProblem(lifted, env)
+    v = lifted.affine(lifted.v_rows, forces)
+    gf, gv, h = problem.rows(np.where(v >= 0.0, 1, -1).astype(np.int8))
+    y_w, z, _ = problem._sparse.solve(gf, gv, h)
+    ride = problem.ride(forces / FORCE_SCALE_N)
+    rng = np.random.default_rng(4)
+    noisy = []
+    for scale in (0.5, 1.0, 2.0):
+        noisy.append(problem.certify(gf, gv, h, scale * y_w, z * rng.uniform(0, 2, z.size)))
+        assert noisy[-1] <= ride
+    assert ride >= problem.certify(gf, gv, h, y_w, z) >= max(noisy)
+    assert problem.certify(gf, gv, h, y_w, z) > 0.0

@@ -188,6 +188,54 @@ def hull_lines(env: DamperEnvelope, rate_bound_m_s: np.ndarray) -> tuple[np.ndar
     return icpt, np.where(fallback, b_hi * grow, slope)
 
 
+class _SparseQP:
+    """The node QP in the sparse form: ``x = (X, F, acc, w)``, forces in kN."""
+
+    def __init__(self, lifted: LiftedEpisode, t: int) -> None:
+        from capsule_env.bounds.dual import weighting_matrix
+        from capsule_env.bounds.sparse import sparse_lift
+
+        sl = sparse_lift(lifted)
+        f0, n, nx = FORCE_SCALE_N, lifted.n_forces, sl.n_x
+        self.nx, self.n, self.t = nx, n, t
+        dyn_x, dyn_f = sl.dyn[:, :nx], sl.dyn[:, nx:] * f0
+        w = sp.csr_matrix(weighting_matrix(t, lifted.dt_s))
+        z_tn, z_tt = sp.csr_matrix((t, n)), sp.csr_matrix((t, t))
+        self.eq = sp.vstack([
+            sp.hstack([dyn_x, dyn_f, sp.csr_matrix((nx, 2 * t))]),
+            sp.hstack([-sl.acc_x, -sl.acc_f * f0, sp.identity(t), z_tt]),
+            sp.hstack([sp.csr_matrix((t, nx)), z_tn, -w, sp.identity(t)]),
+        ]).tocsr()  # fmt: skip
+        self.b_eq = np.r_[sl.dyn_rhs, sl.acc_c, np.zeros(t)]
+        self.v_x, self.v_f, self.v_c = sl.v_x, sl.v_f * f0, sl.v_c
+        size = nx + n + 2 * t
+        diag = np.zeros(size)
+        diag[-t:] = 2.0 / t
+        self.p = sp.diags(diag).tocsc()
+
+    def solve(
+        self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Clarabel on the cuts ``gf F + gv v <= h`` (``v`` replaced by its sparse form):
+        the multipliers of ``w`` (T) and of the cuts, and the forces (kN; zeros if none)."""
+        import clarabel
+
+        nx, n, t = self.nx, self.n, self.t
+        g = sp.hstack([gv @ self.v_x, gf + gv @ self.v_f, sp.csr_matrix((h.size, 2 * t))])
+        a = sp.vstack([self.eq, g]).tocsc()
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        # J is 1e-5..1e-1 (m/s^2)^2: the default absolute gap (1e-8) would be 1e-3 of it
+        settings.tol_gap_abs, settings.tol_gap_rel, settings.tol_feas = 1e-13, 1e-10, 1e-10
+        m = self.b_eq.size
+        cones = [clarabel.ZeroConeT(m), clarabel.NonnegativeConeT(h.size)]
+        b = np.r_[self.b_eq, h - gv @ self.v_c]
+        sol = clarabel.DefaultSolver(self.p, np.zeros(a.shape[1]), a, b, cones, settings).solve()
+        dual, x = np.asarray(sol.z), np.asarray(sol.x)
+        forces = x[nx : nx + n] if x.size else np.zeros(n)
+        return dual[m - t : m], dual[m:], forces
+
+
 class BranchProblem:
     """One lifted episode's node QPs (forces in kN): ``x = (F, v, w)``, ``v = A F + alpha``
     (N), ``w = Wf F + wc`` (T, the Wk-weighted accelerations), every cut sparse in ``(F_s,
@@ -195,7 +243,7 @@ class BranchProblem:
 
     def __init__(self, lifted: LiftedEpisode, env: DamperEnvelope, cuts: SignCuts | None = None):
         base = DualProblem(lifted, np.zeros((0, 5, 5)))
-        n = self.n = base.n
+        self.n = base.n
         self.t = base.n_steps
         self.a_aug = base.a_aug  # v = a_aug @ [F; 1]
         self.wf, self.wc = base.wg[:, :-1], base.wg[:, -1]
@@ -204,13 +252,7 @@ class BranchProblem:
         self.f_abs, self.v_abs = force_magnitude_bounds(lifted, env)
         self.hull_icpt, self.hull_slope = hull_lines(env, self.v_abs)
         self.c_lo, self.c_hi = env.c_lo / FORCE_SCALE_N, env.c_hi / FORCE_SCALE_N
-        t = self.t
-        self._p = sp.block_diag([sp.csc_matrix((2 * n, 2 * n)), (2.0 / t) * sp.identity(t)]).tocsc()
-        self._eq = sp.vstack([
-            sp.hstack([-sp.csr_matrix(self.a_aug[:, :n]), sp.identity(n), sp.csr_matrix((n, t))]),
-            sp.hstack([-sp.csr_matrix(self.wf), sp.csr_matrix((t, n)), sp.identity(t)]),
-        ]).tocsr()  # fmt: skip
-        self._b_eq = np.r_[self.a_aug[:, n], self.wc]
+        self._sparse = _SparseQP(lifted, base.n_steps)
 
     def rows(self, sigma: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:
         """The node's cuts as ``GF F + Gv v <= h`` (sparse): the sign cuts where ``sigma`` is
@@ -245,40 +287,36 @@ class BranchProblem:
         """A certified lower bound on ``J`` over the node's trajectories (``inf`` where the
         solver's certificate proves it empty) and the relaxed forces (kN).
 
-        With multipliers ``y`` (free) of the equalities ``v - A F = alpha``, ``w - Wf F = wc``
-        and ``z >= 0`` of the cuts ``GF F + Gv v <= h``, every trajectory of the node (where
-        the equalities and every cut hold) has ``J = |w|^2 / T >= |w|^2 / T + y . (E x - b) +
-        z . (G x - h)``. Minimised over ``w`` (``-T |y_w|^2 / 4``) and with the remaining
-        linear parts ``r_F . F``, ``r_v . v`` (the dual's residuals) at least ``-|r_F| . f_abs
-        - |r_v| . v_abs`` (:func:`force_magnitude_bounds`): ``J >= S - Q``, ``Q = T |y_w|^2 /
-        4``, ``S = -y . b - z . h - |r_F| . f_abs - |r_v| . v_abs``. Any ``(y, z)`` with ``z >=
-        0`` gives a valid bound, the solver's are only a good choice; scaled by ``t >= 0`` they
+        Solved in the sparse form (:mod:`.sparse`), certified in the dense one. With
+        multipliers ``y`` (free) of the equalities ``v - A F = alpha``, ``w - Wf F = wc`` and
+        ``z >= 0`` of the cuts ``GF F + Gv v <= h``, every trajectory of the node (where the
+        equalities and every cut hold) has ``J = |w|^2 / T >= |w|^2 / T + y . (E x - b) + z .
+        (G x - h)``. Minimised over ``w`` (``-T |y_w|^2 / 4``), with ``y_v = -Gv^T z`` (no
+        ``v`` left) and the forces' part ``r_F . F`` (the dual's residual) at least ``-|r_F| .
+        f_abs`` (:func:`force_magnitude_bounds`): ``J >= S - Q``, ``Q = T |y_w|^2 / 4``, ``S =
+        -y . b - z . h - |r_F| . f_abs``. Any ``(y_w, z)`` with ``z >= 0`` gives a valid
+        bound, the solver's are only a good choice; scaled by ``t >= 0`` they
         give ``t S - t^2 Q``, at best ``S^2 / (4 Q)`` when ``S > 0`` (a Farkas ray of an
         infeasible node, ``Q = 0``, gives ``inf``); and ``J >= 0``. Up to the floating point
         rounding of these sums (relative 1e-15 of their terms)."""
-        import clarabel
-
-        n, t = self.n, self.t
         gf, gv, h = self.rows(sigma)
-        g = sp.hstack([gf, gv, sp.csr_matrix((h.size, t))])
-        a = sp.vstack([self._eq, g]).tocsc()
-        m = n + t
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        # J is 1e-5..1e-1 (m/s^2)^2: the default absolute gap (1e-8) would be 1e-3 of it
-        settings.tol_gap_abs, settings.tol_gap_rel, settings.tol_feas = 1e-13, 1e-10, 1e-10
-        cones = [clarabel.ZeroConeT(m), clarabel.NonnegativeConeT(h.size)]
-        sol = clarabel.DefaultSolver(self._p, np.zeros(2 * n + t), a, np.r_[self._b_eq, h],
-                                     cones, settings).solve()  # fmt: skip
-        dual = np.asarray(sol.z)
-        y, z = dual[:m], np.maximum(dual[m:], 0.0)
-        r = a[:, : 2 * n].T @ np.r_[y, z]
-        quad = t * float(y[n:] @ y[n:]) / 4.0
-        lin = (-float(y @ self._b_eq) - float(z @ h) - float(np.abs(r[:n]) @ self.f_abs)
-               - float(np.abs(r[n:]) @ self.v_abs))  # fmt: skip
-        bound = 0.0 if lin <= 0.0 else (math.inf if quad == 0.0 else lin * lin / (4.0 * quad))
-        x = np.asarray(sol.x)
-        return bound, (x[:n] if x.size else np.zeros(n))
+        y_w, z, forces = self._sparse.solve(gf, gv, h)
+        return self.certify(gf, gv, h, y_w, z), forces
+
+    def certify(
+        self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray, y_w: np.ndarray, z: np.ndarray
+    ) -> float:
+        """The bound of :meth:`node_bound` at multipliers ``y_w`` (T) and ``z`` (clipped to
+        ``>= 0``), in the dense lift (:mod:`.lifted`, the tested one), with ``y_v = -Gv^T z``
+        so that ``r_v = 0``; any multipliers give a valid bound."""
+        n, t = self.n, self.t
+        z = np.maximum(z, 0.0)
+        y_v = -(gv.T @ z)
+        r_f = -self.wf.T @ y_w - self.a_aug[:, :n].T @ y_v + gf.T @ z
+        quad = t * float(y_w @ y_w) / 4.0
+        lin = (-float(y_w @ self.wc) - float(y_v @ self.a_aug[:, n]) - float(z @ h)
+               - float(np.abs(r_f) @ self.f_abs))  # fmt: skip
+        return 0.0 if lin <= 0.0 else (math.inf if quad == 0.0 else lin * lin / (4.0 * quad))
 
     def violation(self, forces_kn: np.ndarray) -> np.ndarray:
         """(N,) kN: how far each evaluation's relaxed force is from the nearer sign's cuts."""

@@ -50,6 +50,13 @@ class LiftedEpisode:
     is_output: np.ndarray
     dt_s: float
     n_sub: int
+    #: per substep ``(zg0, zg_half, zg1, zg_rate, step)`` as :func:`_substep` took them, then
+    #: per step the output's ``(zg, zg_rate)``, the vehicle rows (T, 5) and the start state
+    #: (4,): the inputs to rebuild the lift substep by substep (:mod:`.branch`'s sparse QP)
+    substep_inputs: np.ndarray | None = None
+    output_inputs: np.ndarray | None = None
+    vehicles: np.ndarray | None = None
+    state0: np.ndarray | None = None
 
     @property
     def n_forces(self) -> int:
@@ -127,7 +134,9 @@ def lift_episode(ep: OracleEpisodes, k: int) -> LiftedEpisode:
     n_sub = check_liftable(ep, k)
     n_steps, per = ep.n_steps, 4 * n_sub + 1
     n = n_steps * per
-    state = _Affine(n, ep.state0[k, [BODY_DISP, BODY_VEL, BOGIE_DISP, BOGIE_VEL]]).rows
+    state0 = ep.state0[k, [BODY_DISP, BODY_VEL, BOGIE_DISP, BOGIE_VEL]].astype(float)
+    state = _Affine(n, state0).rows
+    sub_in, out_in, vehicles = [], [], []
     v_rows, x_rows = np.zeros((n, n + 1)), np.zeros((n, n + 1))
     acc_rows = np.zeros((n_steps, n + 1))
     t = float(ep.state0[k, TIME])
@@ -135,21 +144,25 @@ def lift_episode(ep: OracleEpisodes, k: int) -> LiftedEpisode:
     col = 0
     for step in range(n_steps):
         veh = ep.vehicle_params[k] if ep.schedule is None else ep.schedule.vehicle[step, k]
+        vehicles.append(np.asarray(veh, dtype=float))
         zg0 = float(_elevation(ep, k, step, np.array([t]))[0])
         zgh = zg1 = zg0
         for _ in range(n_sub):
             zgh, zg1 = _elevation(ep, k, step, np.array([t + 0.5 * h, t + h]))
             zg_rate = (zg1 - zg0) / h if veh[_CP] != 0.0 else 0.0
+            sub_in.append((zg0, zgh, zg1, zg_rate, step))
             state, col = _substep(state, col, (zg0, zgh, zg1), zg_rate, h, veh, v_rows, x_rows)
             t, zg0 = t + h, zg1
         x_rows[col], v_rows[col] = state[0] - state[2], state[1] - state[3]
         zg_rate = (zg1 - zgh) * 2.0 / h if veh[_CP] != 0.0 else 0.0
+        out_in.append((zg0, zg_rate))
         acc_rows[step] = _rates(state, col, zg0, zg_rate, veh)[1]
         col += 1
     step_of = np.repeat(np.arange(n_steps), per)
     is_output = np.zeros(n, dtype=bool)
     is_output[per - 1 :: per] = True
-    return LiftedEpisode(v_rows, x_rows, acc_rows, step_of, is_output, ep.dt_s, n_sub)
+    return LiftedEpisode(v_rows, x_rows, acc_rows, step_of, is_output, ep.dt_s, n_sub,
+                         np.array(sub_in), np.array(out_in), np.array(vehicles), state0)  # fmt: skip
 
 
 def _substep(
