@@ -248,7 +248,9 @@ def _branch(episodes: Any, k: int, lifted: LiftedEpisode, max_nodes: int) -> dic
 
     env = damper_envelope(episodes.code, episodes.damper_params[k])
     res = branch_and_bound(BranchProblem(lifted, env), max_nodes)
+    budgets = [b for b in (1, 10, 100, 1000, 10000) if b <= res.nodes]
     return {"floor_j": res.floor_j, "root_j": res.root_j, "nodes": res.nodes,
+            "floor_j_at_nodes": {str(b): res.floor_j_at(b) for b in budgets},
             "open_nodes": res.open_nodes, "complete": res.complete,
             "runtime_s": res.runtime_s}  # fmt: skip
 

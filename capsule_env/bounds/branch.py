@@ -330,13 +330,13 @@ class BranchProblem:
 class BranchResult:
     """What :func:`branch_and_bound` found: ``floor_j`` the certified floor on ``J``
     ((m/s^2)^2; the Wk floor is its square root), ``root_j`` the root's bound, ``history``
-    the floor after each node, ``nodes`` solved, ``open_nodes`` left, ``complete`` (the
+    ``(nodes solved, floor)`` after the root and after each branching, ``nodes`` solved, ``open_nodes`` left, ``complete`` (the
     smallest open node needed no branching: the floor is the relaxation's optimum),
     ``runtime_s``."""
 
     floor_j: float
     root_j: float
-    history: tuple[float, ...]
+    history: tuple[tuple[int, float], ...]
     nodes: int
     open_nodes: int
     complete: bool
@@ -345,6 +345,10 @@ class BranchResult:
     @property
     def floor_wk_m_s2(self) -> float:
         return math.sqrt(max(self.floor_j, 0.0))
+
+    def floor_j_at(self, nodes: int) -> float:
+        """The floor after at most ``nodes`` node QPs (the any-time curve)."""
+        return max((f for k, f in self.history if k <= nodes), default=0.0)
 
 
 _FINAL, _UNSOLVED = -1, -2
@@ -378,7 +382,7 @@ def branch_and_bound(
     sigma0 = np.zeros(problem.n, dtype=np.int8) if fixed is None else np.sign(fixed).astype(np.int8)
     root, forces = problem.node_bound(sigma0)
     heap = [(root, 0, sigma0, _select(problem, sigma0, forces, cand))]
-    history, nodes, counter = [root], 1, 1
+    history, nodes, counter = [(1, root)], 1, 1
     while heap and nodes < max_nodes:
         bound, _, sigma, k = heap[0]
         if k == _FINAL or not math.isfinite(bound):
@@ -396,7 +400,7 @@ def branch_and_bound(
                 heapq.heappush(heap, (max(bound, own), counter, child,
                                       _select(problem, child, forces, cand)))  # fmt: skip
                 counter += 1
-        history.append(heap[0][0] if heap else math.inf)
+        history.append((nodes, heap[0][0] if heap else math.inf))
     complete = bool(heap) and heap[0][3] == _FINAL
     floor = heap[0][0] if heap else math.inf
     return BranchResult(floor, root, tuple(history), nodes, len(heap), complete,
