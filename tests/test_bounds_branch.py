@@ -186,3 +186,18 @@ def test_any_multipliers_certify_a_bound_below_the_trajectory(window: OracleEpis
         assert noisy[-1] <= ride
     assert ride >= problem.certify(gf, gv, h, y_w, z) >= max(noisy)
     assert problem.certify(gf, gv, h, y_w, z) > 0.0
+
+
+def test_floor_runs_the_episodes_evaluate_and_the_oracle_run() -> None:
+    """Without a guideway_seed the floor used the env's default bank, not evaluate.py's
+    (``EVALUATION_GUIDEWAY_SEED``, which the oracle defaults to too)."""
+    from capsule_env.bounds import check_floor
+    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
+
+    episodes, _, _ = check_floor({"setting": "sim"}, [1000, 1001], 0.1)
+    kwargs = {"setting": "sim", "guideway_seed": EVALUATION_GUIDEWAY_SEED}
+    evaluation = OracleEpisodes(kwargs, [1000, 1001], 0.1)
+    default = OracleEpisodes({"setting": "sim"}, [1000, 1001], 0.1)
+    assert not np.array_equal(default.state0, evaluation.state0)  # the banks differ
+    assert np.array_equal(episodes.state0, evaluation.state0)
+    assert np.array_equal(episodes.profiles, evaluation.profiles)

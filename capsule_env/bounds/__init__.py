@@ -173,6 +173,14 @@ def _problem(episodes: Any, k: int) -> tuple[LiftedEpisode, DualProblem]:
     return lifted, DualProblem(lifted, mats)
 
 
+def evaluation_kwargs(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """``env_kwargs`` with evaluate.py's guideway bank (``guideway_seed`` 2026) unless it names
+    one: the episodes evaluate.py and the oracle (``clairvoyant_bound``) run for these seeds."""
+    from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
+
+    return {"guideway_seed": EVALUATION_GUIDEWAY_SEED, **env_kwargs}
+
+
 def check_floor(
     env_kwargs: Mapping[str, Any], seeds: Sequence[int] | np.ndarray, episode_length_s: float
 ) -> tuple[Any, tuple[int, ...], float]:
@@ -192,7 +200,7 @@ def check_floor(
     if own != length:  # OracleEpisodes would run the env's, the result name the argument's
         raise ValueError(f"env_kwargs['episode_length_s'] ({own!r}) contradicts episode_length_s "
                          f"({length:g} s): give the length once, as episode_length_s")  # fmt: skip
-    episodes = OracleEpisodes(dict(env_kwargs), seeds_t, length)
+    episodes = OracleEpisodes(evaluation_kwargs(env_kwargs), seeds_t, length)
     for k in range(len(seeds_t)):
         damper_envelope(episodes.code, episodes.damper_params[k])
         n_forces = episodes.n_steps * (4 * check_liftable(episodes, k) + 1)
@@ -234,7 +242,8 @@ def certified_floor(
         evals.append(sol.evaluations)
     method = FloorResult.method + (BRANCH_METHOD if branch else "")
     return FloorResult(
-        dict(env_kwargs), seeds_t, length, np.array(floors), np.array(values), tuple(lams),
+        evaluation_kwargs(env_kwargs), seeds_t, length, np.array(floors), np.array(values),
+        tuple(lams),
         opts, time.perf_counter() - t0, tuple(evals), method=method, branch=tuple(branch),
     )  # fmt: skip
 
