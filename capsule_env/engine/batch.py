@@ -48,6 +48,7 @@ from capsule_env.engine.layout import (
 )
 from capsule_env.engine.observations import rest_observation
 from capsule_env.envelope.kernel import ENV_LIMIT, ENV_SPEED, ENV_START, ENV_T0
+from capsule_env.envelope.magnet import magnet_average
 from capsule_env.envelope.trips import draw_window_start_s, trip_acceleration_m_s2, trip_speed_m_s
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.guideway.params import profile_length_m
@@ -126,8 +127,11 @@ class CapsuleBatch:
     attributes. Change values in place; never resize them.
     """
 
-    profiles = _bound("profiles", "(K, L) guideway bank (m)")
-    offsets = _bound("offsets", "(K, L) the tube's spans added after the gain (m), or (0, 0)")
+    profiles = _bound("profiles", "(K, L) guideway bank (m) as the plant reads it (with "
+                      "magnet_length_m, averaged over the magnet; the survey map and the "
+                      "scaling read the true one)")  # fmt: skip
+    offsets = _bound("offsets", "(K, L) the tube's spans added after the gain (m), or (0, 0) "
+                     "(with magnet_length_m, averaged over the magnet)")  # fmt: skip
     damper_params = _bound("damper_params", "(N, N_DAMPER_PARAMS) each vehicle's packed damper")
     vehicle_params = _bound("vehicle_params", "(N, 4) each vehicle's packed masses, stiffnesses")
     speed = _bound(
@@ -169,12 +173,20 @@ class CapsuleBatch:
         self.spacing = self.guideway.spacing_m
         self._profiles = self._build_bank()
         self._offsets = self._build_offsets()
+        self._true_profiles, self._true_offsets = self._profiles, self._offsets
+        if config.magnet_length_m is not None:  # the plant reads the guideway under the magnet
+            self._profiles, self._offsets = (
+                magnet_average(bank, self.spacing, config.magnet_length_m) if bank.size else bank
+                for bank in (self._profiles, self._offsets)
+            )
         self.rngs = vehicle_streams(None, n)
         self._nominal_vehicle = config.packed_vehicle
         self._fresh_signals = bool(fresh_signals)
         # the columns equal to the start elevation in a reset observation (the rest are 0)
         self._rest_columns = np.flatnonzero(rest_observation(config.observation, 1.0))
-        self._params = EnvParams.from_config(config, self._build_survey_error())
+        filtered = self._profiles is not self._true_profiles
+        self._params = EnvParams.from_config(config, self._build_survey_error(),
+                                             self._true_profiles if filtered else None)  # fmt: skip
         self.envelope = config.envelope
         self._build_plant()
         self._build_state()
@@ -324,7 +336,10 @@ class CapsuleBatch:
         without preview)."""
         if self.config.preview_points == 0:
             return np.zeros((1, 1))
-        return survey_error(self.config, self.profiles, self._run_samples())
+        error = survey_error(self.config, self.profiles, self._run_samples())
+        if self._offsets is not self._true_offsets:  # the survey map has the true spans
+            error += self._true_offsets - self._offsets
+        return error
 
     # ---------------------------------------------------------------- seeding / reset
     def seed(self, seed: int | list[int] | None) -> None:
@@ -361,7 +376,7 @@ class CapsuleBatch:
             if gw.kind == "random":
                 j0 = int(u_offset * (n_samples - window_samples))
                 self.start_position[n] = j0 * self.spacing
-                window = self.profiles[k, j0 : j0 + window_samples]
+                window = self._true_profiles[k, j0 : j0 + window_samples]  # the true guideway's
                 self.gain[n] = 1.0 if gw.peak_m is None else gw.peak_m / np.max(np.abs(window))
                 zg0 = self.gain[n] * self.profiles[k, j0]
                 if self.offsets.size:  # the spans, after the gain

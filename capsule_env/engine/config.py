@@ -154,6 +154,7 @@ class EnvConfig:
     spans: str = "none"
     span_params: dict = field(default_factory=dict)
     payload_range: tuple[float, float] | None = None
+    magnet_length_m: float | None = None
 
     def __post_init__(self) -> None:
         self._check_plant_options()

@@ -550,8 +550,10 @@ def preview_row(n, params, plant, state, obs):
     observation, clipped by the caller): the surveyed elevation ``k * preview_step_s`` ahead of
     the bogie, ``k = 1 .. preview_points``, relative to the surveyed elevation under it now,
     looked up in the survey map (the true profile plus the survey's error) at the vehicle's
-    estimated position (the true one plus its episode's position error)."""
-    profiles, spacing, err = plant.profiles, plant.spacing_m, params.survey_error
+    estimated position (the true one plus its episode's position error). The true profile is
+    the plant's bank unless the plant reads a filtered one (``params.survey_bank``)."""
+    bank, spacing, err = params.survey_bank, plant.spacing_m, params.survey_error
+    profiles = plant.profiles if bank.shape[0] == 0 else bank
     last = profiles.shape[1] - 1.0
     route = state.route
     first = obs.shape[1] - params.preview_points

@@ -189,12 +189,15 @@ class EnvParams(NamedTuple):
     )  # (5,) the trip's (a, b, t1, t2, t3), zeros without (capsule_env.envelope.options)
     eds: np.ndarray  # (2,) the EDS coil's (v_c, tau)
     trip_column: int  # first of the trip's observation columns (-1: none)
+    survey_bank: np.ndarray  # (K, L) the true guideway the survey map reads ((0, 0): the plant's)
 
     @classmethod
-    def from_config(cls, config: EnvConfig, survey_error: np.ndarray | None = None) -> EnvParams:
+    def from_config(cls, config: EnvConfig, survey_error: np.ndarray | None = None,
+                    survey_bank: np.ndarray | None = None) -> EnvParams:  # fmt: skip
         """The options of ``config`` as the kernel reads them. ``survey_error`` is the survey
         map's error on the guideway bank's grid (``CapsuleBatch`` draws it with the bank;
-        None: a (1, 1) zero array, no preview error)."""
+        None: a (1, 1) zero array, no preview error); ``survey_bank`` the true guideway bank
+        when the plant reads another (``magnet_length_m``; None: the plant's)."""
         from capsule_env.engine.config import INVERSE_CODES, observation_bounds
 
         i_max = config.max_current_a
@@ -232,6 +235,7 @@ class EnvParams(NamedTuple):
             trip_column=first_column(
                 config.observation, "trip", envelope.trip is not None, config.preview_points
             ),  # fmt: skip
+            survey_bank=np.zeros((0, 0)) if survey_bank is None else survey_bank,
         )
 
 

@@ -1,6 +1,6 @@
 """The capsule's operating envelope in the env: EDS levitation against speed, trips, tube spans.
 
-Three options of :class:`capsule_env.engine.config.EnvConfig`, each off by default (the paper's
+Four options of :class:`capsule_env.engine.config.EnvConfig`, each off by default (the paper's
 setting, bit for bit):
 
 - ``levitation="eds"`` (``levitation_params``: :class:`capsule_env.envelope.levitation.EdsParams`
@@ -22,6 +22,9 @@ setting, bit for bit):
   :class:`capsule_env.guideway.spans.SpanParams` fields but ``shape``): the tube's static sag
   between pylons and the pylons' settlement are added to every profile of the guideway bank
   (the survey map of the preview includes them: they are part of the true guideway).
+- ``magnet_length_m`` (None: a point magnet): the plant reads the guideway bank (spans
+  included) averaged over the magnet's length (:mod:`capsule_env.envelope.magnet`); the survey
+  map of the preview and each window's scaling keep the true guideway (``CapsuleBatch``).
 
 Pure numpy; the compiled per-step part is :mod:`capsule_env.envelope.kernel`.
 """
@@ -35,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
-from capsule_env.common.validation import check_choice
+from capsule_env.common.validation import check_choice, check_in_range
 from capsule_env.envelope.levitation import (
     GRAVITY_M_S2,
     EdsCoil,
@@ -94,6 +97,7 @@ class Envelope:
     coil: EdsCoil | None
     trip: TripParams | None
     span: SpanParams | None
+    magnet_length_m: float | None = None
 
     @property
     def flags(self) -> int:
@@ -206,6 +210,31 @@ def _payload_lift_off(config: Any, envelope: Envelope) -> TripParams:
     return trip
 
 
+def _eds(config: Any, eds: EdsParams, trip: TripParams) -> tuple[EdsCoil, TripParams]:
+    """The calibrated coil, the speeds checked against the lift-off, and the trip (its
+    lift-off set by the vehicles' own with ``lift_off='payload'``)."""
+    vehicle: VehicleParams = config.vehicle_parameters
+    try:
+        coil = eds_coil(vehicle, eds)
+    except ValueError as exc:
+        raise ValueError(
+            f"levitation_params and vehicle_params do not calibrate an EDS coil "
+            f"(levitation_stiffness_n_per_m {vehicle.levitation_stiffness_n_per_m:g} N/m at "
+            f"{eds.reference_speed_kmh:g} km/h, lift-off {eds.lift_off_speed_kmh:g} km/h): "
+            f"{exc}"
+        ) from None
+    if eds.lift_off == "payload":
+        trip = _payload_lift_off(config, Envelope(config.levitation, config.speed_profile,
+                                                  config.spans, eds, coil, trip, None))  # fmt: skip
+    elif config.speed_profile == "trip":
+        check_levitating("trip_params['lift_off_speed_kmh']", kmh_to_m_s(trip.lift_off_speed_kmh),
+                         coil)  # fmt: skip
+    else:
+        name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"
+        check_levitating(name, config.speed_range_mps[0], coil)
+    return coil, trip
+
+
 def build_envelope(config: Any) -> Envelope:
     """Validate the envelope options of an :class:`~capsule_env.engine.config.EnvConfig` (one
     ``ValueError``/``TypeError`` naming the option) and make its :class:`Envelope`."""
@@ -228,6 +257,8 @@ def build_envelope(config: Any) -> Envelope:
             "levitation='eds': the coil model sets the damping at each speed"
         )
     _build("span_params", SpanParams, config.span_params, exclude=("shape",))  # validates
+    if config.magnet_length_m is not None:  # None: the guideway read at a point (the paper's)
+        check_in_range("magnet_length_m", config.magnet_length_m, 1e-3, 50.0)
     if config.levitation == "fixed" and config.levitation_params:
         raise ValueError("levitation_params needs levitation='eds'")
     if config.speed_profile == "constant" and config.trip_params:
@@ -236,25 +267,7 @@ def build_envelope(config: Any) -> Envelope:
         raise ValueError("span_params needs spans='continuous' or 'simply_supported'")
     coil = None
     if config.levitation == "eds":
-        vehicle: VehicleParams = config.vehicle_parameters
-        try:
-            coil = eds_coil(vehicle, eds)
-        except ValueError as exc:
-            raise ValueError(
-                f"levitation_params and vehicle_params do not calibrate an EDS coil "
-                f"(levitation_stiffness_n_per_m {vehicle.levitation_stiffness_n_per_m:g} N/m at "
-                f"{eds.reference_speed_kmh:g} km/h, lift-off {eds.lift_off_speed_kmh:g} km/h): "
-                f"{exc}"
-            ) from None
-        if eds.lift_off == "payload":
-            trip = _payload_lift_off(config, Envelope(config.levitation, config.speed_profile,
-                                                      config.spans, eds, coil, trip, None))  # fmt: skip
-        elif config.speed_profile == "trip":
-            check_levitating("trip_params['lift_off_speed_kmh']", kmh_to_m_s(trip.lift_off_speed_kmh),
-                             coil)  # fmt: skip
-        else:
-            name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"
-            check_levitating(name, config.speed_range_mps[0], coil)
+        coil, trip = _eds(config, eds, trip)
     if config.speed_profile == "trip" and trip.duration_s < config.episode_length_s:
         raise ValueError(
             f"episode_length_s must be at most the trip's duration {trip.duration_s:.1f} s "
@@ -270,4 +283,5 @@ def build_envelope(config: Any) -> Envelope:
         span=SpanParams(**{**config.span_params, "shape": config.spans})
         if config.spans != "none"
         else None,
+        magnet_length_m=None if config.magnet_length_m is None else float(config.magnet_length_m),
     )

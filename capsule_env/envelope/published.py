@@ -23,8 +23,9 @@ figure are in docs/envelope.md, "The levitation against published data"):
   passes, and lies far above the body's modes).
 - **The magnet's length.** A magnet of length ``L`` sees the guideway's height averaged over
   ``L``: a moving average, gain ``sinc(pi L / lambda)`` at wavelength ``lambda``
-  (:func:`magnet_length_gain`). The env has no such filter (the bogie reads the profile at a
-  point).
+  (:func:`magnet_length_gain`). By default the env has no such filter (the bogie reads the
+  profile at a point); the option ``magnet_length_m`` applies it
+  (:mod:`capsule_env.envelope.magnet`).
 - **Lift-off under payload.** The linear coil's force at the sag ``z`` is ``k_p(v) z``; the
   capsule leaves its wheels when the sag ``W / k_p(v)`` is at most the travel the wheels leave
   (:func:`lift_off_speed_m_s`).

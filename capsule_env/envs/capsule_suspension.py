@@ -244,7 +244,9 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
       from lift-off to cruise and back, ``trip_params`` :class:`capsule_env.envelope.trips.TripParams`
       fields), ``spans`` (``"none"`` | ``"continuous"`` | ``"simply_supported"``: the tube's
       sag between pylons and their settlement added to the guideway, ``span_params``
-      :class:`capsule_env.guideway.spans.SpanParams` fields but ``shape``).
+      :class:`capsule_env.guideway.spans.SpanParams` fields but ``shape``), ``magnet_length_m``
+      (None: the guideway read at a point; a length in [0.001, 50] m: the plant reads it averaged
+      over the magnet, :mod:`capsule_env.envelope.magnet`, the preview's survey map the true one).
     - ``render_mode``: ``"rgb_array"``: ``render()`` draws the vehicle now, one frame per
       control step; ``metadata["render_fps"]`` is this env's control rate (``control_rate_hz``,
       200 by default, set per instance), so a video written by Gymnasium's ``RecordVideo`` (or

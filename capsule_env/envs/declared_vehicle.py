@@ -77,7 +77,7 @@ UNSUPPORTED_OPTIONS: dict[str, Any] = {
     "levitation": ("fixed", "eds"), "speed_profile": ("constant",),
     "spans": ("none",), "payload_range": (None,), "vehicle_randomization": (0.0,),
     "speed_range_kmh": (None,), "reward_velocity_weight": (0.0,),
-    "reward_acceleration_filter": ("none",),
+    "reward_acceleration_filter": ("none",), "magnet_length_m": (None,),
 }  # fmt: skip
 
 
