@@ -52,6 +52,10 @@ def test_evaluate_runs_the_half_car_task_in_its_json_layout(tmp_path, capsys):
     rows = data["settings"]["hils"]["controllers"]
     assert {"passive", "lqr-clipped-biexp-meas", "lqr-coupled-biexp-meas",
             "wheelbase-lq-biexp-meas", TASK.shipped_policy} <= set(rows)  # fmt: skip
+    for name in ("mpc-coupled-biexp-meas", "wheelbase-mpc-biexp-meas"):  # the half-car MPCs
+        solver = rows[name]["solver"]  # their solver's figures over the run
+        assert solver["vehicle_steps"] == 2 * 2000 and solver["solves_per_step"] >= 1.0, name
+        assert solver["fallback_steps"] >= 0 and rows[name]["gains_tuned"], name
     # a shipped policy's file named as in the package, the same on every machine
     assert data["policies"] == {
         TASK.shipped_policy: f"capsule_env/pretrained/{TASK.shipped_policy}.zip"

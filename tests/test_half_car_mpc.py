@@ -162,3 +162,11 @@ def test_an_episode_on_the_task_env_rides_like_the_discrete_lq() -> None:
 def test_bad_input_names_the_parameter(kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         HalfCarMPC(**kwargs)
+
+
+def test_tuning_names_the_mpc_it_tunes() -> None:
+    from capsule_env.evaluation.half_car import TUNED_MPC, tune_mpc
+
+    assert set(TUNED_MPC) == {"mpc-coupled-biexp-meas", "wheelbase-mpc-biexp-meas"}
+    with pytest.raises(ValueError, match="name must be one of"):
+        tune_mpc("mpc-biexp-meas")

@@ -225,6 +225,9 @@ class HalfCarMPC(WheelbasePreviewLQ):
     :class:`~capsule_env.agents.controllers.mpc_solver.SolverOptions`, checked as the
     quarter-car MPC checks them). A bad value raises ``ValueError`` naming the parameter."""
 
+    #: Whether the weights are the training bank's tuned ones (the evaluation's rows set it).
+    gains_tuned: bool = False
+
     def __init__(
         self, q_stroke: float = COUPLED_WEIGHTS["q_stroke"],
         q_levitation: float = COUPLED_WEIGHTS["q_levitation"],

@@ -52,6 +52,13 @@ TUNED_COUPLED = {"q_stroke": 0.001, "q_levitation": 0.1, "r_force": 3e-8}
 ORACLE_ITERATIONS = 30
 _GRID = {"q_stroke": (0.001, 0.01, 0.1, 1.0), "q_levitation": (0.1, 1.0, 10.0, 100.0),
          "r_force": (1e-8, 3e-8, 1e-7)}  # fmt: skip
+#: The half-car MPCs' weights, :func:`tune_mpc`'s result on the training bank over
+#: :data:`MPC_GRID` (``docs/half-car.md``).
+TUNED_MPC = {"mpc-coupled-biexp-meas": {"q_stroke": 0.001, "q_levitation": 0.1, "r_force": 7e-8},
+             "wheelbase-mpc-biexp-meas": {"q_stroke": 0.001, "q_levitation": 0.1,
+                                          "r_force": 5e-8}}  # fmt: skip
+MPC_GRID = {"q_stroke": (0.001, 1.0), "q_levitation": (0.1, 10.0),
+            "r_force": (1e-8, 2e-8, 3e-8, 4e-8, 5e-8, 7e-8, 1e-7, 3e-7)}  # fmt: skip
 
 
 def rollout(policy: Any, seeds: list[int], guideway_seed: int, length_s: float = 10.0) -> dict:
@@ -111,21 +118,61 @@ def _ratio_interval(x: np.ndarray, y: np.ndarray, seed: int = 0, reps: int = 10_
     return [float(np.quantile(ratios, 0.025)), float(np.quantile(ratios, 0.975))]
 
 
-def tune_coupled(seeds: list[int] | None = None, length_s: float = 10.0) -> dict[str, float]:
-    """The coupled clipped LQR's weights with the lowest mean headline Wk on the training bank
-    (a grid over :data:`_GRID`)."""
+def tune_coupled(seeds: list[int] | None = None, length_s: float = 10.0,
+                 make: Any = None, grid: dict | None = None) -> dict[str, float]:  # fmt: skip
+    """The weights with the lowest mean headline Wk on the training bank, on a grid (default
+    :data:`_GRID`) of the law ``make(**weights)`` (default the coupled clipped LQR)."""
     from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
 
+    def coupled(**weights: float) -> Any:
+        return DeclaredClippedLQR("half_car", observation="measured", **weights)
+
     seeds = list(range(10)) if seeds is None else seeds
+    grid, make = _GRID if grid is None else grid, make or coupled
     best, best_wk = dict(TUNED_COUPLED), np.inf
-    for values in itertools.product(*_GRID.values()):
-        weights = dict(zip(_GRID, values, strict=True))
-        law = DeclaredClippedLQR("half_car", observation="measured", **weights)
+    for values in itertools.product(*grid.values()):
+        weights = dict(zip(grid, values, strict=True))
+        law = make(**weights)
         wk = float(episode_metrics(rollout(law, seeds, TRAINING_GUIDEWAY_SEED, length_s))[
             "wk_rms_body_acc_m_s2"].mean())  # fmt: skip
         if wk < best_wk:
             best, best_wk = weights, wk
     return best
+
+
+def tune_mpc(name: str, seeds: list[int] | None = None) -> dict[str, float]:
+    """The weights of the half-car MPC ``name`` (a key of :data:`TUNED_MPC`) on the training
+    bank, over :data:`MPC_GRID` (32 runs of the 10 training episodes; about 15 minutes)."""
+    from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
+
+    if name not in TUNED_MPC:
+        raise ValueError(f"name must be one of {', '.join(TUNED_MPC)}, got {name!r}")
+    preview = name.startswith("wheelbase")
+    return tune_coupled(seeds, make=lambda **w: HalfCarMPC(**w, preview=preview), grid=MPC_GRID)
+
+
+def _mpc_laws() -> dict[str, Any]:
+    """The half-car MPCs with their tuned weights (:data:`TUNED_MPC`)."""
+    from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
+
+    laws = {name: HalfCarMPC(**TUNED_MPC[name], preview=name.startswith("wheelbase"))
+            for name in TUNED_MPC}  # fmt: skip
+    for law in laws.values():
+        law.gains_tuned = True
+    return laws
+
+
+def _solver_figures(name: str, law: Any) -> dict[str, float]:
+    """An MPC row's solver figures over its evaluation: QP solves per vehicle-step and the
+    steps that fell back to the LQ law (in the row); the plans' wall time per vehicle-step,
+    which depends on the machine and its load, on stderr only."""
+    c = law.counters
+    steps = max(c["vehicle_steps"], 1)
+    print(f"{name}: {c['solves'] / steps:.2f} QP solves and {1e6 * c['solve_time_s'] / steps:.0f}"
+          f" us of planning per vehicle-step, {c['fallback_steps']} fallbacks in "
+          f"{c['vehicle_steps']} vehicle-steps", file=sys.stderr)  # fmt: skip
+    return {"solves_per_step": c["solves"] / steps, "fallback_steps": int(c["fallback_steps"]),
+            "vehicle_steps": int(c["vehicle_steps"])}  # fmt: skip
 
 
 def _own_shipped() -> dict[str, str]:
@@ -193,7 +240,7 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
                                                          **coupled),
             "lq-discrete-biexp-meas": WheelbasePreviewLQ(*w, preview=False),
             "wheelbase-lq-biexp-meas": WheelbasePreviewLQ(*w),
-            "wheelbase-lq-biexp-exact": WheelbaseExactPreviewLQ(*w)}  # fmt: skip
+            "wheelbase-lq-biexp-exact": WheelbaseExactPreviewLQ(*w), **_mpc_laws()}  # fmt: skip
     laws.update(survey_laws or {})
     classical = list(laws)
     if shipped:
@@ -214,6 +261,8 @@ def evaluate(seeds: list[int], coupled: dict[str, float], oracle_iterations: int
         rows[name]["ratio_to_independent_lqr"] = float(head.mean() / reference.mean())
         rows[name]["ratio_to_independent_lqr_ci95"] = _ratio_interval(head, reference)
         rows[name]["per_episode_wk_m_s2"] = head.tolist()
+        if "solve_time_s" in getattr(laws.get(name), "counters", {}):  # an MPC's
+            rows[name]["solver"] = _solver_figures(name, laws[name])
     return rows
 
 
