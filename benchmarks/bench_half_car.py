@@ -38,7 +38,7 @@ import numpy as np
 import capsule_env  # noqa: F401  (registers the tasks)
 from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD, _normals
 from capsule_env.plant.declared import declared_step_parallel
-from capsule_env.plant.declared_lanes import lanes_step_parallel, plant_form
+from capsule_env.plant.declared_lanes import VECTOR_TANH, lanes_step_parallel, plant_form
 
 
 def _env_rate(env: Any, steps: int) -> float:
@@ -111,6 +111,8 @@ def main() -> None:
     ratio = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleRide-v0 env"]
     gain = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleHalfRide-v0 env, before"]
     print(f"half-car / ride: {ratio:.3f} (bar: >= 0.4); half-car now / before: {gain:.2f}")
+    vector_tanh = plant_form(half_batch.plant) // VECTOR_TANH % 2 == 1
+    print(f"the hysteretic update's tanh: {'glibc_tanh, vectorised' if vector_tanh else 'libm'}")
 
 
 def _step_before(batch: Any, actions: np.ndarray) -> dict[str, np.ndarray]:

@@ -15,11 +15,13 @@ from capsule_env.dampers.base import N_DAMPER_PARAMS
 from capsule_env.dampers.hysteresis import hysteresis_update
 from capsule_env.plant.declared_lanes import (
     LANES,
+    VECTOR_TANH,
     _advance_z,
     _hysteresis_constants,
     _lane_params,
     _work,
 )
+from capsule_env.plant.glibc_tanh import matches_libm
 
 NC, NE, NS, NK = 2, 1, 2, 1  # two slots, each the stroke of its own coordinate
 FORM = NC + NE * 64 + NS * 64**2 + NK * 64**3
@@ -40,7 +42,9 @@ def _increments(rng: np.random.Generator, z0: np.ndarray, a: float, gamma: float
     return du
 
 
-def _run(code: int, params: np.ndarray, z0: np.ndarray, du: np.ndarray) -> tuple[np.ndarray, int]:
+def _run(
+    code: int, form: int, params: np.ndarray, z0: np.ndarray, du: np.ndarray
+) -> tuple[np.ndarray, int]:
     w, _, _, _ = _work(NC, NS, NK)
     g = _lane_params(NC, NE, NS, NK, N_DAMPER_PARAMS)
     srow, dpar = g[3], g[5]
@@ -54,14 +58,19 @@ def _run(code: int, params: np.ndarray, z0: np.ndarray, du: np.ndarray) -> tuple
     for s in range(NS):
         xs[s] = du[s]  # stroke - y - u0 = du (y = xs[2 NC + s] = 0)
         z[s] = z0[s]
-    _hysteresis_constants(code, FORM, LANES, g)
-    _advance_z(code, FORM, g, LANES, z, xs, u0, out)
+    _hysteresis_constants(code, form, LANES, g)
+    _advance_z(code, form, g, LANES, z, xs, u0, out)
     return out.copy(), int(g[8][0])
 
 
+# glibc_tanh only where it is this machine's C library's tanh: elsewhere the kernel never runs
+# it (tests/test_glibc_tanh.py)
+@pytest.mark.parametrize("vector_tanh", [False, True] if matches_libm() else [False])
 @pytest.mark.parametrize(("gamma", "beta", "split"), [(SPENCER.gamma, SPENCER.beta, 1),
                                                       (3.63e6, 1.0e6, 0)])  # fmt: skip
-def test_the_lanes_update_is_hysteresis_update_bit_for_bit(gamma, beta, split):
+def test_the_lanes_update_is_hysteresis_update_bit_for_bit(gamma, beta, split, vector_tanh):
+    """With the C library's tanh lane by lane, and with glibc_tanh vectorised."""
+    form = FORM + (VECTOR_TANH if vector_tanh else 0)
     rng = np.random.default_rng(42)
     params = SPENCER.as_array().copy()
     params[reference.GAMMA], params[reference.BETA] = gamma, beta
@@ -73,7 +82,7 @@ def test_the_lanes_update_is_hysteresis_update_bit_for_bit(gamma, beta, split):
         z0[:, 29] = -0.0
         du = np.stack([_increments(rng, z0[s], a, gamma, beta) for s in range(NS)])
         du[:, 28:30] = -1e-5
-        got, flag = _run(reference.MODEL.code, params, z0, du)
+        got, flag = _run(reference.MODEL.code, form, params, z0, du)
         assert flag == split  # which path ran
         want = np.array([[hysteresis_update(z0[s, i], du[s, i], a, gamma, beta)
                           for i in range(LANES)] for s in range(NS)])  # fmt: skip

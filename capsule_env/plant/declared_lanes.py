@@ -34,24 +34,31 @@ from capsule_env.dampers.dispatch import hysteresis_params, model_force, model_p
 from capsule_env.dampers.hysteresis import hysteresis_update
 from capsule_env.dampers.registry import model_of_code
 from capsule_env.plant.block import route_elevation
+from capsule_env.plant.glibc_tanh import glibc_tanh, matches_libm
 
-__all__ = ["LANES", "form_dims", "lanes_step", "lanes_step_parallel", "plant_form"]
+__all__ = ["LANES", "VECTOR_TANH", "form_dims", "lanes_step", "lanes_step_parallel", "plant_form"]
 
 #: Vehicles side by side in one chunk (and per work item of :func:`lanes_step_parallel`).
 LANES = 64
 _FORM_BASE = 64  # each count of a form below this
+#: The flag of a form whose kernel calls :func:`capsule_env.plant.glibc_tanh.glibc_tanh` (in
+#: vectorised loops) in place of the C library's ``tanh`` (lane by lane).
+VECTOR_TANH = _FORM_BASE**4
 
 
 def plant_form(plant: Any) -> int:
     """The form of a :class:`capsule_env.plant.declared_build.DeclaredPlant` as one integer:
     its counts of coordinates, springs and dashpots, damper slots and contacts, which the
-    kernel is compiled for (its loops then have known lengths)."""
+    kernel is compiled for (its loops then have known lengths), and :data:`VECTOR_TANH` where
+    :func:`capsule_env.plant.glibc_tanh.matches_libm` (the hysteretic update's ``tanh`` then
+    vectorises, the same bits)."""
     dims = (plant.inv_inertia.shape[1], plant.element_coef.shape[1], plant.slot_rows.shape[1],
             plant.contact_offsets_m.shape[1])  # fmt: skip
     if max(dims) >= _FORM_BASE:
         raise ValueError(f"the lanes kernel takes fewer than {_FORM_BASE} coordinates, elements, "
                          f"slots and contacts each, got {dims}")  # fmt: skip
-    return sum(d * _FORM_BASE**j for j, d in enumerate(dims))
+    form = sum(d * _FORM_BASE**j for j, d in enumerate(dims))
+    return form + (VECTOR_TANH if matches_libm() else 0)
 
 
 def form_dims(form: int) -> tuple[int, int, int, int]:
@@ -182,10 +189,12 @@ def _advance_z_split(form, g, na, z, xs, u0, out):
     linear unloading branch (``beta - gamma == 0``) and a loading one with ``gamma + beta > 0``
     (:func:`_hysteresis_constants`), in three loops over the lanes: the plain arithmetic before
     ``tanh`` (vectorised), the C library's ``tanh`` lane by lane, the arithmetic after it
-    (vectorised). The same bits as the branchy call per lane: the same operations on the same
+    (vectorised), or :func:`glibc_tanh` in a vectorised loop where the form says
+    (:data:`VECTOR_TANH`). The same bits as the branchy call per lane: the same operations on the same
     values (``sqrt(A / p)`` and ``sqrt(A p)`` computed once a step, not at every call), each
     lane's result chosen among the branches' rather than branched to."""
     nc, _, ns, _ = form_dims(form)
+    vector_tanh = form // VECTOR_TANH % 2 == 1
 
     def impl(form, g, na, z, xs, u0, out):
         srow, hc, tmp = g[3], g[6], g[7]
@@ -201,8 +210,12 @@ def _advance_z_split(form, g, na, z, xs, u0, out):
                 m_zero = -q / hc[s, 0, i]  # _path_to_zero with p = 0
                 tmp[0, i] = hc[s, 2, i] * (path - m_zero if q < 0.0 else path)
                 tmp[1, i] = du
-            for i in range(na):
-                tmp[2, i] = math.tanh(tmp[0, i])
+            if vector_tanh:
+                for i in range(na):
+                    tmp[2, i] = glibc_tanh(tmp[0, i])
+            else:
+                for i in range(na):
+                    tmp[2, i] = math.tanh(tmp[0, i])
             for i in range(na):
                 du, big_t, a, r = tmp[1, i], tmp[2, i], hc[s, 0, i], hc[s, 1, i]
                 sign = 1.0 if du > 0.0 else -1.0
