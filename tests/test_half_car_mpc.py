@@ -79,10 +79,12 @@ def _recording(monkeypatch: pytest.MonkeyPatch) -> list:
 
 @pytest.mark.parametrize("preview", [False, True])
 def test_plans_are_dissipative_and_inside_each_dampers_band(monkeypatch, preview: bool) -> None:
-    """Over 1.5 s on the hils plant: each damper's force planned now is dissipative at its own
+    """Over 1.5 s on the hils plant, each damper's planned forces: now, dissipative at its own
     measured stroke rate and inside the band of the inverted model at its own measured stroke
-    and rate (exact there: no linearisation), wherever that band has a dissipative part; the
-    band is active on both dampers (the plan is not the LQ law)."""
+    and rate; one interval on (a rate the plan cannot move, one step of delay), the same at the
+    predicted stroke and rate (both exact: no linearisation), wherever that band has a
+    dissipative part; two intervals on, dissipative at the predicted rate once the sign
+    pattern has settled. The band is active on both dampers (the plan is not the LQ law)."""
     plans = _recording(monkeypatch)
     law = HalfCarMPC(*W, preview=preview)
     env = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="measured",
@@ -93,18 +95,24 @@ def test_plans_are_dissipative_and_inside_each_dampers_band(monkeypatch, preview
         obs, _, terminated, truncated, _ = env.step(law.predict(obs[None])[0][0])
         assert not (terminated or truncated)
     assert len(plans) == 299 and law.counters["fallback_steps"] == 0
-    active = np.zeros(2, dtype=int)
-    damper = law.damper
-    for rate, stroke, result in plans:
-        u = result.u.reshape(2, -1)[:, 0]
-        edges = band_edges(damper, stroke, rate)
-        lo = np.where(rate >= 0, np.maximum(edges[0], 0.0), edges[1])
-        hi = np.where(rate >= 0, edges[1], np.minimum(edges[0], 0.0))
-        tol = 1e-6 * law.max_force_n
-        assert np.all(u * np.sign(rate) >= -tol)  # dissipative
-        meetable = lo <= hi
-        assert np.all((u >= lo - tol)[meetable]) and np.all((u <= hi + tol)[meetable])
-        active += (np.abs(u - lo) < tol) | (np.abs(u - hi) < tol)
+    active, tol = np.zeros(2, dtype=int), 1e-6 * law.max_force_n
+    for rate_now, stroke_now, result in plans:
+        u, rate = result.u.reshape(2, -1), result.rate_m_s.reshape(2, -1)
+        stroke = result.stroke_m.reshape(2, -1)
+        np.testing.assert_array_equal(rate[:, 0], rate_now)  # the plan starts at the measured
+        np.testing.assert_allclose(stroke[:, 0], stroke_now, rtol=1e-12, atol=1e-15)
+        for j in (0, 1):
+            edges = band_edges(law.damper, stroke[:, j], rate[:, j])
+            lo = np.where(rate[:, j] >= 0, np.maximum(edges[0], 0.0), edges[1])
+            hi = np.where(rate[:, j] >= 0, edges[1], np.minimum(edges[0], 0.0))
+            assert np.all(u[:, j] * np.sign(rate[:, j]) >= -tol)  # dissipative
+            meetable = lo <= hi
+            assert np.all((u[:, j] >= lo - tol)[meetable])
+            assert np.all((u[:, j] <= hi + tol)[meetable])
+            if j == 0:
+                active += (np.abs(u[:, 0] - lo) < tol) | (np.abs(u[:, 0] - hi) < tol)
+        if result.solves < law.solver_options.max_passes:  # the signs assumed are the plan's
+            assert np.all(u[:, 2] * np.sign(rate[:, 2]) >= -tol)
     assert np.all(active > 30)
 
 
