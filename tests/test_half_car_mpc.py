@@ -178,3 +178,20 @@ def test_tuning_names_the_mpc_it_tunes() -> None:
     assert set(TUNED_MPC) == {"mpc-coupled-biexp-meas", "wheelbase-mpc-biexp-meas"}
     with pytest.raises(ValueError, match="name must be one of"):
         tune_mpc("mpc-biexp-meas")
+
+
+def test_a_non_finite_observation_requests_0_n_for_that_vehicle_only() -> None:
+    """A NaN in one vehicle's observation: 0 N (action 0) for it, counted; the other vehicle
+    is planned as usual, bit for bit as without the bad one beside it."""
+    env = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="measured")
+    obs, _ = env.reset(seed=2)
+    for _ in range(5):
+        obs, *_ = env.step(np.array([0.3, -0.2]))
+    pair, alone = HalfCarMPC(*W), HalfCarMPC(*W)
+    bad = np.stack([obs, obs]).astype(np.float64)
+    bad[1, 4] = np.nan
+    actions = pair.predict(bad)[0]
+    np.testing.assert_array_equal(actions[1], [0.0, 0.0])
+    assert np.all(np.isfinite(actions)) and np.any(actions[0] != 0.0)
+    np.testing.assert_array_equal(actions[0], alone.predict(obs[None].astype(np.float64))[0][0])
+    assert pair.counters["nonfinite_steps"] == 1 and pair.counters["fallback_steps"] == 0

@@ -31,7 +31,8 @@ intervals and requests the first of each, as the quarter-car's semi-active MPC
 
 A failed solve falls back to the unconstrained LQ law (clipped by the env's inverse), counted
 in :attr:`HalfCarMPC.counters` with the solves and their time. A vehicle whose observation is
-not finite requests 0 N that step (the passive 0 A).
+not finite requests 0 N that step (the passive 0 A) and its next plan starts afresh; the
+non-finite columns enter the law's memories (the window, the coil current) as zeros.
 """
 
 from __future__ import annotations
