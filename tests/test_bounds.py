@@ -220,3 +220,14 @@ def test_cli_refuses_the_hils_plant_in_one_line(capsys: pytest.CaptureFixture[st
     message = str(exc.value.code)
     assert message.startswith("python -m capsule_env.bounds: error:") and "\n" not in message
     assert "supported" in message and capsys.readouterr().out == ""
+
+
+def test_cli_names_seed_when_the_last_episode_seed_overflows() -> None:
+    # the last episode's seed (--seed + --episodes - 1) must stay below 2**63, the env's range;
+    # the error used to name seeds[1], a parameter the CLI user never typed
+    from capsule_env.bounds.__main__ import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--seed", str(2**63 - 1), "--episodes", "2", "--episode-length", "0.1"])
+    message = str(exc.value.code)
+    assert "--seed" in message and "2**63" in message and "seeds[" not in message

@@ -28,9 +28,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="also branch on the stroke rate's sign, at most this many node QPs "
                         "per episode (default 0: off)")  # fmt: skip
     args = p.parse_args(argv)
-    if args.episodes < 1 or args.seed < 0:
-        sys.exit(f"{p.prog}: error: --episodes must be >= 1 and --seed >= 0, got "
-                 f"{args.episodes}, {args.seed}")  # fmt: skip
+    if args.episodes < 1 or not 0 <= args.seed <= 2**63 - args.episodes:
+        sys.exit(f"{p.prog}: error: --episodes must be >= 1 and --seed in [0, 2**63 - "
+                 f"episodes], got {args.episodes}, {args.seed}")  # fmt: skip
     seeds = list(range(args.seed, args.seed + args.episodes))
     try:
         result = certified_floor({"setting": args.setting}, seeds, args.episode_length,
