@@ -296,7 +296,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         re-seeds the vehicle's stream; ``options`` accepts no key yet (any raises
         ``ValueError``)."""
         if seed is not None:
-            check_seed("seed", seed)
+            seed = check_seed("seed", seed)  # a Python int: Gymnasium refuses numpy's
         _check_options(options)
         super().reset(seed=seed)
         if seed is not None:
@@ -464,7 +464,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
             return self._reset_masked(_check_reset_mask(mask, self.num_envs), seed)
         if seed is not None:
             self._batch.seed(seed)  # validates an int or a list of num_envs ints
-        super().reset(seed=seed if isinstance(seed, (int, np.integer)) else None)
+        super().reset(seed=int(seed) if isinstance(seed, (int, np.integer)) else None)
         self._batch.reset()
         self._autoreset[:] = False
         self._needs_reset = False
@@ -484,7 +484,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
             streams = vehicle_streams(seed, self.num_envs)  # validates the seed(s)
             for n in np.flatnonzero(mask):
                 batch.rngs[n] = streams[n]
-            super().reset(seed=seed if isinstance(seed, (int, np.integer)) else None)
+            super().reset(seed=int(seed) if isinstance(seed, (int, np.integer)) else None)
         batch.detach_signals()  # the last step's info arrays keep their values
         batch.reset(mask)
         self._autoreset[mask] = False
