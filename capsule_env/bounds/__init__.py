@@ -12,7 +12,11 @@ the episode (:mod:`.lifted`: every force evaluation a variable, the motion affin
 exactly the simulator's arithmetic), quadratic constraints that every force the damper model
 can produce satisfies (:mod:`.relaxation`), and the Lagrangian dual of the ride metric under
 them (:mod:`.dual`), maximised over the multipliers by L-BFGS-B. Any multipliers give a valid
-bound; the search only tightens it. Supported plants: the Bi-exponential damper (the ``sim``
+bound; the search only tightens it. Option ``branch_nodes=K`` adds a branch and bound over the
+sign of the stroke rate (:mod:`.branch`: convex cuts per sign, Clarabel QPs certified by weak
+duality) and reports the larger floor; on the ``sim`` plant it has not certified more than 0
+yet (docs/fair-comparison.md). Episodes are those of evaluate.py's guideway bank unless
+``env_kwargs`` names a ``guideway_seed``. Supported plants: the Bi-exponential damper (the ``sim``
 setting) and the passive linear damper; the ``hils`` plant (Spencer's hysteretic model) is
 refused with a ValueError.
 
