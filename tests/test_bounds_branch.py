@@ -10,7 +10,8 @@ import itertools
 import numpy as np
 import pytest
 
-from capsule_env.bounds import certified_floor
+from capsule_env import metrics
+from capsule_env.bounds import certified_floor, check_floor
 from capsule_env.bounds.branch import (
     BranchProblem,
     branch_and_bound,
@@ -21,6 +22,7 @@ from capsule_env.bounds.branch import (
 )
 from capsule_env.bounds.lifted import LiftedEpisode, closed_loop, lift_episode
 from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_force_parts
+from capsule_env.engine.layout import OUT_BODY_ACC
 from capsule_env.oracle.plant import OracleEpisodes
 
 
@@ -108,7 +110,9 @@ def test_leaf_bounds_below_the_trajectories_they_contain(window: OracleEpisodes)
         problem = BranchProblem(lifted, env)
         v = lifted.affine(lifted.v_rows, forces)
         bound, _ = problem.node_bound(np.where(v >= 0.0, 1, -1).astype(np.int8))
-        assert 0.0 <= bound <= problem.ride(forces / FORCE_SCALE_N)
+        _, out = window.run(np.array([0]), currents[None], substeps="env")  # the compiled env
+        env_wk = float(metrics.wk_weighted_rms(out[0, :, OUT_BODY_ACC], window.dt_s))
+        assert 0.0 <= bound <= env_wk**2
         bounds.append(bound)
     assert bounds[0] > 1e-3
 
@@ -147,6 +151,9 @@ def test_certified_floor_with_branching_is_at_least_without() -> None:
     plain = certified_floor({"setting": "sim"}, seeds, length, max_iterations=2)
     branched = certified_floor({"setting": "sim"}, seeds, length, max_iterations=2, branch_nodes=5)
     assert np.all(branched.floor_wk_m_s2 >= plain.floor_wk_m_s2)
+    ep, _, _ = check_floor({"setting": "sim"}, seeds, length)
+    _, out = ep.run(np.array([0]), np.zeros((1, ep.n_steps)), substeps="env")  # 0 A
+    assert branched.floor_wk_m_s2[0] <= metrics.wk_weighted_rms(out[0, :, OUT_BODY_ACC], ep.dt_s)
     summary = branched.summary()
     assert summary["branch"][0]["nodes"] == 5 and "branch" not in plain.summary()
     with pytest.raises(ValueError, match="branch_nodes"):
@@ -191,7 +198,6 @@ def test_any_multipliers_certify_a_bound_below_the_trajectory(window: OracleEpis
 def test_floor_runs_the_episodes_evaluate_and_the_oracle_run() -> None:
     """Without a guideway_seed the floor used the env's default bank, not evaluate.py's
     (``EVALUATION_GUIDEWAY_SEED``, which the oracle defaults to too)."""
-    from capsule_env.bounds import check_floor
     from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED
 
     episodes, _, _ = check_floor({"setting": "sim"}, [1000, 1001], 0.1)
