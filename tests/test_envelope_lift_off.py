@@ -174,3 +174,20 @@ def test_bad_lift_off_options_are_named(kwargs, named):
     options["levitation_params"] = {"lift_off": "payload", **kwargs.get("levitation_params", {})}
     with pytest.raises(ValueError, match=named):
         EnvConfig(**options)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"levitation": "eds", "levitation_params": {"lift_off": 1}},
+         r"^levitation_params: lift_off must be one of unladen, payload"),
+        ({"levitation": "eds", "levitation_params": {"lift_off_speed_kmh": "fast"}},
+         r"^levitation_params: lift_off_speed_kmh must be a real number"),
+        ({"speed_profile": "trip", "trip_params": {"lift_off_speed_kmh": "fast"}},
+         r"^trip_params: lift_off_speed_kmh must be a real number"),
+    ],
+)  # fmt: skip
+def test_a_field_of_the_wrong_type_names_its_dict(kwargs, named):
+    """Both dicts have a lift_off_speed_kmh: a TypeError names the dict as a ValueError does."""
+    with pytest.raises(TypeError, match=named):
+        EnvConfig(**kwargs)

@@ -78,8 +78,8 @@ def _build(name: str, cls: type, overrides: dict, exclude: tuple[str, ...] = ())
             raise ValueError(f"unknown key {key!r} in {name}; accepted: {', '.join(sorted(known))}")
     try:
         return cls(**overrides)
-    except ValueError as exc:  # say which dict the field came from (two have lift-off speeds)
-        raise ValueError(f"{name}: {exc}") from None
+    except (ValueError, TypeError) as exc:  # say which dict the field came from (two have
+        raise type(exc)(f"{name}: {exc}") from None  # lift-off speeds)
 
 
 def _lift_shape(r: float) -> float:
