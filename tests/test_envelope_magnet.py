@@ -172,3 +172,12 @@ def test_the_gain_is_the_magnets_sinc_over_the_lengths_and_wavelengths():
     assert max(worst.values()) < 5.2e-3
     assert max(e for length, e in worst.items() if length >= 1.35) < 1.3e-3
     assert max(e for length, e in worst.items() if length >= 5.0) < 5e-4
+
+
+def test_a_numpy_float32_length_is_taken_as_its_value():
+    """``magnet_length_m=np.float32(x)`` is the length ``float(np.float32(x))``, bit for bit (not
+    a filter computed in float32 arithmetic)."""
+    length = np.float32(5.4)
+    numpy = CapsuleBatch(EnvConfig(magnet_length_m=length), 1).profiles
+    python = CapsuleBatch(EnvConfig(magnet_length_m=float(length)), 1).profiles
+    np.testing.assert_array_equal(numpy, python)

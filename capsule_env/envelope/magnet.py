@@ -45,8 +45,8 @@ def _integral(row: np.ndarray, cumulative: np.ndarray, spacing_m: float,
 def magnet_average(profiles: np.ndarray, spacing_m: float, length_m: float) -> np.ndarray:
     """``profiles`` (K, L) averaged over a magnet of ``length_m`` (module docstring): a new
     C-contiguous array of the same shape, computed one profile at a time."""
-    check_positive("spacing_m", spacing_m)
-    check_positive("length_m", length_m)
+    spacing_m = check_positive("spacing_m", spacing_m)  # Python floats: no float32 arithmetic
+    length_m = check_positive("length_m", length_m)
     bank = np.atleast_2d(np.asarray(profiles, dtype=np.float64))
     end = (bank.shape[1] - 1) * spacing_m
     x = np.arange(bank.shape[1]) * spacing_m
