@@ -178,7 +178,7 @@ def _payload_lift_off(config: Any, envelope: Envelope) -> TripParams:
     """With ``levitation_params['lift_off']='payload'``: refuse a constant speed below the
     heaviest vehicle's lift-off speed (the payload and the randomisation at their heaviest);
     return the trip that runs from the lightest vehicle's lift-off speed (each vehicle's
-    windows then lie where the trip is at or above its own, :meth:`Envelope.window_lift_off_m_s`)."""
+    windows then lie where the trip is at or above its own, :meth:`Envelope.vehicle_lift_off_m_s`)."""
     low, high = envelope.lift_off_range_m_s(config)
     what = (f"the lift-off speed of the heaviest vehicle that payload_range "
             f"{config.payload_range} and vehicle_randomization {config.vehicle_randomization:g} "
