@@ -58,9 +58,9 @@ def test_a_constant_speed_below_the_heaviest_payloads_lift_off_is_refused():
     assert m_s_to_kmh(config.envelope.lift_off_range_m_s(config)[1]) == pytest.approx(
         heavy, abs=1e-6
     )
-    with pytest.raises(ValueError, match=r"speed_kmh must be at least 184\.43 km/h"):
+    with pytest.raises(ValueError, match=r"speed_kmh must be at least 184\.44 km/h"):
         EnvConfig(**PAYLOAD, payload_range=(0.0, 0.4), speed_kmh=heavy - 0.01)
-    with pytest.raises(ValueError, match=r"speed_range_kmh\[0\] must be at least 184\.43"):
+    with pytest.raises(ValueError, match=r"speed_range_kmh\[0\] must be at least 184\.44"):
         EnvConfig(**PAYLOAD, payload_range=(0.0, 0.4), speed_range_kmh=(150.0, 800.0))
     EnvConfig(levitation="eds", payload_range=(0.0, 0.4), speed_kmh=150.0)  # the default: as before
 
@@ -162,7 +162,7 @@ def test_the_default_keeps_todays_episodes_bit_for_bit():
         ({"speed_profile": "trip", "trip_params": {"lift_off_speed_kmh": 200.0}},
          r"trip_params\['lift_off_speed_kmh'\] must not be set"),
         ({"speed_profile": "trip", "payload_range": (1.0, 1.0),
-          "trip_params": {"cruise_speed_kmh": 200.0}}, r"trip_params\['cruise_speed_kmh'\] must be above"),
+          "trip_params": {"cruise_speed_kmh": 200.0}}, r"trip_params\['cruise_speed_kmh'\] must be at least"),
         ({"payload_range": (5.0, 5.0)}, "payload_range must leave every vehicle a lift-off speed"),
         ({"speed_profile": "trip", "payload_range": (0.4, 0.4), "episode_length_s": 10.0,
           "trip_params": {"cruise_speed_kmh": 190.0, "cruise_duration_s": 0.0}},
@@ -191,3 +191,37 @@ def test_a_field_of_the_wrong_type_names_its_dict(kwargs, named):
     """Both dicts have a lift_off_speed_kmh: a TypeError names the dict as a ValueError does."""
     with pytest.raises(TypeError, match=named):
         EnvConfig(**kwargs)
+
+
+def _stated_kmh(options: dict, phrase: str) -> float:
+    """The speed an error message states after ``phrase`` (km/h)."""
+    with pytest.raises(ValueError, match=phrase) as error:
+        EnvConfig(**options)
+    return float(str(error.value).split(phrase)[1].split()[0])
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {**PAYLOAD, "payload_range": (-0.3, 0.4), "speed_kmh": 150.0},  # 184.4347 km/h
+        {**PAYLOAD, "payload_range": (-0.3, -0.2), "speed_kmh": 100.0},
+        {**PAYLOAD, "vehicle_randomization": 0.2, "speed_range_kmh": (150.0, 800.0)},
+        {"levitation": "eds", "levitation_params": {"lift_off_speed_kmh": 150.004},
+         "speed_kmh": 120.0},  # the calibration's lift-off (the default mode)
+    ],
+)  # fmt: skip
+def test_the_lowest_speed_an_error_states_is_accepted(options):
+    """Following the message works: the stated lowest speed (rounded up, not to nearest)."""
+    own = options.get("levitation_params", {}).get("lift_off") != "payload"
+    stated = _stated_kmh(options, "must be at least " + ("the lift-off speed " if own else ""))
+    stated_options = {key: value for key, value in options.items() if key != "speed_range_kmh"}
+    EnvConfig(**{**stated_options, "speed_kmh": stated})
+    with pytest.raises(ValueError, match="must be at least"):
+        EnvConfig(**{**stated_options, "speed_kmh": stated - 0.01})
+
+
+def test_the_lowest_cruise_an_error_states_is_accepted():
+    options = {**PAYLOAD, "speed_profile": "trip", "payload_range": (-0.3, 0.4),
+               "trip_params": {"cruise_speed_kmh": 180.0, "cruise_duration_s": 60.0}}  # fmt: skip
+    stated = _stated_kmh(options, "must be at least ")
+    EnvConfig(**{**options, "trip_params": {"cruise_speed_kmh": stated, "cruise_duration_s": 60.0}})

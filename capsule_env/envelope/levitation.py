@@ -72,6 +72,7 @@ __all__ = [
     "check_levitating",
     "LIFT_OFF_MODES",
     "lift_off_speed_m_s",
+    "lowest_accepted_kmh",
     "levitation_stiffness_n_per_m",
     "levitation_damping_n_s_per_m",
     "equilibrium_sag_m",
@@ -178,13 +179,24 @@ def eds_coil(vehicle: VehicleParams | None = None, params: EdsParams | None = No
     )
 
 
+def lowest_accepted_kmh(limit_m_s: float, strict: bool = False) -> float:
+    """The lowest speed in km/h with two decimals that passes ``kmh_to_m_s(v) >= limit_m_s``
+    (``>`` if ``strict``): what an error message states as the lowest accepted speed, rounded
+    up so that a user who gives it is accepted."""
+    kmh = math.floor(m_s_to_kmh(limit_m_s) * 100.0) / 100.0
+    while not (kmh_to_m_s(kmh) > limit_m_s if strict else kmh_to_m_s(kmh) >= limit_m_s):
+        kmh = round(kmh + 0.01, 2)
+    return kmh
+
+
 def check_levitating(name: str, speed_m_s: np.ndarray | float, coil: EdsCoil) -> None:
     """Raise ``ValueError`` naming ``name`` when a speed is below the lift-off speed (the
     capsule is then on its wheels, which this model does not include)."""
     low = float(np.min(speed_m_s))
     if not low >= coil.lift_off_speed_m_s:
         raise ValueError(
-            f"{name} must be at least the lift-off speed {m_s_to_kmh(coil.lift_off_speed_m_s):.1f} km/h "
+            f"{name} must be at least the lift-off speed "
+            f"{lowest_accepted_kmh(coil.lift_off_speed_m_s):.2f} km/h "
             f"with levitation='eds' (below it the capsule rolls on its wheels), got "
             f"{m_s_to_kmh(low):.10g} km/h"
         )

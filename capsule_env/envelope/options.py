@@ -46,6 +46,7 @@ from capsule_env.envelope.levitation import (
     check_levitating,
     eds_coil,
     lift_off_speed_m_s,
+    lowest_accepted_kmh,
 )
 from capsule_env.envelope.trips import TripParams, own_trip_s
 from capsule_env.guideway.spans import SPAN_SHAPES, SpanParams
@@ -191,15 +192,16 @@ def _payload_lift_off(config: Any, envelope: Envelope) -> TripParams:
     if config.speed_profile == "constant":
         name = "speed_kmh" if config.speed_range_kmh is None else "speed_range_kmh[0]"
         if not config.speed_range_mps[0] >= high:
-            raise ValueError(f"{name} must be at least {m_s_to_kmh(high):.2f} km/h, {what}; got "
-                             f"{m_s_to_kmh(config.speed_range_mps[0]):.10g} km/h")  # fmt: skip
+            raise ValueError(f"{name} must be at least {lowest_accepted_kmh(high):.2f} km/h, "
+                             f"{what}; got {m_s_to_kmh(config.speed_range_mps[0]):.10g} km/h")  # fmt: skip
         return trip
     if "lift_off_speed_kmh" in config.trip_params:
         raise ValueError("trip_params['lift_off_speed_kmh'] must not be set with "
                          "levitation_params['lift_off']='payload': each vehicle's trip runs from "
                          "and to its own lift-off speed")  # fmt: skip
     if not kmh_to_m_s(trip.cruise_speed_kmh) > high:
-        raise ValueError(f"trip_params['cruise_speed_kmh'] must be above {m_s_to_kmh(high):.2f} "
+        raise ValueError(f"trip_params['cruise_speed_kmh'] must be at least "
+                         f"{lowest_accepted_kmh(high, strict=True):.2f} "
                          f"km/h, {what}; got {trip.cruise_speed_kmh}")  # fmt: skip
     trip = replace(trip, lift_off_speed_kmh=m_s_to_kmh(low))
     start, end = own_trip_s(trip, high)
