@@ -229,7 +229,7 @@ def test_evaluate_runs_a_trip_shorter_than_the_default_episode(tmp_path, capsys)
     with pytest.raises(SystemExit) as exc:
         evaluate.main([*argv[:8], "--episode-length", "6", *argv[10:]])
     assert exc.value.code != 0
-    assert "at most the trip's duration 4.7 s (trip_params), got 6.0" in capsys.readouterr().err
+    assert "at most the trip's duration 4.6 s (trip_params), got 6.0" in capsys.readouterr().err
 
 
 def test_evaluate_oracle_row_and_headroom_shares(tmp_path, capsys):

@@ -225,3 +225,18 @@ def test_the_lowest_cruise_an_error_states_is_accepted():
                "trip_params": {"cruise_speed_kmh": 180.0, "cruise_duration_s": 60.0}}  # fmt: skip
     stated = _stated_kmh(options, "must be at least ")
     EnvConfig(**{**options, "trip_params": {"cruise_speed_kmh": stated, "cruise_duration_s": 60.0}})
+
+
+@pytest.mark.parametrize("lift_off", ["payload", "unladen"])
+def test_the_longest_episode_an_error_states_is_accepted(lift_off):
+    """The own trip lasts 16.05 s here (the trip 16.76 s unladen): the stated longest episode
+    is rounded down, so that it is accepted."""
+    trip = {"cruise_speed_kmh": 190.0, "cruise_duration_s": 12.96}
+    options = {"levitation": "eds", "levitation_params": {"lift_off": lift_off},
+               "speed_profile": "trip", "payload_range": (0.4, 0.4), "episode_length_s": 30.0}  # fmt: skip
+    if lift_off == "unladen":
+        trip["lift_off_speed_kmh"] = 183.16
+    options["trip_params"] = trip
+    phrase = "must be at most " + ("" if lift_off == "payload" else "the trip's duration ")
+    stated = _stated_kmh(options, phrase)
+    EnvConfig(**{**options, "episode_length_s": stated})

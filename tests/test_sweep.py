@@ -393,7 +393,7 @@ def test_a_trial_on_a_short_trip_is_checked_with_its_own_episode_length(kind):
     if kind == "gains":
         params["controller"] = "skyhook-cont-biexp-meas"
     KINDS[kind].check({**params, "episode_length_s": 2.0})
-    with pytest.raises(ValueError, match="at most the trip's duration 4.7 s .*got 6.0"):
+    with pytest.raises(ValueError, match="at most the trip's duration 4.6 s .*got 6.0"):
         KINDS[kind].check({**params, "episode_length_s": 6.0})
 
 

@@ -83,6 +83,12 @@ def _build(name: str, cls: type, overrides: dict, exclude: tuple[str, ...] = ())
         raise type(exc)(f"{name}: {exc}") from None  # lift-off speeds)
 
 
+def _down(seconds: float) -> str:
+    """A longest accepted duration as an error states it: rounded down to the tenth of a
+    second (to nearest, the stated one could be refused)."""
+    return f"{math.floor(seconds * 10.0) / 10.0:.1f}"
+
+
 def _lift_shape(r: float) -> float:
     return r * r / (1.0 + r * r)
 
@@ -206,7 +212,7 @@ def _payload_lift_off(config: Any, envelope: Envelope) -> TripParams:
     trip = replace(trip, lift_off_speed_kmh=m_s_to_kmh(low))
     start, end = own_trip_s(trip, high)
     if end - start < config.episode_length_s:
-        raise ValueError(f"episode_length_s must be at most {end - start:.1f} s, the trip of the "
+        raise ValueError(f"episode_length_s must be at most {_down(end - start)} s, the trip of the "
                          f"heaviest vehicle (its lift-off {m_s_to_kmh(high):.1f} km/h), got "
                          f"{config.episode_length_s}")  # fmt: skip
     return trip
@@ -272,7 +278,7 @@ def build_envelope(config: Any) -> Envelope:
         coil, trip = _eds(config, eds, trip)
     if config.speed_profile == "trip" and trip.duration_s < config.episode_length_s:
         raise ValueError(
-            f"episode_length_s must be at most the trip's duration {trip.duration_s:.1f} s "
+            f"episode_length_s must be at most the trip's duration {_down(trip.duration_s)} s "
             f"(trip_params), got {config.episode_length_s}"
         )
     return Envelope(
