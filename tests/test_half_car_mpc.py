@@ -195,3 +195,32 @@ def test_a_non_finite_observation_requests_0_n_for_that_vehicle_only() -> None:
     assert np.all(np.isfinite(actions)) and np.any(actions[0] != 0.0)
     np.testing.assert_array_equal(actions[0], alone.predict(obs[None].astype(np.float64))[0][0])
     assert pair.counters["nonfinite_steps"] == 1 and pair.counters["fallback_steps"] == 0
+
+
+def _hils_observations(seed: int, steps: int) -> np.ndarray:
+    """The half-car's measured observations of ``steps`` steps under a fixed action."""
+    env = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="measured")
+    obs, _ = env.reset(seed=seed)
+    rows = [obs]
+    for _ in range(steps - 1):
+        obs, *_ = env.step(np.array([0.3, -0.2]))
+        rows.append(obs)
+    return np.array(rows, dtype=np.float64)
+
+
+@pytest.mark.parametrize("preview", [False, True])
+def test_episode_start_resets_that_vehicle_only(preview: bool) -> None:
+    """In a vector env (SB3's ``episode_start``), a vehicle whose episode starts is planned as
+    by a fresh law, its requests in flight, window, coil current and plan forgotten; the
+    other vehicle goes on exactly as it would have."""
+    one, two = _hils_observations(2, 12), _hils_observations(5, 12)
+    law, other = HalfCarMPC(*W, preview=preview), HalfCarMPC(*W, preview=preview)
+    for k in range(8):
+        law.predict(np.stack([one[k], two[k]]))
+        other.predict(two[k][None])
+    start, fresh = np.array([True, False]), HalfCarMPC(*W, preview=preview)
+    for k in range(3):  # vehicle 0 restarts on the other seed's first observations
+        pair = law.predict(np.stack([two[k], two[8 + k]]), episode_start=start)[0]
+        np.testing.assert_array_equal(pair[0], fresh.predict(two[k][None])[0][0])
+        np.testing.assert_array_equal(pair[1], other.predict(two[8 + k][None])[0][0])
+        start = np.array([False, False])

@@ -46,7 +46,7 @@ from capsule_env.agents.controllers.lqr import state_weights
 from capsule_env.agents.controllers.mpc import HILS_COIL_TIME_CONSTANT_S, MPCController
 from capsule_env.agents.controllers.mpc_qp import CondensedQP, _zoh, band_edges, blocking_matrix
 from capsule_env.agents.controllers.mpc_solver import BandQP, check_integer, check_real
-from capsule_env.agents.controllers.wheelbase import WheelbasePreviewLQ
+from capsule_env.agents.controllers.wheelbase import _GAP, _LOWER_VELOCITY, WheelbasePreviewLQ
 from scipy.linalg import solve_discrete_are
 
 from capsule_env.engine.config import EnvConfig
@@ -277,6 +277,30 @@ class HalfCarMPC(WheelbasePreviewLQ):
                 "r_force_1_kg2": self.weights[2], "horizon_s": self.horizon_steps * self.dt_s,
                 "planned_delay_s": self.delay_steps * self.dt_s,
                 "planned_coil_time_constant_s": self.coil_time_constant_s}  # fmt: skip
+
+    def predict(  # type: ignore[no-untyped-def]  # Controller.predict's signature
+        self, observation, state=None, episode_start=None, deterministic=True
+    ):
+        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set starts as
+        under a fresh law: its memories (the rise estimate's last sample, the window, the
+        requests in flight, the coil current, the plan) and its solver's warm start go."""
+        mem = self._memory
+        if episode_start is not None and "plans" in mem:
+            start = np.asarray(episode_start, dtype=bool).reshape(-1)
+            if start.shape != (mem["plans"].shape[0],):
+                self.reset()  # another batch: everything starts afresh
+            else:
+                obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
+                for k in np.flatnonzero(start).tolist():
+                    for key in ("window", "in_flight", "current", "commands", "strokes"):
+                        mem[key][k] = 0.0
+                    mem["plans"][k] = np.nan
+                    for key, column in (("gap", _GAP), ("v_b", _LOWER_VELOCITY)):
+                        value = obs[k, column]  # no rise read across the restart
+                        mem[key][k] = value if np.isfinite(value) else 0.0
+                    self._solvers[k] = BandQP(self.qp, self.damper, self.max_force_n,
+                                              self.solver_options)  # fmt: skip
+        return super().predict(observation, state, episode_start, deterministic)
 
     def _state(self, obs: np.ndarray) -> np.ndarray:
         """The prediction model's state per vehicle (module doc), (N, size); advances the
