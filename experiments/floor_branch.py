@@ -15,6 +15,7 @@ least leaf bound: these two bound what any budget can reach with these cuts).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -81,15 +82,54 @@ def run(seeds: list[int], length_s: float, nodes: int) -> list[dict[str, Any]]:
     return rows
 
 
+def narrowed(seed: int, length_s: float) -> dict[str, float]:
+    """The 0 A leaf's bound (Wk) with narrowed cut sets, NOT valid bounds: which looseness
+    inside a sign matters (no offset; the lower edge's yield by its chord up to the largest
+    stroke rate of the 0 A run; both)."""
+    from capsule_env.dampers import bi_exponential as be
+
+    ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), [seed], length_s)
+    lifted, p = lift_episode(ep, 0), ep.damper_params[0]
+    env = damper_envelope(ep.code, p)
+    problem = BranchProblem(lifted, env)
+
+    def law(x: float, v: float, step: int) -> float:
+        d, c = model_force_parts(ep.code, p, np.array([x]), np.array([v]), np.zeros(1))
+        return float(d[0] + c[0])
+
+    v = lifted.affine(lifted.v_rows, closed_loop(lifted, law))
+    sigma = np.where(v >= 0.0, 1, -1).astype(np.int8)
+    top, d_lo = float(np.max(np.abs(v))), min(p[be.LOWER + be.D], p[be.UPPER + be.D])
+    chord = (env.a_lo * (1.0 - math.exp(-d_lo * top)) / top + env.b_lo) / FORCE_SCALE_N
+    cuts = problem.cuts
+    sets = {"as shipped": cuts,
+            "no offset": dataclasses.replace(cuts, lo_off=(0.0, 0.0), up_off=(0.0, 0.0)),
+            "yield chord": dataclasses.replace(cuts, lo_slope=chord),
+            "both": dataclasses.replace(cuts, lo_off=(0.0, 0.0), up_off=(0.0, 0.0),
+                                        lo_slope=chord)}  # fmt: skip
+    out = {}
+    for name, c in sets.items():
+        problem.cuts = c
+        out[name] = math.sqrt(problem.node_bound(sigma)[0])
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
     p.add_argument("--lengths", type=float, nargs="+", default=[0.1, 0.35])
     p.add_argument("--nodes", type=int, default=100)
     p.add_argument("--json", type=Path, default=None)
+    p.add_argument("--narrowed", action="store_true",
+                   help="print only the 0 A leaf with narrowed (not valid) cut sets")  # fmt: skip
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
+    if args.narrowed:
+        for length in args.lengths:
+            for seed in args.seeds:
+                print(json.dumps({"length_s": length, "seed": seed, **narrowed(seed, length)}))
+        return 0
     rows = [r for length in args.lengths for r in run(args.seeds, length, args.nodes)]
     if args.json is not None:
         tmp = args.json.with_suffix(".tmp")
