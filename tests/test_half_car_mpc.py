@@ -224,3 +224,23 @@ def test_episode_start_resets_that_vehicle_only(preview: bool) -> None:
         np.testing.assert_array_equal(pair[0], fresh.predict(two[k][None])[0][0])
         np.testing.assert_array_equal(pair[1], other.predict(two[8 + k][None])[0][0])
         start = np.array([False, False])
+
+
+def test_the_preview_tasks_observation_is_read_and_others_refused() -> None:
+    """On ``CapsuleHalfRidePreview-v0``'s observation (the measured 16 columns, then each
+    bogie's survey) the law reads the measured columns: the same actions as on them alone. An
+    observation that is not the half-car's measured one (``full_state``, 17 columns; the
+    quarter-car's 9) raises one ``ValueError`` naming the observation."""
+    env = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="measured",
+                             preview_points=32, preview_horizon_s=0.5)  # fmt: skip
+    obs, _ = env.reset(seed=2)
+    assert obs.shape == (80,)
+    with_survey, alone = HalfCarMPC(*W, preview=True), HalfCarMPC(*W, preview=True)
+    for _ in range(3):
+        action = with_survey.predict(obs[None])[0]
+        np.testing.assert_array_equal(action, alone.predict(obs[None, :16])[0])
+        obs, *_ = env.step(action[0])
+    full = DeclaredVehicleEnv(vehicle="half_car", setting="hils", observation="full_state")
+    for bad in (full.reset(seed=2)[0], np.zeros(9)):
+        with pytest.raises(ValueError, match="observation"):
+            HalfCarMPC(*W).predict(bad[None])

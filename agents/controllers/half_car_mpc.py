@@ -335,7 +335,7 @@ class HalfCarMPC(WheelbasePreviewLQ):
         return (edges[0] + frac * (edges[1] - edges[0])).reshape(current_a.shape)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+        obs = _measured_columns(np.atleast_2d(np.asarray(obs, dtype=np.float64)))
         bad = ~np.all(np.isfinite(obs), axis=1)
         clean = np.where(np.isfinite(obs), obs, 0.0) if bad.any() else obs
         z = self._state(clean)
@@ -371,6 +371,17 @@ class HalfCarMPC(WheelbasePreviewLQ):
         mem["plans"][k] = _shifted(result.rate_m_s, m)
         mem["strokes"][k] = _shifted(result.stroke_m, m)
         return result.u.reshape(m, -1)[:, 0]
+
+
+def _measured_columns(obs: np.ndarray) -> np.ndarray:
+    """The half-car's measured columns (8 a bogie) of ``obs`` (N, 16 + 2 P: a survey preview
+    of P points a bogie after them is not read); ``ValueError`` for another observation."""
+    width = 2 * _PER_SLOT
+    if obs.ndim != 2 or obs.shape[1] < width or (obs.shape[1] - width) % 2:
+        raise ValueError(f"observation must be the half-car's measured one (observation="
+                         f"'measured': {width} columns, then any survey preview's), got shape "
+                         f"{obs.shape}")  # fmt: skip
+    return obs[:, :width]
 
 
 def _shifted(rows: np.ndarray, inputs: int) -> np.ndarray:
