@@ -244,3 +244,15 @@ def test_the_preview_tasks_observation_is_read_and_others_refused() -> None:
     for bad in (full.reset(seed=2)[0], np.zeros(9)):
         with pytest.raises(ValueError, match="observation"):
             HalfCarMPC(*W).predict(bad[None])
+
+
+def test_a_wheelbase_window_too_long_to_design_is_refused() -> None:
+    """The wheelbase window is 20 m / speed / dt_s intervals (1441 at 10 km/h: a Riccati
+    equation of 1450 states, minutes to solve); past 600 the law refuses, naming the lowest
+    accepted speed (20 / (600 x 0.005) m/s = 24 km/h); without the window any speed is fine."""
+    with pytest.raises(ValueError, match=r"speed_kmh .* above 24(\.\d+)? km/h"):
+        HalfCarMPC(*W, preview=True, speed_kmh=10.0)
+    with pytest.raises(ValueError, match="dt_s"):
+        HalfCarMPC(*W, preview=True, dt_s=1e-4)
+    assert HalfCarMPC(*W, preview=True, speed_kmh=50.0).model.window == 289
+    assert HalfCarMPC(*W, preview=False, speed_kmh=10.0).model.window == 0

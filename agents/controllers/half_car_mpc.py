@@ -57,6 +57,9 @@ __all__ = ["CoupledModel", "coupled_model", "coupled_lq", "condense_coupled", "H
 #: The coupled half-car laws' weights tuned on the training bank (docs/half-car.md): the
 #: MPC's defaults (``HalfCarMPC``'s rows in the evaluation pass their own tuned ones).
 COUPLED_WEIGHTS = {"q_stroke": 0.001, "q_levitation": 0.1, "r_force": 3e-8}
+#: The longest wheelbase window the preview law is designed with (intervals): its Riccati
+#: equation grows with it (6 s to set up at 577, 24 km/h at 5 ms).
+MAX_WINDOW = 600
 _PER_SLOT, _STROKE, _RATE, _COMMAND = 8, 0, 1, 7  # the measured columns per slot
 
 
@@ -222,7 +225,8 @@ class HalfCarMPC(WheelbasePreviewLQ):
     default :data:`COUPLED_WEIGHTS`); ``horizon_steps`` (1 to 200), ``move_blocks`` (lengths
     summing to it, None: a move per interval), ``delay_steps`` (0 to 10, the ``hils`` 1),
     ``coil_time_constant_s`` (0 to 1 s; 0: no lag), ``dt_s``, ``speed_kmh`` (the wheelbase
-    delay's), ``max_force_n``, ``solver`` (the keys of
+    delay's; with ``preview`` the window, wheelbase / speed / ``dt_s``, at most
+    :data:`MAX_WINDOW` intervals: above 24 km/h at 5 ms), ``max_force_n``, ``solver`` (the keys of
     :class:`~capsule_env.agents.controllers.mpc_solver.SolverOptions`, checked as the
     quarter-car MPC checks them). A bad value raises ``ValueError`` naming the parameter."""
 
@@ -251,6 +255,8 @@ class HalfCarMPC(WheelbasePreviewLQ):
         force = check_real("max_force_n", max_force_n, 0.0, 1e6, open_low=True, unit=" N")
         options = MPCController._check_solver(solver)
         blocks = _check_blocks(move_blocks, horizon)
+        if preview:
+            _check_window(speed / 3.6, dt)
         super().__init__(*weights, dt_s=dt, speed_kmh=speed, delay_steps=nd,
                          max_force_n=force, preview=preview)  # fmt: skip
         self.name = "wheelbase-mpc-biexp-meas" if preview else "mpc-coupled-biexp-meas"
@@ -396,6 +402,19 @@ def _made(damper: Any, force_n: np.ndarray, stroke_m: np.ndarray, rate_m_s: np.n
     edges = band_edges(damper, stroke_m, rate_m_s)
     low, high = np.minimum(edges[0], edges[1]), np.maximum(edges[0], edges[1])
     return np.where(force_n * rate_m_s <= 0.0, edges[0], np.clip(force_n, low, high))
+
+
+def _check_window(speed_m_s: float, dt_s: float) -> None:
+    """``ValueError`` naming ``speed_kmh`` and ``dt_s`` unless the wheelbase window (the
+    wheelbase over the speed, in intervals) is at most :data:`MAX_WINDOW` long."""
+    model = model_named("half_car")
+    offsets = model.contact_offsets_m(model.params())
+    wheelbase_m = float(offsets[0] - offsets[1])
+    if int(np.floor(wheelbase_m / speed_m_s / dt_s)) + 1 > MAX_WINDOW:
+        raise ValueError(f"speed_kmh and dt_s: the wheelbase window ({wheelbase_m:g} m / speed "
+                         f"/ dt_s) must be at most {MAX_WINDOW} intervals; at dt_s={dt_s:g} s "
+                         f"speed_kmh must be above {wheelbase_m / (MAX_WINDOW * dt_s) * 3.6:.1f} "
+                         f"km/h, got {speed_m_s * 3.6:g}")  # fmt: skip
 
 
 def _check_blocks(blocks: Any, horizon: int) -> tuple[int, ...] | None:
