@@ -163,6 +163,7 @@ def test_an_episode_on_the_task_env_rides_like_the_discrete_lq() -> None:
         ({"max_force_n": 0.0}, "max_force_n"),
         ({"preview": "yes"}, "preview"),
         ({"move_blocks": (3, 3)}, "move_blocks"),
+        ({"move_blocks": 10}, "move_blocks"),
         ({"solver": {"backend": "cvx"}}, "backend"),
         ({"solver": {"max_passes": 0}}, "max_passes"),
     ],

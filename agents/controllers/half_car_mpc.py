@@ -38,6 +38,7 @@ non-finite columns enter the law's memories (the window, the coil current) as ze
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -422,8 +423,9 @@ def _check_blocks(blocks: Any, horizon: int) -> tuple[int, ...] | None:
     to ``horizon``."""
     if blocks is None:
         return None
-    blocks = tuple(blocks)
+    given = blocks
+    blocks = tuple(blocks) if isinstance(blocks, Iterable) else ()  # one integer: not lengths
     if not blocks or sum(check_integer("move_blocks", b, 1, 200) for b in blocks) != horizon:
         raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
-                         f"({horizon}), got {blocks!r}")  # fmt: skip
+                         f"({horizon}), got {given!r}")  # fmt: skip
     return blocks
