@@ -257,3 +257,26 @@ def test_a_wheelbase_window_too_long_to_design_is_refused() -> None:
         HalfCarMPC(*W, preview=True, dt_s=1e-4)
     assert HalfCarMPC(*W, preview=True, speed_kmh=50.0).model.window == 289
     assert HalfCarMPC(*W, preview=False, speed_kmh=10.0).model.window == 0
+
+
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
+def test_a_law_in_mid_episode_copies_and_pickles(backend: str) -> None:
+    """``copy.deepcopy`` and ``pickle`` of a law that has planned (its solvers set up): the
+    copies go on as the original does, bit for bit with DAQP (its warm start travels), to
+    the solver's tolerance with OSQP (set up afresh: a cold start)."""
+    import copy
+    import pickle
+
+    obs = _hils_observations(2, 8)
+    law = HalfCarMPC(*W, preview=True, solver={"backend": backend})
+    for k in range(4):
+        law.predict(obs[k][None])
+    copies = [copy.deepcopy(law), pickle.loads(pickle.dumps(law))]
+    for k in range(4, 8):
+        ours = law.predict(obs[k][None])[0]
+        for other in copies:
+            theirs = other.predict(obs[k][None])[0]
+            if backend == "daqp":
+                np.testing.assert_array_equal(theirs, ours)
+            else:
+                np.testing.assert_allclose(theirs, ours, rtol=0, atol=0.02)

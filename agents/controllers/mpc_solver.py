@@ -177,6 +177,11 @@ class BandQP:
         else:
             self._setup_osqp(p, csc.indptr, csc.shape)
 
+    def __reduce__(self) -> tuple[Any, tuple]:
+        """Pickled (and deep-copied) as its set-up, the solver modules not being picklable:
+        DAQP's warm start travels; OSQP's solver is set up afresh (a cold start)."""
+        return _rebuilt, (self.qp, self.damper, self.scale, self.options, self._last)
+
     def _setup_osqp(self, p: Any, indptr: np.ndarray, shape: tuple[int, int]) -> None:
         osqp, o, n = self.backend, self.options, self.n_steps
         self._solved = int(osqp.SolverStatus.OSQP_SOLVED)
@@ -325,3 +330,12 @@ class BandQP:
             if same:
                 break
         return PlanResult(qp.blocking @ w, rate, stroke, solves, "solved")
+
+
+def _rebuilt(
+    qp: CondensedQP, damper: Any, scale: float, options: SolverOptions, last: np.ndarray | None
+) -> BandQP:
+    """A :class:`BandQP` set up again, with DAQP's warm start ``last`` (unpickling)."""
+    problem = BandQP(qp, damper, scale, options)
+    problem._last = last
+    return problem
