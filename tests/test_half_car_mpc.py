@@ -173,6 +173,15 @@ def test_bad_input_names_the_parameter(kwargs: dict, match: str) -> None:
         HalfCarMPC(**kwargs)
 
 
+def test_numpy_scalars_are_taken_as_their_values() -> None:
+    """numpy scalars (a ``np.bool_`` preview, as ``SolverOptions.polish`` takes one; numpy
+    integers and floats) build the same law as the Python values."""
+    law = HalfCarMPC(np.float64(0.001), np.float64(0.1), 3e-8, preview=np.bool_(True),
+                     horizon_steps=np.int64(10))  # fmt: skip
+    assert law.name == "wheelbase-mpc-biexp-meas" and law.model.window == 18
+    np.testing.assert_array_equal(law.qp.h, HalfCarMPC(0.001, 0.1, 3e-8, preview=True).qp.h)
+
+
 def test_tuning_names_the_mpc_it_tunes() -> None:
     from capsule_env.evaluation.half_car import TUNED_MPC, tune_mpc
 

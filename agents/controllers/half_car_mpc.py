@@ -246,8 +246,9 @@ class HalfCarMPC(WheelbasePreviewLQ):
         weights = (check_real("q_stroke", q_stroke, 0.0, 1e12, unit=" 1/s^4"),
                    check_real("q_levitation", q_levitation, 0.0, 1e12, unit=" 1/s^4"),
                    check_real("r_force", r_force, 0.0, 1.0, open_low=True, unit=" 1/kg^2"))  # fmt: skip
-        if not isinstance(preview, bool):
+        if not isinstance(preview, (bool, np.bool_)):
             raise ValueError(f"preview must be True or False, got {preview!r}")
+        preview = bool(preview)
         horizon = check_integer("horizon_steps", horizon_steps, 1, 200)
         nd = check_integer("delay_steps", delay_steps, 0, 10)
         dt = check_real("dt_s", dt_s, 1e-4, 0.1, unit=" s")
