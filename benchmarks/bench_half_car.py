@@ -18,16 +18,21 @@ Measures, alternating windows of each (``--repeats``, 3 by default; the median),
    as :func:`_step_before`), the same numbers bit for bit (``tests/test_declared_lanes.py``);
 3. each plant alone at N = 1024 (the run's threads), one vehicle at a time and in lanes
    (:mod:`capsule_env.plant.declared_lanes`): on the quarter-car's declaration (beside the
-   first row: what the generic loops cost on the quarter-car's physics) and on the half-car.
+   first row: what the generic loops cost on the quarter-car's physics) and on the half-car;
+4. with ``--kernel-from PATH`` (another version of ``declared_lanes.py``, e.g. ``git show
+   a560d78:capsule_env/plant/declared_lanes.py > /tmp/lanes_a560d78.py``), the half-car env
+   and its lanes plant with that file's kernel, in the same alternating windows.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import platform
 import statistics
 import subprocess
+import sys
 import time
 from typing import Any
 
@@ -36,9 +41,10 @@ import numba
 import numpy as np
 
 import capsule_env  # noqa: F401  (registers the tasks)
+from capsule_env.engine import declared_batch
 from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD, _normals
 from capsule_env.plant.declared import declared_step_parallel
-from capsule_env.plant.declared_lanes import VECTOR_TANH, lanes_step_parallel, plant_form
+from capsule_env.plant.declared_lanes import VECTOR_TANH, plant_form
 
 
 def _env_rate(env: Any, steps: int) -> float:
@@ -49,9 +55,10 @@ def _env_rate(env: Any, steps: int) -> float:
     return env.num_envs * steps / (time.perf_counter() - start)
 
 
-def _plant_rate(batch: Any, steps: int, lanes: bool) -> float:
+def _plant_rate(batch: Any, steps: int, lanes: bool, module: Any = None) -> float:
     code = batch.damper.code
-    step = lanes_step_parallel(code, plant_form(batch.plant)) if lanes else (
+    lanes_mod = module or declared_batch
+    step = lanes_mod.lanes_step_parallel(code, lanes_mod.plant_form(batch.plant)) if lanes else (
         declared_step_parallel(code))  # fmt: skip
     start = time.perf_counter()
     for _ in range(steps):
@@ -73,7 +80,10 @@ def main() -> None:
     p.add_argument("--quick", action="store_true", help="short windows")
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--repeats", type=int, default=3, help="alternating windows (the median)")
+    p.add_argument("--kernel-from", metavar="PATH", help="another declared_lanes.py to time beside")
     args = p.parse_args()
+    if args.kernel_from and not os.path.isfile(args.kernel_from):
+        raise SystemExit(f"bench_half_car.py: error: --kernel-from: no file {args.kernel_from}")
     n, steps = args.num_envs, (20 if args.quick else 300)
     if args.quick:
         args.repeats = 1
@@ -93,7 +103,7 @@ def main() -> None:
     half_batch = half.unwrapped.batch
     for lanes in (False, True):
         _plant_rate(qd, 2, lanes), _plant_rate(half_batch, 2, lanes)
-    rates = _median_windows({
+    funcs = {
         "CapsuleRide-v0 env": lambda: _env_rate(ride, steps),
         "CapsuleHalfRide-v0 env": lambda: _env_rate(half, steps // 2),
         "CapsuleHalfRide-v0 env, before": lambda: _env_rate(before, steps // 4),
@@ -101,7 +111,10 @@ def main() -> None:
         "lanes plant, quarter_car": lambda: _plant_rate(qd, steps, True),
         "declared plant, half_car": lambda: _plant_rate(half_batch, steps // 4, False),
         "lanes plant, half_car": lambda: _plant_rate(half_batch, steps // 2, True),
-    }, args.repeats)  # fmt: skip
+    }  # fmt: skip
+    if args.kernel_from:
+        funcs.update(_kernel_from(args.kernel_from, n, steps, half_batch))
+    rates = _median_windows(funcs, args.repeats)
     cpu = _cpu()
     print(f"{time.strftime('%Y-%m-%d %H:%M')}, {cpu}, {platform.python_version()}, N = {n}, "
           f"{numba.get_num_threads()} thread(s), load {os.getloadavg()[0]:.1f}")  # fmt: skip
@@ -111,8 +124,43 @@ def main() -> None:
     ratio = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleRide-v0 env"]
     gain = rates["CapsuleHalfRide-v0 env"] / rates["CapsuleHalfRide-v0 env, before"]
     print(f"half-car / ride: {ratio:.3f} (bar: >= 0.4); half-car now / before: {gain:.2f}")
+    if args.kernel_from:
+        env_file, plant_file = "CapsuleHalfRide-v0 env, file's", "lanes plant, half_car, file's"
+        file_ratio = rates[env_file] / rates["CapsuleRide-v0 env"]
+        env_gain = rates["CapsuleHalfRide-v0 env"] / rates[env_file]
+        plant_gain = rates["lanes plant, half_car"] / rates[plant_file]
+        print(f"with {args.kernel_from}'s kernel: half-car / ride {file_ratio:.3f}; now / it: "
+              f"env {env_gain:.2f}, plant {plant_gain:.2f}")  # fmt: skip
     vector_tanh = plant_form(half_batch.plant) // VECTOR_TANH % 2 == 1
     print(f"the hysteretic update's tanh: {'glibc_tanh, vectorised' if vector_tanh else 'libm'}")
+
+
+def _kernel_from(path: str, n: int, steps: int, half_batch: Any) -> dict[str, Any]:
+    """The rows of ``--kernel-from``: the half-car env and lanes plant with ``path``'s kernel."""
+    folder, name = os.path.split(os.path.abspath(path))
+    sys.path.insert(0, folder)  # imported by name: numba's disk cache finds it again
+    module = importlib.import_module(os.path.splitext(name)[0])
+    env = gym.make_vec("CapsuleHalfRide-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    batch = env.unwrapped.batch
+    batch.step = lambda actions: _step_with(batch, actions, module)
+    env.reset(seed=0)
+    _env_rate(env, 3)
+    _plant_rate(half_batch, 2, True, module)
+    return {
+        "CapsuleHalfRide-v0 env, file's": lambda: _env_rate(env, steps // 2),
+        "lanes plant, half_car, file's": lambda: _plant_rate(half_batch, steps // 2, True, module),
+    }
+
+
+def _step_with(batch: Any, actions: np.ndarray, module: Any) -> dict[str, np.ndarray]:
+    """``DeclaredBatch.step`` with ``module``'s lanes kernel."""
+    saved = declared_batch.lanes_step_parallel, declared_batch.plant_form
+    declared_batch.lanes_step_parallel, declared_batch.plant_form = (
+        module.lanes_step_parallel, module.plant_form)  # fmt: skip
+    try:
+        return declared_batch.DeclaredBatch.step(batch, actions)
+    finally:
+        declared_batch.lanes_step_parallel, declared_batch.plant_form = saved
 
 
 def _step_before(batch: Any, actions: np.ndarray) -> dict[str, np.ndarray]:
