@@ -360,14 +360,18 @@ def _combine(x: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return combine_rows(x, rows, np.empty((x.shape[0], rows.shape[0])))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _normals(keys, steps, out):  # pragma: no cover - numba
     """Standard normals per vehicle and channel from the counter-based hash of ``(key, step,
-    pair)`` (the quarter-car env's sensor noise: independent of the batch)."""
-    for n in range(out.shape[0]):
-        for pair in range(out.shape[1] // 2):
-            a, b = gaussian_pair(keys[n], steps[n], pair)
-            out[n, 2 * pair], out[n, 2 * pair + 1] = a, b
+    pair)`` (the quarter-car env's sensor noise: independent of the batch). Pair by pair, the
+    vehicles innermost into a row of their own (a loop that vectorises), then into ``out``."""
+    rows = np.empty((2, out.shape[0]))
+    for pair in range(out.shape[1] // 2):
+        first, second = rows[0], rows[1]
+        for n in range(out.shape[0]):
+            first[n], second[n] = gaussian_pair(keys[n], steps[n], pair)
+        for n in range(out.shape[0]):
+            out[n, 2 * pair], out[n, 2 * pair + 1] = first[n], second[n]
 
 
 @specialised("code")
