@@ -190,6 +190,17 @@ def test_tuning_names_the_mpc_it_tunes() -> None:
         tune_mpc("mpc-biexp-meas")
 
 
+@pytest.mark.parametrize("seeds", [[1.5], [], "ab", 3, [True]])
+def test_tuning_refuses_seeds_that_are_not_episode_seeds(seeds) -> None:
+    """``tune_mpc``'s ``seeds`` (through ``rollout``): a list of integer episode seeds; a
+    float was truncated (1.5 ran the grid on episode 1), a string, an int or an empty list
+    failed elsewhere without naming them."""
+    from capsule_env.evaluation.half_car import tune_mpc
+
+    with pytest.raises((TypeError, ValueError), match="seeds"):
+        tune_mpc("mpc-coupled-biexp-meas", seeds=seeds)
+
+
 def test_a_non_finite_observation_requests_0_n_for_that_vehicle_only() -> None:
     """A NaN in one vehicle's observation: 0 N (action 0) for it, counted; the other vehicle
     is planned as usual, bit for bit as without the bad one beside it."""

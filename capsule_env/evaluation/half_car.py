@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from capsule_env.engine.config import check_seed
 from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
 
@@ -65,21 +66,24 @@ def rollout(policy: Any, seeds: list[int], guideway_seed: int, length_s: float =
     """``policy`` (``predict(obs) -> (actions, state)``, or None: the passive damper) on the
     episodes ``seeds``: the comfort points' accelerations (E, 3, T), the applied currents
     (E, T, slots), the strokes' largest magnitude (E,) and whether each ended at the bump stop."""
+    episodes = _check_seeds(seeds)
     kwargs = dict(TASK_KWARGS, **(policy.env_kwargs if policy is not None else {}))
     if policy is None:
         kwargs["damper"] = "passive"
-    env = DeclaredVectorEnv(len(seeds), guideway_seed=guideway_seed, episode_length_s=length_s,
+    env = DeclaredVectorEnv(len(episodes), guideway_seed=guideway_seed, episode_length_s=length_s,
                             **{k: v for k, v in kwargs.items() if k != "vehicle_params"})  # fmt: skip
-    obs, _ = env.reset(seed=[int(s) for s in seeds])
+    obs, _ = env.reset(seed=episodes)
     if hasattr(policy, "reset"):  # a law with memory (the wheelbase window) starts afresh
         policy.reset()
     steps = env.batch.max_steps
     acc, currents = [], []
-    stroke = np.zeros(len(seeds))
-    ended = np.zeros(len(seeds), dtype=bool)
+    stroke = np.zeros(len(episodes))
+    ended = np.zeros(len(episodes), dtype=bool)
     for _ in range(steps):
         actions = (
-            np.zeros((len(seeds), env.batch.n_slots)) if policy is None else policy.predict(obs)[0]
+            np.zeros((len(episodes), env.batch.n_slots))
+            if policy is None
+            else policy.predict(obs)[0]
         )
         obs, _, terminated, _, info = env.step(actions)
         acc.append(info["comfort_acceleration_m_s2"])
@@ -90,6 +94,15 @@ def rollout(policy: Any, seeds: list[int], guideway_seed: int, length_s: float =
     return {"acc": np.stack(acc, axis=2), "currents": np.stack(currents, axis=1),
             "max_stroke_m": stroke, "terminated": ended, "dt_s": env.batch.dt,
             "wheelbase_m": values["front_bogie_position_m"] - values["rear_bogie_position_m"]}  # fmt: skip
+
+
+def _check_seeds(seeds: Any) -> list[int]:
+    """``seeds`` as a list of ints; ``TypeError``/``ValueError`` naming ``seeds`` unless a
+    non-empty list (tuple, range, array) of integer episode seeds in ``[0, 2**63)``."""
+    if not isinstance(seeds, (list, tuple, range, np.ndarray)) or len(seeds) == 0:
+        raise ValueError(f"seeds must be a non-empty list of episode seeds (integers in "
+                         f"[0, 2**63)), got {seeds!r}")  # fmt: skip
+    return [check_seed(f"seeds[{k}]", s) for k, s in enumerate(seeds)]
 
 
 def episode_metrics(roll: dict) -> dict[str, np.ndarray]:
