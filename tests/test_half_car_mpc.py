@@ -245,6 +245,8 @@ def test_episode_start_resets_that_vehicle_only(preview: bool) -> None:
         np.testing.assert_array_equal(pair[0], fresh.predict(two[k][None])[0][0])
         np.testing.assert_array_equal(pair[1], other.predict(two[8 + k][None])[0][0])
         start = np.array([False, False])
+    with pytest.raises(ValueError, match="episode_start"):  # one flag per vehicle
+        law.predict(np.stack([two[3], two[11]]), episode_start=np.array([True, False, False]))
 
 
 def test_the_preview_tasks_observation_is_read_and_others_refused() -> None:

@@ -292,23 +292,29 @@ class HalfCarMPC(WheelbasePreviewLQ):
         """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set starts as
         under a fresh law: its memories (the rise estimate's last sample, the window, the
         requests in flight, the coil current, the plan) and its solver's warm start go."""
-        mem = self._memory
-        if episode_start is not None and "plans" in mem:
-            start = np.asarray(episode_start, dtype=bool).reshape(-1)
-            if start.shape != (mem["plans"].shape[0],):
-                self.reset()  # another batch: everything starts afresh
-            else:
-                obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
-                for k in np.flatnonzero(start).tolist():
-                    for key in ("window", "in_flight", "current", "commands", "strokes"):
-                        mem[key][k] = 0.0
-                    mem["plans"][k] = np.nan
-                    for key, column in (("gap", _GAP), ("v_b", _LOWER_VELOCITY)):
-                        value = obs[k, column]  # no rise read across the restart
-                        mem[key][k] = value if np.isfinite(value) else 0.0
-                    self._solvers[k] = BandQP(self.qp, self.damper, self.max_force_n,
-                                              self.solver_options)  # fmt: skip
+        if episode_start is not None:
+            obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
+            start = np.asarray(episode_start).reshape(-1)
+            if start.shape != (obs.shape[0],):
+                raise ValueError(f"episode_start must hold one flag per vehicle "
+                                 f"({obs.shape[0]}), got shape {np.shape(episode_start)}")  # fmt: skip
+            plans = self._memory.get("plans")
+            if plans is not None and plans.shape[0] == obs.shape[0]:  # else all start afresh
+                self._restart(obs, np.flatnonzero(start.astype(bool)).tolist())
         return super().predict(observation, state, episode_start, deterministic)
+
+    def _restart(self, obs: np.ndarray, vehicles: list[int]) -> None:
+        """Forget ``vehicles``' memories and warm starts (their first observations ``obs``)."""
+        mem = self._memory
+        for k in vehicles:
+            for key in ("window", "in_flight", "current", "commands", "strokes"):
+                mem[key][k] = 0.0
+            mem["plans"][k] = np.nan
+            for key, column in (("gap", _GAP), ("v_b", _LOWER_VELOCITY)):
+                value = obs[k, column]  # no rise read across the restart
+                mem[key][k] = value if np.isfinite(value) else 0.0
+            self._solvers[k] = BandQP(self.qp, self.damper, self.max_force_n,
+                                      self.solver_options)  # fmt: skip
 
     def _state(self, obs: np.ndarray) -> np.ndarray:
         """The prediction model's state per vehicle (module doc), (N, size); advances the
