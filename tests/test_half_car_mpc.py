@@ -186,8 +186,9 @@ def test_tuning_names_the_mpc_it_tunes() -> None:
     from capsule_env.evaluation.half_car import TUNED_MPC, tune_mpc
 
     assert set(TUNED_MPC) == {"mpc-coupled-biexp-meas", "wheelbase-mpc-biexp-meas"}
-    with pytest.raises(ValueError, match="name must be one of"):
-        tune_mpc("mpc-biexp-meas")
+    for name in ("mpc-biexp-meas", ["mpc-coupled-biexp-meas"], None):
+        with pytest.raises(ValueError, match="name must be one of"):
+            tune_mpc(name)
 
 
 @pytest.mark.parametrize("seeds", [[1.5], [], "ab", 3, [True]])

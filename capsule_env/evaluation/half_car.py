@@ -158,7 +158,7 @@ def tune_mpc(name: str, seeds: list[int] | None = None) -> dict[str, float]:
     bank, over :data:`MPC_GRID` (32 runs of the 10 training episodes; about 15 minutes)."""
     from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
 
-    if name not in TUNED_MPC:
+    if not isinstance(name, str) or name not in TUNED_MPC:
         raise ValueError(f"name must be one of {', '.join(TUNED_MPC)}, got {name!r}")
     preview = name.startswith("wheelbase")
     return tune_coupled(seeds, make=lambda **w: HalfCarMPC(**w, preview=preview), grid=MPC_GRID)
