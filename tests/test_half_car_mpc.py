@@ -303,3 +303,22 @@ def test_a_law_in_mid_episode_copies_and_pickles(backend: str) -> None:
                 np.testing.assert_array_equal(theirs, ours)
             else:
                 np.testing.assert_allclose(theirs, ours, rtol=0, atol=0.02)
+
+
+def test_a_failed_save_leaves_nothing_behind(tmp_path) -> None:
+    """``write_json`` (the evaluation's and the MPC check's save) is atomic: a write that
+    fails leaves neither the file nor its temporary in the folder, and an old file intact."""
+    from capsule_env.evaluation.half_car import write_json
+
+    path = tmp_path / "out.json"
+    with pytest.raises(TypeError):
+        write_json(str(path), 123)  # not text: the write fails
+    assert list(tmp_path.iterdir()) == []
+    write_json(str(path), "{}")
+    with pytest.raises(TypeError):
+        write_json(str(path), 123)
+    assert [p.name for p in tmp_path.iterdir()] == ["out.json"] and path.read_text() == "{}"
+    (tmp_path / "folder.json").mkdir()
+    with pytest.raises(OSError):  # the rename fails: a folder of that name
+        write_json(str(tmp_path / "folder.json"), "{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.json", "out.json"]

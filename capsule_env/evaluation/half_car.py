@@ -352,8 +352,14 @@ def write_json(path: str, text: str) -> None:
     """``text`` into ``path``, atomically (the folder must exist)."""
     folder = os.path.dirname(os.path.abspath(path))
     with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
-        f.write(text)
-    os.replace(f.name, path)
+        try:
+            f.write(text)
+            f.close()
+            os.replace(f.name, path)
+        except BaseException:  # nothing left behind; the old file, if any, as it was
+            if os.path.exists(f.name):
+                os.unlink(f.name)
+            raise
 
 
 def main(argv: list[str] | None = None) -> int:
