@@ -331,7 +331,9 @@ class HalfCarMPC(WheelbasePreviewLQ):
         if self.model.window:
             mem["window"][:, :-1] = mem["window"][:, 1:]
             mem["window"][:, -1] = rise
-        parts = [self.state_law.relative_state(obs)]
+        # one vehicle at a time: a batched product's last bits depend on the batch, and the
+        # band's on/off decisions amplify them (0.25 % on one episode's Wk)
+        parts = [np.concatenate([self.state_law.relative_state(obs[k : k + 1]) for k in range(n)])]
         if self.model.lag:  # the current applied over the last interval, through the lag
             commands = obs[:, _COMMAND::_PER_SLOT]
             applied = commands if not self.delay_steps else mem["commands"][:, -1]
