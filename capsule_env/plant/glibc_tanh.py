@@ -10,6 +10,13 @@ so it returns the library's bits wherever the library is that one. Elsewhere (an
 a CPU without FMA, where glibc picks its plain ``__expm1``) it need not:
 :func:`matches_libm` compares it with the library on :func:`probe_values` (every branch of both
 functions), and the lanes kernel uses it only where they agree (``tests/test_glibc_tanh.py``).
+
+The algorithm and its constants are fdlibm's, whose notice is preserved here as it asks:
+
+    Copyright (C) 1993 by Sun Microsystems, Inc. All rights reserved.
+    Developed at SunPro, a Sun Microsystems, Inc. business.
+    Permission to use, copy, modify, and distribute this software is freely granted,
+    provided that this notice is preserved.
 """
 
 from __future__ import annotations
