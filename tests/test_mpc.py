@@ -186,6 +186,7 @@ def test_same_seed_same_trajectory() -> None:
         ({"solver": {"warp": 1}}, "warp"),
         ({"solver": {"backend": "cvxopt"}}, "backend"),
         ({"horizon_steps": 4, "move_blocks": (2, 1)}, "move_blocks"),
+        ({"horizon_steps": 4, "move_blocks": 4}, "move_blocks"),  # one integer: a TypeError once
         ({"delay_steps": -1}, "delay_steps"),
         ({"inverse_model": "csdc"}, "inverse_model"),
         ({"preview": True, "preview_points": 0}, "preview_points"),

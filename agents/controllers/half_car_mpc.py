@@ -38,7 +38,6 @@ non-finite columns enter the law's memories (the window, the coil current) as ze
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,7 +45,12 @@ import numpy as np
 from capsule_env.agents.controllers.lqr import state_weights
 from capsule_env.agents.controllers.mpc import HILS_COIL_TIME_CONSTANT_S, MPCController
 from capsule_env.agents.controllers.mpc_qp import CondensedQP, _zoh, band_edges, blocking_matrix
-from capsule_env.agents.controllers.mpc_solver import BandQP, check_integer, check_real
+from capsule_env.agents.controllers.mpc_solver import (
+    BandQP,
+    check_blocks,
+    check_integer,
+    check_real,
+)
 from capsule_env.agents.controllers.wheelbase import _GAP, _LOWER_VELOCITY, WheelbasePreviewLQ
 from scipy.linalg import solve_discrete_are
 
@@ -256,7 +260,7 @@ class HalfCarMPC(WheelbasePreviewLQ):
         speed = check_real("speed_kmh", speed_kmh, 1.0, 2000.0, unit=" km/h")
         force = check_real("max_force_n", max_force_n, 0.0, 1e6, open_low=True, unit=" N")
         options = MPCController._check_solver(solver)
-        blocks = _check_blocks(move_blocks, horizon)
+        blocks = check_blocks(move_blocks, horizon)
         if preview:
             _check_window(speed / 3.6, dt)
         super().__init__(*weights, dt_s=dt, speed_kmh=speed, delay_steps=nd,
@@ -425,16 +429,3 @@ def _check_window(speed_m_s: float, dt_s: float) -> None:
                          f"/ dt_s) must be at most {MAX_WINDOW} intervals; at dt_s={dt_s:g} s "
                          f"speed_kmh must be above {wheelbase_m / (MAX_WINDOW * dt_s) * 3.6:.1f} "
                          f"km/h, got {speed_m_s * 3.6:g}")  # fmt: skip
-
-
-def _check_blocks(blocks: Any, horizon: int) -> tuple[int, ...] | None:
-    """``move_blocks`` as a tuple; ``ValueError`` naming it unless positive integers summing
-    to ``horizon``."""
-    if blocks is None:
-        return None
-    given = blocks
-    blocks = tuple(blocks) if isinstance(blocks, Iterable) else ()  # one integer: not lengths
-    if not blocks or sum(check_integer("move_blocks", b, 1, 200) for b in blocks) != horizon:
-        raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
-                         f"({horizon}), got {given!r}")  # fmt: skip
-    return blocks

@@ -59,6 +59,7 @@ from capsule_env.agents.controllers.mpc_solver import (
     BandQP,
     PlanResult,
     SolverOptions,
+    check_blocks,
     check_integer,
     check_real,
 )
@@ -169,7 +170,7 @@ class MPCController(ForceLaw):
                          observation)  # fmt: skip
         self.horizon_steps = check_integer("horizon_steps", horizon_steps, 1, 200)
         self.delay_steps = check_integer("delay_steps", delay_steps, 0, 10)
-        self.move_blocks = self._check_blocks(move_blocks)
+        self.move_blocks = check_blocks(move_blocks, self.horizon_steps)
         self.dt_s = check_real("dt_s", dt_s, 1e-4, 0.1, unit=" s")
         self.coil_time_constant_s = check_real("coil_time_constant_s", coil_time_constant_s,
                                                0.0, 1.0, unit=" s")  # fmt: skip
@@ -201,19 +202,6 @@ class MPCController(ForceLaw):
             raise ValueError(f"unknown solver option(s) {unknown}; accepted: "
                              f"{', '.join(SolverOptions.__dataclass_fields__)}")  # fmt: skip
         return SolverOptions(**solver).check()
-
-    def _check_blocks(self, blocks: Any) -> tuple[int, ...] | None:
-        if blocks is None:
-            return None
-        blocks = tuple(blocks)
-        if (
-            not blocks
-            or any(check_integer("move_blocks", b, 1, 200) < 1 for b in blocks)
-            or sum(blocks) != self.horizon_steps
-        ):
-            raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
-                             f"({self.horizon_steps}), got {blocks!r}")  # fmt: skip
-        return blocks
 
     def _set_preview(self, points: int, horizon_s: float) -> None:
         self.preview_points = check_integer("preview_points", points, 1, 64)

@@ -32,6 +32,7 @@ Two solvers (the ``mpc`` extra installs both), the same problem:
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -114,6 +115,19 @@ def check_integer(name: str, value: Any, low: int, high: int) -> int:
     ):
         raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
     return int(value)
+
+
+def check_blocks(blocks: Any, horizon: int) -> tuple[int, ...] | None:
+    """``move_blocks`` as a tuple (None stays None); ``ValueError`` naming it unless positive
+    integers summing to ``horizon`` (one integer is not a list of lengths)."""
+    if blocks is None:
+        return None
+    given = blocks
+    blocks = tuple(blocks) if isinstance(blocks, Iterable) else ()
+    if not blocks or sum(check_integer("move_blocks", b, 1, 200) for b in blocks) != horizon:
+        raise ValueError(f"move_blocks must be positive integers summing to horizon_steps "
+                         f"({horizon}), got {given!r}")  # fmt: skip
+    return blocks
 
 
 def check_real(
