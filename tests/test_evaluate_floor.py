@@ -62,3 +62,31 @@ def test_a_refused_run_creates_no_output_folder(argv, tmp_path):
         main([*argv, "--json", str(out)])
     assert str(err.value.code).startswith("evaluate.py: error: ")
     assert not (tmp_path / "new").exists()
+
+
+def test_floor_nodes_reach_the_branch_and_bound(tmp_path, monkeypatch):
+    """``--floor N`` passes N node QPs to the branch and bound; bare ``--floor`` passes 0."""
+    import capsule_env.bounds as bounds
+
+    seen: list[int] = []
+
+    def fake(env_kwargs, seeds, length_s, **options):
+        seen.append(options["branch_nodes"])
+        raise RuntimeError("stop after the call")
+
+    monkeypatch.setattr(bounds, "certified_floor", fake)
+    base = ["--setting", "sim", "--controllers", "passive", "--no-shipped-policy",
+            "--episodes", "1", "--episode-length", "0.4"]  # fmt: skip
+    for given, nodes in ((["--floor", "7"], 7), (["--floor"], 0)):
+        with pytest.raises(RuntimeError, match="stop"):
+            main([*base, *given, "--json", str(tmp_path / "x.json")])
+        assert seen[-1] == nodes
+
+
+def test_negative_floor_nodes_refused_in_one_line(tmp_path):
+    out = tmp_path / "never.json"
+    with pytest.raises(SystemExit) as err:
+        main(["--setting", "sim", "--episode-length", "0.1", "--floor", "-1", "--json", str(out)])
+    message = str(err.value.code)
+    assert "--floor NODES" in message and ">= 0" in message and "\n" not in message.strip()
+    assert not out.exists()

@@ -138,17 +138,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "local search knowing the guideway; a reference, not a proven limit) on the "
                    "same episodes: an 'oracle' row per setting and each controller's share of the "
                    "headroom passive -> oracle (slow: a few minutes per setting)")  # fmt: skip
-    p.add_argument("--floor", action="store_true",
+    p.add_argument("--floor", type=int, nargs="?", const=0, default=None, metavar="NODES",
                    help="also compute the certified floor (capsule_env.bounds: a proven lower "
                    "bound on every controller's Wk on the same episodes) per setting: a 'floor' "
                    "block; the sim plant only (Bi-exponential or passive damper) and short "
-                   "episodes (--episode-length <= about 2.2 s); slow (minutes per episode)")  # fmt: skip
+                   "episodes (--episode-length <= about 2.2 s); slow (minutes per episode); "
+                   "--floor NODES also branches on the stroke rate's sign (NODES node QPs)")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
                    "--task or --env: to its sub-folder named after them)")  # fmt: skip
     args = p.parse_args(argv)
     if args.task in {t.env_id for t in DECLARED_TASKS}:  # its own evaluation (main)
-        if args.floor:
+        if args.floor is not None:
             p.error(f"--floor is not supported with --task {args.task}: the certified floor "
                     "covers the quarter-car's sim plant (docs/fair-comparison.md)")  # fmt: skip
         args.condition = None
@@ -173,10 +174,10 @@ def check_args(args: argparse.Namespace) -> None:
     if not [n for n in args.controllers.split(",") if n.strip()]:
         raise ValueError(f"--controllers names no controller (got {args.controllers!r}): give "
                          "comma-separated names, or 'all'")  # fmt: skip
-    if getattr(args, "floor", False):
-        condition = _condition(args)
-        seeds = range(args.seed, args.seed + args.episodes)
-        check_floor_settings(condition.env_kwargs, condition.settings, seeds, args.episode_length)
+    if getattr(args, "floor", None) is not None:
+        condition, seeds = _condition(args), range(args.seed, args.seed + args.episodes)
+        check_floor_settings(condition.env_kwargs, condition.settings, seeds, args.episode_length,
+                             args.floor)  # fmt: skip
 
 
 def check_outputs(args: argparse.Namespace) -> None:
@@ -384,11 +385,12 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             _progress(done, total, f"{setting}/oracle (search)", time.perf_counter() - t0)
             own = {name: rollouts[(setting, name)] for name in ctrls}
             add_oracle(results["settings"][setting], setting, args, passive, ctrls, own)
-        if getattr(args, "floor", False):
+        if getattr(args, "floor", None) is not None:
             _progress(done, total, f"{setting}/floor (dual)", time.perf_counter() - t0)
             seeds = range(args.seed, args.seed + args.episodes)
             floor_kwargs = {**condition.env_kwargs, "setting": setting}
-            add_floor(results["settings"][setting], floor_kwargs, seeds, args.episode_length)
+            add_floor(results["settings"][setting], floor_kwargs, seeds, args.episode_length,
+                      args.floor)  # fmt: skip
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
