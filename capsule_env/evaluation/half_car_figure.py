@@ -1,8 +1,8 @@
 """The half-car page's figure (docs/half-car.md): the car body's pitch over a few seconds of one
 evaluation episode, passive against the tuned per-bogie clipped LQR, and the Wk at the floor's
 front, centre and rear of each law of the evaluation relative to that LQR, in per cent (the
-rear's gain from the wheelbase preview: the ``wheelbase-*`` bars beside their no-preview twin,
-``discrete LQ``).
+rear's gain from the wheelbase preview: the ``wheelbase-*`` bars beside their no-preview twins,
+``discrete LQ`` and ``coupled MPC``).
 
     python -m capsule_env.evaluation.half_car_figure docs/figures/evaluation-CapsuleHalfRide-v0.json docs/figures/half_car.png
 """
@@ -26,6 +26,8 @@ _BARS = {
     "lq-discrete-biexp-meas": "discrete LQ",
     "wheelbase-lq-biexp-meas": "wheelbase LQ",
     "wheelbase-lq-biexp-exact": "wheelbase LQ, exact",
+    "mpc-coupled-biexp-meas": "coupled MPC",
+    "wheelbase-mpc-biexp-meas": "wheelbase MPC",
 }
 
 
