@@ -73,6 +73,18 @@ def _float_to_bits(typingctx, value):
     return sig, codegen
 
 
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``: a fused multiply-add, which the
+    vectoriser widens; :mod:`capsule_env.plant.glibc_tanh`'s)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
 @njit(**FAST)
 def fast_exp(x: float) -> float:
     """``exp(x)`` for ``x`` in [-708, 709] (clamped outside): ``2^k * exp(r)``, ``|r| <= ln2/2``,

@@ -54,6 +54,7 @@ from capsule_env.agents.controllers.mpc_solver import (
 from capsule_env.agents.controllers.wheelbase import _GAP, _LOWER_VELOCITY, WheelbasePreviewLQ
 from scipy.linalg import solve_discrete_are
 
+from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
 from capsule_env.engine.config import EnvConfig
 from capsule_env.vehicles import model_named, relative_model
 
@@ -262,13 +263,13 @@ class HalfCarMPC(WheelbasePreviewLQ):
         options = MPCController._check_solver(solver)
         blocks = check_blocks(move_blocks, horizon)
         if preview:
-            _check_window(speed / 3.6, dt)
+            _check_window(kmh_to_m_s(speed), dt)
         super().__init__(*weights, dt_s=dt, speed_kmh=speed, delay_steps=nd,
                          max_force_n=force, preview=preview)  # fmt: skip
         self.name = "wheelbase-mpc-biexp-meas" if preview else "mpc-coupled-biexp-meas"
         self.weights, self.horizon_steps, self.coil_time_constant_s = weights, horizon, tau
         self.model = coupled_model(dt_s=dt, delay_steps=nd, coil_time_constant_s=tau,
-                                   speed_m_s=speed / 3.6, preview=preview)  # fmt: skip
+                                   speed_m_s=kmh_to_m_s(speed), preview=preview)  # fmt: skip
         self.qp = condense_coupled(self.model, weights, horizon, blocks)
         self.solver_options = options
         self.damper: Any = EnvConfig(inverse_model="bi_exponential").inverse_damper
@@ -427,5 +428,5 @@ def _check_window(speed_m_s: float, dt_s: float) -> None:
     if int(np.floor(wheelbase_m / speed_m_s / dt_s)) + 1 > MAX_WINDOW:
         raise ValueError(f"speed_kmh and dt_s: the wheelbase window ({wheelbase_m:g} m / speed "
                          f"/ dt_s) must be at most {MAX_WINDOW} intervals; at dt_s={dt_s:g} s "
-                         f"speed_kmh must be above {wheelbase_m / (MAX_WINDOW * dt_s) * 3.6:.1f} "
-                         f"km/h, got {speed_m_s * 3.6:g}")  # fmt: skip
+                         f"speed_kmh must be above {m_s_to_kmh(wheelbase_m / (MAX_WINDOW * dt_s)):.1f} "
+                         f"km/h, got {m_s_to_kmh(speed_m_s):g}")  # fmt: skip

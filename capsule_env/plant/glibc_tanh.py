@@ -25,10 +25,9 @@ import functools
 import math
 
 import numpy as np
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
 
-from capsule_env._fastmath import BORROWED, FAST, _bits_to_float, _float_to_bits
+from capsule_env._fastmath import BORROWED, FAST, _bits_to_float, _float_to_bits, _fma
 
 __all__ = ["glibc_tanh", "matches_libm", "probe_values"]
 
@@ -43,18 +42,6 @@ _INV_LN2 = _f(0x3FF71547652B82FE)
 _Q1, _Q2, _Q3 = _f(0xBFA11111111110F4), _f(0x3F5A01A019FE5585), _f(0xBF14CE199EAADBB7)
 _Q4, _Q5 = _f(0x3ED0CFCA86E65239), _f(0xBE8AFDB76E09C32D)
 _TINY_X = _f(0x3C80000000000000)  # 2^-55: tanh(x) = x (1 + x) below
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``: a fused multiply-add, which the
-    vectoriser widens)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        return builder.fma(*args)
-
-    return sig, codegen
 
 
 @njit(**FAST, **BORROWED, forceinline=True)
