@@ -76,6 +76,8 @@ def test_the_measured_pairs_948_n_is_the_bouc_wen_optimum_not_a_local_one():
     fitted = fit_bouc_wen(pair)
     assert _sse(fitted, pair) <= _scan_min_sse(pair) * (1.0 + 1e-6)
     assert _sse(fitted, pair) <= _sse(fit_bouc_wen(pair, starts=18), pair) * (1.0 + 1e-6)
+    # abs=0.5 N on these SciPy fits: the optimiser's end point moves in its last digits with
+    # BLAS and the CPU; 0.5 N (0.05 %) still tells 948 N from the 747 N in question
     assert rmse_at_current(fitted, pair, 1.5) == pytest.approx(948.3, abs=0.5)
     assert rmse_at_current(fitted, pair, 0.0) == pytest.approx(86.4, abs=0.5)
     # a Bouc-Wen fitted to the 1.5 A loop alone, from every start, gets no nearer to 747 N

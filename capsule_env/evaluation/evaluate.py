@@ -141,9 +141,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--floor", type=int, nargs="?", const=0, default=None, metavar="NODES",
                    help="also compute the certified floor (capsule_env.bounds: a proven lower "
                    "bound on every controller's Wk on the same episodes) per setting: a 'floor' "
-                   "block; the sim plant only (Bi-exponential or passive damper) and short "
-                   "episodes (--episode-length <= about 2.2 s); slow (minutes per episode); "
-                   "--floor NODES also branches on the stroke rate's sign (NODES node QPs)")  # fmt: skip
+                   "block; the sim plant only, episodes of <= about 2.2 s; slow (minutes per "
+                   "episode); --floor NODES also branches on the stroke rate's sign")  # fmt: skip
     p.add_argument("--json", type=Path, help="write all results to this JSON file")
     p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
                    "--task or --env: to its sub-folder named after them)")  # fmt: skip
@@ -387,10 +386,9 @@ def evaluate(args: argparse.Namespace, ctrls: dict | None = None) -> dict:
             add_oracle(results["settings"][setting], setting, args, passive, ctrls, own)
         if getattr(args, "floor", None) is not None:
             _progress(done, total, f"{setting}/floor (dual)", time.perf_counter() - t0)
-            seeds = range(args.seed, args.seed + args.episodes)
             floor_kwargs = {**condition.env_kwargs, "setting": setting}
-            add_floor(results["settings"][setting], floor_kwargs, seeds, args.episode_length,
-                      args.floor)  # fmt: skip
+            add_floor(results["settings"][setting], floor_kwargs,
+                      range(args.seed, args.seed + args.episodes), args.episode_length, args.floor)  # fmt: skip
     print(file=sys.stderr)
     if args.plots:
         from capsule_env.plots import evaluation_figures
