@@ -4,12 +4,15 @@ per-bogie clipped LQR on the held-out episodes; checkpoints and resumes.
     python experiments/half_car_ppo.py --out runs/half_car_ppo            # 5 seeds x 1M steps
     python experiments/half_car_ppo.py --out runs/half_car_ppo --evaluate  # the figures only
     python experiments/half_car_ppo.py --out runs/half_car_residual --residual  # on the LQR
+    python experiments/half_car_ppo.py --out runs/half_car_residual_mpc --residual \
+        --law wheelbase-mpc-biexp-meas                  # on the best law, the wheelbase MPC
 
 Read top to bottom: the arguments, one seed's training (SB3 PPO with ``hyperparams/ppo.yml``'s
 ride-task values, the training bank ``guideway_seed`` 0, a checkpoint every
 ``--checkpoint-every`` steps, resumed from the newest after an interruption), one seed's
 evaluation (10 s episodes 1000.. of the evaluation bank 2026, the deterministic action), and
-the group's IQM over the seeds against the per-bogie LQR on the same episodes with a 95 %
+the group's IQM over the seeds against the per-bogie LQR (and the law a residual rides on) on the
+same episodes with a 95 %
 bootstrap interval over seeds and episodes (:func:`capsule_env.evaluation.rl_statistics.paired_ratio_interval`).
 """
 
@@ -36,40 +39,60 @@ class Args:
     checkpoint_every: int = 200_000  # env steps between checkpoints
     eval_episodes: int = 10  # held-out episodes 1000.. of the evaluation bank
     evaluate_only: bool = False  # skip training: evaluate what is saved
-    residual: bool = False  # learn a residual on the per-bogie clipped LQR (scale 0.5)
+    residual: bool = False  # learn a residual on the law ``law`` (scale 0.5)
+    law: str = "lqr-clipped-biexp-meas"  # the residual's law: a key of LAWS
+    learning_rate: float = 1e-3  # the linear schedule's start (hyperparams/ppo.yml: lin_1e-3)
 
 
 #: The residual's scale: half the action range, as the quarter-car's residual policies.
 RESIDUAL_SCALE = 0.5
 
 
-def _law() -> Any:
+#: The laws a residual can ride on: the per-bogie clipped LQR (no memory) and the best law
+#: without the survey, the wheelbase MPC with its tuned weights (a memory per vehicle: the
+#: front's rises, the requests in flight, the plan; reset at each vehicle's episode start).
+LAWS = ("lqr-clipped-biexp-meas", "wheelbase-mpc-biexp-meas")
+
+
+def _law(name: str = LAWS[0]) -> Any:
+    if name == "wheelbase-mpc-biexp-meas":
+        from capsule_env.evaluation.half_car import _mpc_laws
+
+        return _mpc_laws()[name]
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
 
     return IndependentClippedLQR()
 
 
-def _residual_wrapper(venv: Any) -> Any:
+def _law_action(law: Any, obs: Any, starts: np.ndarray) -> np.ndarray:
+    """The law's action on ``obs``, the vehicles flagged in ``starts`` starting afresh."""
+    return law.predict(np.asarray(obs, dtype=np.float64), episode_start=starts)[0]
+
+
+def _residual_wrapper(venv: Any, law_name: str) -> Any:
     """``a = clip(a_law(obs) + 0.5 a_policy, -1, 1)`` on an SB3 VecEnv (SB3 resets a finished
-    vehicle at once: its next observation starts an episode; the law keeps no state)."""
+    vehicle at once: its next observation starts an episode, and the law's memory of that
+    vehicle starts afresh with it)."""
     from stable_baselines3.common.vec_env import VecEnvWrapper
 
     class Residual(VecEnvWrapper):
         def __init__(self, venv: Any) -> None:
             super().__init__(venv)
-            self.law, self._obs = _law(), None
+            self.law, self._obs = _law(law_name), None
+            self._starts = np.ones(venv.num_envs, dtype=bool)
 
         def reset(self) -> Any:
             self._obs = self.venv.reset()
+            self._starts = np.ones(self.num_envs, dtype=bool)
             return self._obs
 
         def step_async(self, actions: np.ndarray) -> None:
-            base = self.law.act(np.asarray(self._obs, dtype=np.float64))
+            base = _law_action(self.law, self._obs, self._starts)
             self.venv.step_async(np.clip(base + RESIDUAL_SCALE * actions, -1.0, 1.0))
 
         def step_wait(self) -> Any:
             obs, reward, done, infos = self.venv.step_wait()
-            self._obs = obs
+            self._obs, self._starts = obs, np.asarray(done, dtype=bool).copy()
             return obs, reward, done, infos
 
     return Residual(venv)
@@ -83,7 +106,7 @@ def _env(args: Args, seed: int) -> Any:
 
     venv = DeclaredSB3VecEnv(args.num_envs, guideway_seed=TRAINING_GUIDEWAY_SEED, **TASK_KWARGS)
     venv.seed(seed)
-    wrapped = _residual_wrapper(venv) if args.residual else venv
+    wrapped = _residual_wrapper(venv, args.law) if args.residual else venv
     return VecNormalize(VecMonitor(wrapped), norm_obs=True, norm_reward=True, clip_obs=10.0,
                         gamma=0.99)  # fmt: skip
 
@@ -103,16 +126,16 @@ def _save_atomic(model: Any, env: Any, folder: Path, stem: str) -> None:
                 os.remove(tmp)
 
 
-def _learning_rate(done: int, chunk: int, total: int) -> Any:
+def _learning_rate(done: int, chunk: int, total: int, start: float = 1e-3) -> Any:
     """The schedule for ``model.learn(chunk)`` from ``done`` steps: the run's linear decay
-    from 1e-3 to 0 over ``total`` steps (``hyperparams/ppo.yml``'s ``lin_1e-3``). SB3's
+    from ``start`` (``hyperparams/ppo.yml``'s ``lin_1e-3``: 1e-3) to 0 over ``total`` steps. SB3's
     progress is ``1 - steps / (done + chunk)`` (from ``done / (done + chunk)`` down to 0, and
     below 0 when the last rollout overshoots the chunk), so the steps done are recovered from
     it; the rate stops at 0."""
 
     def rate(progress_remaining: float) -> float:
         steps = (1.0 - progress_remaining) * (done + chunk)
-        return 1e-3 * max(0.0, 1.0 - steps / total)
+        return start * max(0.0, 1.0 - steps / total)
 
     return rate
 
@@ -140,7 +163,7 @@ def train_seed(args: Args, seed: int) -> Path:
         model = PPO.load(f"{latest[0]}.zip", env=env)
     else:
         model = PPO("MlpPolicy", env, n_steps=64, batch_size=2048, n_epochs=10, gamma=0.99,
-                    gae_lambda=0.95, learning_rate=1e-3, clip_range=0.2,
+                    gae_lambda=0.95, learning_rate=args.learning_rate, clip_range=0.2,
                     ent_coef=0.0, max_grad_norm=0.5, seed=seed, verbose=0,
                     policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0})  # fmt: skip
         if args.residual:  # start from the law's behaviour exactly
@@ -149,7 +172,8 @@ def train_seed(args: Args, seed: int) -> Path:
             zero_last_layer(model)
     while model.num_timesteps < args.total_timesteps:
         chunk = min(args.checkpoint_every, args.total_timesteps - model.num_timesteps)
-        model.lr_schedule = _learning_rate(model.num_timesteps, chunk, args.total_timesteps)
+        model.lr_schedule = _learning_rate(model.num_timesteps, chunk, args.total_timesteps,
+                                           args.learning_rate)  # fmt: skip
         model.learn(chunk, reset_num_timesteps=False)
         _save_atomic(model, env, folder, f"step_{model.num_timesteps}")
     _save_atomic(model, env, folder, "final")
@@ -159,7 +183,7 @@ def train_seed(args: Args, seed: int) -> Path:
 class _Policy:
     """A saved seed's deterministic action on raw observations (its normaliser inside)."""
 
-    def __init__(self, folder: Path, residual: bool = False) -> None:
+    def __init__(self, folder: Path, residual: bool = False, law: str = LAWS[0]) -> None:
         import pickle
 
         from stable_baselines3 import PPO
@@ -170,18 +194,24 @@ class _Policy:
         from capsule_env.evaluation.half_car import TASK_KWARGS
 
         self.env_kwargs = dict(TASK_KWARGS)
-        self.law = _law() if residual else None
+        self.law = _law(law) if residual else None
+
+    def reset(self) -> None:
+        """A new batch of episodes: the law's memory starts afresh (``rollout`` calls it)."""
+        if hasattr(self.law, "reset"):
+            self.law.reset()
 
     def predict(self, obs: np.ndarray) -> tuple[np.ndarray, None]:
         action, _ = self.model.predict(self.norm.normalize_obs(obs), deterministic=True)
         if self.law is not None:
-            base = self.law.act(np.asarray(obs, dtype=np.float64))
+            base = self.law.predict(np.asarray(obs, dtype=np.float64))[0]
             action = np.clip(base + RESIDUAL_SCALE * action, -1.0, 1.0)
         return action, None
 
 
 def evaluate(args: Args) -> dict[str, Any]:
-    """Each seed's Wk per held-out episode, the per-bogie LQR's, and the group's ratio."""
+    """Each seed's Wk per held-out episode, the per-bogie LQR's (and the residual's law's), and
+    the group's ratio to each."""
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
 
     from capsule_env.evaluation.half_car import EVALUATION_GUIDEWAY_SEED, episode_metrics, rollout
@@ -193,7 +223,8 @@ def evaluate(args: Args) -> dict[str, Any]:
     for seed in args.seeds:
         folder = args.out / f"seed{seed}"
         if (folder / "final.zip").exists():
-            roll = rollout(_Policy(folder, args.residual), episodes, EVALUATION_GUIDEWAY_SEED)
+            policy = _Policy(folder, args.residual, args.law)
+            roll = rollout(policy, episodes, EVALUATION_GUIDEWAY_SEED)
             per_seed[seed] = episode_metrics(roll)["wk_rms_body_acc_m_s2"].tolist()
     law_wk = law["wk_rms_body_acc_m_s2"]
     group = "residual-ppo" if args.residual else "ppo"
@@ -202,6 +233,12 @@ def evaluate(args: Args) -> dict[str, Any]:
     if len(per_seed) >= 2:
         est = paired_ratio_interval(np.array(list(per_seed.values())), law_wk)
         out[f"{group}_iqm_ratio_to_lqr"] = [est.value, est.low, est.high]
+    if args.residual and args.law != LAWS[0]:
+        base = episode_metrics(rollout(_law(args.law), episodes, EVALUATION_GUIDEWAY_SEED))
+        out[args.law] = base["wk_rms_body_acc_m_s2"].tolist()
+        if len(per_seed) >= 2:
+            est = paired_ratio_interval(np.array(list(per_seed.values())), np.array(out[args.law]))
+            out[f"{group}_iqm_ratio_to_law"] = [est.value, est.low, est.high]
     return out
 
 
@@ -213,20 +250,33 @@ def parse_args(argv: list[str] | None = None) -> Args:
     p.add_argument("--num-envs", type=int, default=256)
     p.add_argument("--checkpoint-every", type=int, default=200_000)
     p.add_argument("--eval-episodes", type=int, default=10)
+    p.add_argument(
+        "--learning-rate",
+        type=float,
+        default=1e-3,
+        help="the linear schedule's start (default 1e-3, hyperparams/ppo.yml)",
+    )
     p.add_argument("--evaluate", action="store_true", help="evaluate the saved seeds only")
-    p.add_argument("--residual", action="store_true", help="a residual on the per-bogie LQR")
+    p.add_argument("--residual", action="store_true", help="a residual on the law --law")
+    p.add_argument("--law", default=LAWS[0], help=f"the residual's law: one of {', '.join(LAWS)}")
     a = p.parse_args(argv)
     try:
         seeds = tuple(int(s) for s in a.seeds.split(","))
     except ValueError:
         p.exit(2, f"error: --seeds must be comma-separated integers, got {a.seeds!r}\n")
+    if a.law not in LAWS or (a.law != LAWS[0] and not a.residual):
+        p.exit(
+            2, f"error: --law must be one of {', '.join(LAWS)}, with --residual, got {a.law!r}\n"
+        )
     if a.evaluate and not a.out.is_dir():
         p.exit(2, f"error: --out must be an existing run folder with --evaluate, got {a.out}\n")
+    if not 0.0 < a.learning_rate <= 1.0:  # NaN fails too
+        p.exit(2, f"error: --learning-rate must be in (0, 1], got {a.learning_rate}\n")
     if min(a.total_timesteps, a.num_envs, a.checkpoint_every) < 1 or a.eval_episodes < 2:
         p.exit(2, "error: --total-timesteps, --num-envs, --checkpoint-every >= 1 and "
                   "--eval-episodes >= 2\n")  # fmt: skip
     return Args(a.out, seeds, a.total_timesteps, a.num_envs, a.checkpoint_every,
-                a.eval_episodes, a.evaluate, a.residual)  # fmt: skip
+                a.eval_episodes, a.evaluate, a.residual, a.law, a.learning_rate)  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,14 +2,16 @@
 
     python experiments/half_car_select.py --out runs/half_car_select.json
 
-Every saved seed of ``experiments/half_car_ppo.py``'s two runs (``runs/half_car_ppo``, PPO
-from scratch, and ``runs/half_car_residual``, the residual on the per-bogie clipped LQR), its
+Every saved seed of ``experiments/half_car_ppo.py``'s runs (``runs/half_car_ppo``, PPO from
+scratch; ``runs/half_car_residual``, the residual on the per-bogie clipped LQR;
+``runs/half_car_residual_mpc`` and ``runs/half_car_residual_mpc_lr1e-4``, the residual on the
+wheelbase MPC at the learning rates 1e-3 and 1e-4; a run not on disk is skipped), its
 deterministic policy (``final.zip`` with its normaliser), on the validation bank: guideway seed 7,
 episodes 5000..5009 (the quarter-car tasks' validation bank), disjoint from the training bank
 (guideway seed 0) and from ``evaluate.py``'s evaluation bank (guideway seed 2026, episodes
 1000..1009), which plays no part in the choice. The run with the lowest mean headline Wk
 (``wk_rms_body_acc_m_s2``, the floor's three points' mean) is chosen; the per-bogie LQR's score on
-the same episodes is written beside it.
+the same episodes is written beside it, and the wheelbase MPC's.
 """
 
 from __future__ import annotations
@@ -25,8 +27,12 @@ import numpy as np
 
 VALIDATION_GUIDEWAY_SEED = 7
 VALIDATION_EPISODES = list(range(5000, 5010))
-RUNS = {"ppo": (Path("runs/half_car_ppo"), False),
-        "residual-ppo": (Path("runs/half_car_residual"), True)}  # fmt: skip
+_MPC = "wheelbase-mpc-biexp-meas"
+#: group -> (run folder, residual, the residual's law).
+RUNS = {"ppo": (Path("runs/half_car_ppo"), False, None),
+        "residual-ppo": (Path("runs/half_car_residual"), True, "lqr-clipped-biexp-meas"),
+        "residual-ppo-mpc": (Path("runs/half_car_residual_mpc"), True, _MPC),
+        "residual-ppo-mpc-lr1e-4": (Path("runs/half_car_residual_mpc_lr1e-4"), True, _MPC)}  # fmt: skip
 
 
 def _score(policy: object) -> list[float]:
@@ -45,14 +51,16 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import torch
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
-    from half_car_ppo import _Policy
+    from half_car_ppo import _law, _Policy
 
     torch.set_num_threads(1)
-    scores: dict[str, list[float]] = {"lqr-clipped-biexp-meas": _score(IndependentClippedLQR())}
-    for group, (folder, residual) in RUNS.items():
+    scores: dict[str, list[float]] = {"lqr-clipped-biexp-meas": _score(IndependentClippedLQR()),
+                                      _MPC: _score(_law(_MPC))}  # fmt: skip
+    for group, (folder, residual, law) in RUNS.items():
         for seed_dir in sorted(folder.glob("seed*")):
             if (seed_dir / "final.zip").exists():
-                scores[f"{group}/{seed_dir.name}"] = _score(_Policy(seed_dir, residual))
+                policy = _Policy(seed_dir, residual, law or "lqr-clipped-biexp-meas")
+                scores[f"{group}/{seed_dir.name}"] = _score(policy)
                 print(seed_dir, np.mean(scores[f"{group}/{seed_dir.name}"]), flush=True)
     runs = [k for k in scores if "/" in k]
     chosen = min(runs, key=lambda k: float(np.mean(scores[k])))
