@@ -21,7 +21,12 @@ Measures, alternating windows of each (``--repeats``, 3 by default; the median),
    first row: what the generic loops cost on the quarter-car's physics) and on the half-car;
 4. with ``--kernel-from PATH`` (another version of ``declared_lanes.py``, e.g. ``git show
    a560d78:capsule_env/plant/declared_lanes.py > /tmp/lanes_a560d78.py``), the half-car env
-   and its lanes plant with that file's kernel, in the same alternating windows.
+   and its lanes plant with that file's kernel, in the same alternating windows;
+5. with ``--step-from REV`` (a git revision of this repository, e.g. ``acacaf2``), the half-car
+   env with that revision's ``declared_vector.py`` and ``declared_batch.py`` (the env's step
+   outside the kernel as it was then; the package's kernel), in the same windows.
+
+Row 2's env steps with :func:`_step_before`, then the package's reward and observations.
 """
 
 from __future__ import annotations
@@ -33,7 +38,9 @@ import platform
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -45,6 +52,8 @@ from capsule_env.engine import declared_batch
 from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD, _normals
 from capsule_env.plant.declared import declared_step_parallel
 from capsule_env.plant.declared_lanes import VECTOR_TANH, plant_form
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _env_rate(env: Any, steps: int) -> float:
@@ -81,9 +90,13 @@ def main() -> None:
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--repeats", type=int, default=3, help="alternating windows (the median)")
     p.add_argument("--kernel-from", metavar="PATH", help="another declared_lanes.py to time beside")
+    p.add_argument(
+        "--step-from", metavar="REV", help="a git revision whose env step to time beside"
+    )
     args = p.parse_args()
     if args.kernel_from and not os.path.isfile(args.kernel_from):
         raise SystemExit(f"bench_half_car.py: error: --kernel-from: no file {args.kernel_from}")
+    step_files = _step_files(args.step_from) if args.step_from else None
     n, steps = args.num_envs, (20 if args.quick else 300)
     if args.quick:
         args.repeats = 1
@@ -95,7 +108,9 @@ def main() -> None:
     before = gym.make_vec("CapsuleHalfRide-v0", num_envs=n,
                           vectorization_mode="vector_entry_point")  # fmt: skip
     batch_before = before.unwrapped.batch
-    batch_before.step = lambda actions: _step_before(batch_before, actions)
+    batch_before.step_scored = lambda actions: _scored(
+        batch_before, _step_before(batch_before, actions)
+    )
     before.reset(seed=0)
     _env_rate(before, 3)
     qd = _declared_batch(n)
@@ -114,6 +129,8 @@ def main() -> None:
     }  # fmt: skip
     if args.kernel_from:
         funcs.update(_kernel_from(args.kernel_from, n, steps, half_batch))
+    if step_files:
+        funcs.update(_step_from(step_files, n, steps))
     rates = _median_windows(funcs, args.repeats)
     cpu = _cpu()
     print(f"{time.strftime('%Y-%m-%d %H:%M')}, {cpu}, {platform.python_version()}, N = {n}, "
@@ -131,6 +148,11 @@ def main() -> None:
         plant_gain = rates["lanes plant, half_car"] / rates[plant_file]
         print(f"with {args.kernel_from}'s kernel: half-car / ride {file_ratio:.3f}; now / it: "
               f"env {env_gain:.2f}, plant {plant_gain:.2f}")  # fmt: skip
+    if step_files:
+        rev_rate = rates["CapsuleHalfRide-v0 env, rev's"]
+        print(f"with {args.step_from}'s step: half-car / ride "
+              f"{rev_rate / rates['CapsuleRide-v0 env']:.3f}; now / it: env "
+              f"{rates['CapsuleHalfRide-v0 env'] / rev_rate:.2f}")  # fmt: skip
     vector_tanh = plant_form(half_batch.plant) // VECTOR_TANH % 2 == 1
     print(f"the hysteretic update's tanh: {'glibc_tanh, vectorised' if vector_tanh else 'libm'}")
 
@@ -142,7 +164,7 @@ def _kernel_from(path: str, n: int, steps: int, half_batch: Any) -> dict[str, An
     module = importlib.import_module(os.path.splitext(name)[0])
     env = gym.make_vec("CapsuleHalfRide-v0", num_envs=n, vectorization_mode="vector_entry_point")
     batch = env.unwrapped.batch
-    batch.step = lambda actions: _step_with(batch, actions, module)
+    batch._advance = lambda actions: _step_with(batch, actions, module)
     env.reset(seed=0)
     _env_rate(env, 3)
     _plant_rate(half_batch, 2, True, module)
@@ -152,15 +174,53 @@ def _kernel_from(path: str, n: int, steps: int, half_batch: Any) -> dict[str, An
     }
 
 
-def _step_with(batch: Any, actions: np.ndarray, module: Any) -> dict[str, np.ndarray]:
-    """``DeclaredBatch.step`` with ``module``'s lanes kernel."""
+def _step_with(batch: Any, actions: np.ndarray, module: Any) -> None:
+    """``DeclaredBatch._advance`` (the commands and the plant) with ``module``'s lanes kernel."""
     saved = declared_batch.lanes_step_parallel, declared_batch.plant_form
     declared_batch.lanes_step_parallel, declared_batch.plant_form = (
         module.lanes_step_parallel, module.plant_form)  # fmt: skip
     try:
-        return declared_batch.DeclaredBatch.step(batch, actions)
+        declared_batch.DeclaredBatch._advance(batch, actions)
     finally:
         declared_batch.lanes_step_parallel, declared_batch.plant_form = saved
+
+
+def _scored(batch: Any, sig: dict[str, np.ndarray]) -> tuple:
+    """``DeclaredBatch.step_scored``'s answer for the signals ``sig`` of a step."""
+    reward, hit, costs = batch.reward(sig)
+    return sig, reward, hit, costs, batch.observe(sig)
+
+
+def _step_files(rev: str) -> Path:
+    """``declared_vector.py`` and ``declared_batch.py`` at git revision ``rev``, written as
+    modules of their own to a folder in the temporary directory (numba's disk cache keeps their
+    compiled code between runs); its path."""
+    tag = "".join(c if c.isalnum() else "_" for c in rev)
+    folder = Path(tempfile.gettempdir()) / f"capsule_env_bench_step_{tag}"
+    folder.mkdir(exist_ok=True)
+    for path in ("capsule_env/envs/declared_vector.py", "capsule_env/engine/declared_batch.py"):
+        shown = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, capture_output=True,
+                               text=True, check=False)  # fmt: skip
+        if shown.returncode != 0:
+            raise SystemExit(f"bench_half_car.py: error: --step-from: no {path} at {rev!r}")
+        target = folder / f"{Path(path).stem}_{tag}.py"
+        if not target.exists() or target.read_text() != shown.stdout:
+            target.write_text(shown.stdout)
+    return folder
+
+
+def _step_from(folder: Path, n: int, steps: int) -> dict[str, Any]:
+    """The row of ``--step-from``: the half-car env with the revision's env and batch classes
+    (the batch built as now, then given the revision's class: the same attributes)."""
+    sys.path.insert(0, str(folder))
+    tag = folder.name.removeprefix("capsule_env_bench_step_")
+    vector = importlib.import_module(f"declared_vector_{tag}")
+    batch = importlib.import_module(f"declared_batch_{tag}")
+    env = vector.DeclaredVectorEnv(n, **gym.spec("CapsuleHalfRide-v0").kwargs)
+    env.batch.__class__ = batch.DeclaredBatch
+    env.reset(seed=0)
+    _env_rate(env, 3)
+    return {"CapsuleHalfRide-v0 env, rev's": lambda: _env_rate(env, steps // 2)}
 
 
 def _step_before(batch: Any, actions: np.ndarray) -> dict[str, np.ndarray]:

@@ -29,7 +29,6 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from capsule_env._jit import specialised
 from capsule_env.dampers.inverse import INVERSE_CODES, affine_in_current, invert_affine
@@ -37,8 +36,16 @@ from capsule_env.dampers.registry import model_of_code
 from capsule_env.engine.batch import vehicle_streams
 from capsule_env.engine.config import EnvConfig
 from capsule_env.engine.declared_preview import DeclaredPreview, preview_reach_m
-from capsule_env.engine.declared_sensing import combine_rows, measure_slots
-from capsule_env.engine.env_kernel import gaussian_pair
+from capsule_env.engine.declared_sensing import (
+    OBSERVATION_CODES,
+    SIGNAL_NAMES,
+    observe_set,
+    reward_terms,
+    sense,
+    sense_scored,
+    signal_arrays,
+)
+from capsule_env.engine.declared_sensing import normals as _normals  # noqa: F401  (its old home)
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD
 from capsule_env.engine.observations import NOISE_CHANNELS
 from capsule_env.guideway import make_profile, random_profile
@@ -80,6 +87,8 @@ SLOT_NOISE_STD = np.array([
 DECLARED_OBSERVATIONS = ("full_state", "sensors", "measured")
 #: Columns per slot of ``measured``, after the :data:`SLOT_CHANNELS`.
 ESTIMATE_CHANNELS = ("upper_velocity_estimate_m_s", "lower_velocity_estimate_m_s")
+#: The reward's cost terms, by name (:meth:`DeclaredBatch.reward`).
+COST_NAMES = ("cost_acceleration", "cost_stroke", "cost_energy")
 
 
 class DeclaredBatch:
@@ -132,6 +141,7 @@ class DeclaredBatch:
         self.preview = (None if not config.preview_points else
                         DeclaredPreview(config, self.profiles, tuple(c.name for c in model.contacts), n))  # fmt: skip
         self._geometry()
+        self._width = len(self.observation_names())
 
     def _geometry(self) -> None:
         """The rows the observations and the reward read, and the static equilibrium."""
@@ -207,14 +217,31 @@ class DeclaredBatch:
         code = INVERSE_CODES[self.config.inverse_model]
         meas = self.measured.reshape(self.num_envs, self.n_slots, N_SLOT_CHANNELS)
         out = np.empty(actions.shape)
-        _invert(code, self.inverse.as_array(), actions * self.config.max_force_n,
-                np.ascontiguousarray(meas[:, :, 0]), np.ascontiguousarray(meas[:, :, 1]),
+        _invert(code, self.inverse.as_array(), actions * self.config.max_force_n, meas,
                 self.i_max, out)  # fmt: skip
         return out
 
     def step(self, actions: np.ndarray) -> dict[str, np.ndarray]:
         """Every vehicle by one control step: commands, the control delay, the plant, the
         sensors; returns the signals after it (:meth:`signals`, computed once)."""
+        self._advance(actions)
+        return dict(zip(SIGNAL_NAMES, sense(*self._sense_args()), strict=True))
+
+    def step_scored(
+        self, actions: np.ndarray
+    ) -> tuple[dict, np.ndarray, np.ndarray, dict, np.ndarray]:
+        """:meth:`step`, then :meth:`reward` and :meth:`observe` of its signals, the sensing in
+        one compiled call (:func:`capsule_env.engine.declared_sensing.sense_scored`, the same
+        numbers): ``(signals, reward, bump stop hit, cost terms, observations)``."""
+        self._advance(actions)
+        sig, terms, obs = sense_scored(*self._sense_args(), self._reward_parameters(),
+                                       OBSERVATION_CODES[self.config.observation], self._width)  # fmt: skip
+        reward, hit, *costs = terms
+        return (dict(zip(SIGNAL_NAMES, sig, strict=True)), reward, hit,
+                dict(zip(COST_NAMES, costs, strict=True)), self._with_preview(obs))  # fmt: skip
+
+    def _advance(self, actions: np.ndarray) -> None:
+        """Commands, the control delay, the plant (the compiled lanes kernel)."""
         self.requested[:] = self.commands(actions)
         delay = self.delay_steps
         if delay:  # the command from ``delay`` steps ago is applied
@@ -231,22 +258,13 @@ class DeclaredBatch:
             lanes_step(code, form, 0, self.num_envs, self.plant, self.state, self.command,
                        self.route, self.dt, self.out)  # fmt: skip
         self.step_count += 1
-        sig = self.signals()
-        self._measure(sig)
-        return sig
 
-    def _measure(self, sig: dict[str, np.ndarray]) -> None:
-        """Each slot's stroke, stroke rate and end accelerations, with sensor noise (the
-        quarter-car's channels: stroke, stroke rate, car-body and bogie accelerometers)."""
-        noisy = self.noise_level > 0.0
-        normals = np.empty((self.num_envs, self.measured.shape[1] + 1) if noisy else (0, 0))
-        if noisy:
-            _normals(self.noise_key, self.step_count, normals)
-        channels = (sig["stroke_m"], sig["stroke_rate_m_s"], sig["slot_end_acceleration_m_s2"],
-                    sig["gap_m"])  # fmt: skip
-        measure_slots(channels, self._noise_std, normals, noisy, self.measured,
-                      np.asarray(self._estimator, dtype=float), self._estimator_state,
-                      self.estimates)  # fmt: skip
+    def _sense_args(self) -> tuple:
+        """The arguments of :func:`~capsule_env.engine.declared_sensing.sense`: the signals'
+        sources and rows, the noise, the measurements and the estimator."""
+        noise = (self.noise_key, self.step_count, self._noise_std, self.noise_level > 0.0)
+        return (self.state, self.out, self.requested, self._rows(), noise, self.measured,
+                np.asarray(self._estimator, dtype=float), self._estimator_state, self.estimates)  # fmt: skip
 
     # ------------------------------------------------------------------ signals
     def positions_rates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -254,38 +272,28 @@ class DeclaredBatch:
         return self.state[:, :nc], self.state[:, nc : 2 * nc]
 
     def signals(self) -> dict[str, np.ndarray]:
-        """The physical signals now, by name: (N, slots), (N, points) or (N, contacts)."""
-        ns, nc = self.n_slots, self.n_coords
-        q, v = self.positions_rates()
-        acc = self.out[:, ns : ns + nc]
-        base = 2 * nc
-        return {
-            "stroke_m": _combine(q, self.stroke_rows),
-            "stroke_rate_m_s": _combine(v, self.stroke_rows),
-            "damper_force_n": self.out[:, :ns].copy(),
-            "coil_current_a": self.state[:, base + 2 : base + 3 * ns : 3].copy(),
-            "current_command_a": self.requested.copy(),
-            "comfort_acceleration_m_s2": _combine(acc, self.comfort_rows),
-            "slot_end_acceleration_m_s2": _combine(acc, self.end_rows),
-            "guideway_elevation_m": self.out[:, ns + nc :].copy(),
-            "gap_m": _combine(q, self.gap_rows)
-            - _combine(self.out[:, ns + nc :], self.gap_contacts),
-        }
+        """The physical signals now, by name (:data:`SIGNAL_NAMES`): (N, slots), (N, points) or
+        (N, contacts), each a new array."""
+        sig = signal_arrays(self.state, self.out, self.requested, self._rows(), self.n_slots,
+                            self.n_coords)  # fmt: skip
+        return dict(zip(SIGNAL_NAMES, sig, strict=True))
+
+    def _rows(self) -> tuple[np.ndarray, ...]:
+        return (self.stroke_rows, self.comfort_rows, self.end_rows, self.gap_rows,
+                self.gap_contacts)  # fmt: skip
 
     def reward(self, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict]:
         """``(reward (N,), bump stop hit (N,), cost terms by name)`` (module doc)."""
+        reward, hit, *costs = reward_terms(sig["comfort_acceleration_m_s2"], sig["stroke_m"],
+                                           sig["coil_current_a"], self._reward_parameters())  # fmt: skip
+        return reward, hit, dict(zip(COST_NAMES, costs, strict=True))
+
+    def _reward_parameters(self) -> tuple[float, ...]:
         cfg = self.config
-        acc = sig["comfort_acceleration_m_s2"] / cfg.acceleration_scale_m_s2
-        stroke = sig["stroke_m"] / cfg.stroke_scale_m
-        current = sig["coil_current_a"] / self.i_max if self.i_max > 0.0 else 0.0 * stroke
-        costs = {
-            "cost_acceleration": cfg.reward_acceleration_weight * np.mean(acc * acc, axis=1),
-            "cost_stroke": cfg.reward_stroke_weight * np.mean(stroke * stroke, axis=1),
-            "cost_energy": cfg.reward_energy_weight * np.mean(current * current, axis=1),
-        }
-        hit = np.any(np.abs(sig["stroke_m"]) > cfg.stroke_limit_m, axis=1)
-        reward = -(costs["cost_acceleration"] + costs["cost_stroke"] + costs["cost_energy"])
-        return reward - np.where(hit, cfg.bump_stop_penalty, 0.0), hit, costs
+        return tuple(float(x) for x in (
+            cfg.acceleration_scale_m_s2, cfg.stroke_scale_m, self.i_max,
+            cfg.reward_acceleration_weight, cfg.reward_stroke_weight, cfg.reward_energy_weight,
+            cfg.stroke_limit_m, cfg.bump_stop_penalty))  # fmt: skip
 
     def observation_names(self) -> tuple[str, ...]:
         """The observation's columns: the set's, then the preview's (if any)."""
@@ -318,27 +326,18 @@ class DeclaredBatch:
     def observe(self, sig: dict[str, np.ndarray]) -> np.ndarray:
         """The observations (N, d), float32 (``sensors``: the measurements, noisy where the
         options say; ``full_state``: the true values), the preview's columns after them."""
-        obs = self._observe_set(sig)
-        if self.preview is None:
-            return obs
-        time_s = self.state[:, -1]
-        cols = self.preview.columns(self.profiles, self.route, time_s, self.plant.contact_offsets_m)
-        return np.concatenate([obs, cols.astype(np.float32)], axis=1)
+        arrays = tuple(sig[name] for name in SIGNAL_NAMES)
+        obs = observe_set(OBSERVATION_CODES[self.config.observation], self._width, self.state,
+                          arrays, self.measured, self.estimates, self.requested)  # fmt: skip
+        return self._with_preview(obs)
 
-    def _observe_set(self, sig: dict[str, np.ndarray]) -> np.ndarray:
-        n, ns = self.num_envs, self.n_slots
-        if self.config.observation in ("sensors", "measured"):
-            meas = self.measured.reshape(n, ns, N_SLOT_CHANNELS)
-            parts = [meas[:, :, :4]]
-            if self.config.observation == "measured":
-                parts += [meas[:, :, 4:], self.estimates]
-            cols = np.concatenate([*parts, self.requested[:, :, None]], axis=2)
-            return cols.reshape(n, -1).astype(np.float32)
-        q, v = self.positions_rates()
-        qv = np.stack([q, v], axis=2).reshape(n, -1)
-        return np.concatenate([qv, sig["stroke_m"], sig["stroke_rate_m_s"],
-                               sig["comfort_acceleration_m_s2"],
-                               sig["guideway_elevation_m"]], axis=1).astype(np.float32)  # fmt: skip
+    def _with_preview(self, obs: np.ndarray) -> np.ndarray:
+        """``obs`` with the preview's columns (if any) in its last ones."""
+        if self.preview is not None:
+            cols = self.preview.columns(self.profiles, self.route, self.state[:, -1],
+                                        self.plant.contact_offsets_m)  # fmt: skip
+            obs[:, obs.shape[1] - cols.shape[1] :] = cols
+        return obs
 
 
 def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):
@@ -354,36 +353,25 @@ def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):
     return rows, ground
 
 
-def _combine(x: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``x @ rows.T`` (N, R) summed coordinate by coordinate in order: a vehicle's numbers do
-    not depend on its batch (a BLAS product's summation order does)."""
-    return combine_rows(x, rows, np.empty((x.shape[0], rows.shape[0])))
-
-
-@njit(cache=True, error_model="numpy")
-def _normals(keys, steps, out):  # pragma: no cover - numba
-    """Standard normals per vehicle and channel from the counter-based hash of ``(key, step,
-    pair)`` (the quarter-car env's sensor noise: independent of the batch). Pair by pair, the
-    vehicles innermost into a row of their own (a loop that vectorises), then into ``out``."""
-    rows = np.empty((2, out.shape[0]))
-    for pair in range(out.shape[1] // 2):
-        first, second = rows[0], rows[1]
-        for n in range(out.shape[0]):
-            first[n], second[n] = gaussian_pair(keys[n], steps[n], pair)
-        for n in range(out.shape[0]):
-            out[n, 2 * pair], out[n, 2 * pair + 1] = first[n], second[n]
-
-
 @specialised("code")
-def _invert(code, p, force_n, stroke, rate, i_max, out):
-    """The inverse model's current for each requested force (closed form, semi-active)."""
+def _invert(code, p, force_n, meas, i_max, out):
+    """The inverse model's current for each requested force (closed form, semi-active), on each
+    slot's measured stroke and stroke rate (``meas[:, s, 0]``, ``meas[:, s, 1]``), slot by slot
+    through columns of their own (the vehicles innermost and contiguous: a loop that
+    vectorises, each vehicle's numbers as alone)."""
     c = code
 
-    def impl(code, p, force_n, stroke, rate, i_max, out):
-        for n in range(out.shape[0]):
-            for s in range(out.shape[1]):
-                f0, slope = affine_in_current(c, p, stroke[n, s], rate[n, s], 0.0)
-                out[n, s] = invert_affine(force_n[n, s], f0, slope, rate[n, s], i_max)
+    def impl(code, p, force_n, meas, i_max, out):
+        n_envs = out.shape[0]
+        f, x, v, col = np.empty(n_envs), np.empty(n_envs), np.empty(n_envs), np.empty(n_envs)
+        for s in range(out.shape[1]):
+            for n in range(n_envs):
+                f[n], x[n], v[n] = force_n[n, s], meas[n, s, 0], meas[n, s, 1]
+            for n in range(n_envs):
+                f0, slope = affine_in_current(c, p, x[n], v[n], 0.0)
+                col[n] = invert_affine(f[n], f0, slope, v[n], i_max)
+            for n in range(n_envs):
+                out[n, s] = col[n]
 
     return impl
 

@@ -77,11 +77,9 @@ class DeclaredSB3VecEnv(VecEnv):
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         batch = self.batch
-        sig = batch.step(self._actions)
-        reward, terminated, _ = batch.reward(sig)
+        _, reward, terminated, _, obs = batch.step_scored(self._actions)
         truncated = batch.step_count >= batch.max_steps
         dones = terminated | truncated
-        obs = batch.observe(sig)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if dones.any():
             ended = np.flatnonzero(dones)

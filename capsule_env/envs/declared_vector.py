@@ -101,15 +101,14 @@ class DeclaredVectorEnv(VectorEnv):
         if not np.all(np.isfinite(a)):
             raise ValueError("actions must be finite")
         restart = self._autoreset.copy()
-        sig = batch.step(np.clip(a, -1.0, 1.0))
-        reward, terminated, costs = batch.reward(sig)
+        sig, reward, terminated, costs, obs = batch.step_scored(np.clip(a, -1.0, 1.0))
         truncated = batch.step_count >= batch.max_steps
         if restart.any():  # NEXT_STEP: these vehicles start a new episode instead
             batch.reset(np.flatnonzero(restart))
             sig = batch.signals()
             reward[restart], terminated[restart], truncated[restart] = 0.0, False, False
+            obs = batch.observe(sig)
         self._autoreset = terminated | truncated
-        obs = batch.observe(sig)
         return obs, reward, terminated, truncated, {**sig, **costs}
 
 
