@@ -51,7 +51,7 @@ def combine_rows(x, rows, out):  # pragma: no cover - numba
 
 @njit(**FAST)
 def measure_slots(sig, noise_std, normals, noisy, measured, estimator, state, estimates):
-    """Each slot's measurements and velocity estimates (``DeclaredBatch._measure``).
+    """Each slot's measurements and velocity estimates (:func:`sense`'s, a step's).
 
     ``sig``: the (N, slots) stroke, stroke rate and gap and the (N, 2 slots) accelerations of
     each slot's upper and lower end, the true values, channel by channel
