@@ -157,10 +157,9 @@ _USE_HALF = (
     "`wheelbase-mpc-biexp-meas`, the half-car's semi-active MPC with the wheelbase preview (the "
     "rear contact's input estimated from the front bogie's measured signals): the lowest Wk on "
     "these signals, a 50 ms plan of both dampers solved at every step (under 1 ms a step in "
-    "Python). `lqr-clipped-biexp-meas`, one tuned quarter-car clipped LQR per bogie, where cost "
-    "matters or as the law a residual policy rides on (the shipped one does): 1.007 x at the "
-    "cost of a gain vector per bogie (the coupled half-car LQR 1.011 x, the wheelbase-preview "
-    "LQ 1.007 x)."
+    "Python); the shipped residual policy rides on it. `lqr-clipped-biexp-meas`, one tuned "
+    "quarter-car clipped LQR per bogie, where cost matters: 1.007 x at the cost of a gain "
+    "vector per bogie (the coupled half-car LQR 1.011 x, the wheelbase-preview LQ 1.007 x)."
 )
 _USE_HALF_PREVIEW = (
     "`survey-preview-lq-biexp-meas`, the half-car's discrete LQ plus Tomizuka's preview gains "
@@ -179,7 +178,7 @@ DECLARED_TASKS: tuple[Task, ...] = (
          "levitation gap, the on-board velocity estimates and the last current command "
          "(observation='measured')",
          {"vehicle": "half_car", "setting": "hils", "observation": "measured"}, "hils",
-         "wheelbase-mpc-biexp-meas", "residual-ppo-lqr-half-car",
+         "wheelbase-mpc-biexp-meas", "residual-ppo-mpc-half-car",
          "evaluation-CapsuleHalfRide-v0.json",
          use=_USE_HALF, metric=_METRIC_HALF,
          headline="the half-car capsule: pitch, two bogies, two dampers (`hils`, measured)"),

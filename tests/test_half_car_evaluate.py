@@ -67,7 +67,7 @@ def test_evaluate_runs_the_half_car_task_in_its_json_layout(tmp_path, capsys):
         points = (row["wk_front_m_s2"], row["wk_centre_m_s2"], row["wk_rear_m_s2"])
         assert row["wk_rms_body_acc_m_s2"] == pytest.approx(np.mean(points), rel=1e-12), name
         assert row["uses_unmeasured_signals"] is (name.endswith("-exact")), name
-    assert "| residual-ppo-lqr-half-car |" in capsys.readouterr().out
+    assert "| residual-ppo-mpc-half-car |" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("extra, named", [

@@ -1,5 +1,5 @@
-"""The half-car task's shipped policy (``residual-ppo-lqr-half-car``): the loader rebuilds the
-per-bogie law it rides on and acts as the saved network plus that law, it is the task card's,
+"""The half-car task's shipped policy (``residual-ppo-mpc-half-car``): the loader rebuilds the
+wheelbase MPC it rides on and acts as the saved network plus that law, it is the task card's,
 it stays out of the quarter-car's evaluations, and it scores on the validation bank what its
 metadata records (the score it was chosen by, ``experiments/half_car_select.py``)."""
 
@@ -18,44 +18,50 @@ pytest.importorskip("stable_baselines3", reason=NO_SB3)
 pytestmark = pytest.mark.rl
 
 ROOT = Path(__file__).resolve().parents[1]
-NAME = "residual-ppo-lqr-half-car"
+NAME = "residual-ppo-mpc-half-car"
 PRETRAINED = ROOT / "capsule_env" / "pretrained"
 
 
-def _observations(n: int = 64) -> np.ndarray:
-    """Observations of the half-car task's env (16 measured columns), a few steps in."""
+def _trajectory_observations(n: int, steps: int) -> list[np.ndarray]:
+    """The first ``steps`` observations of ``n`` half-car episodes under 0 actions."""
     from capsule_env.envs.declared_vector import DeclaredVectorEnv
 
     env = DeclaredVectorEnv(n, vehicle="half_car", setting="hils", observation="measured")
     obs, _ = env.reset(seed=list(range(n)))
-    for _ in range(40):
+    out = [obs]
+    for _ in range(steps - 1):
         obs, *_ = env.step(np.zeros((n, 2), dtype=np.float32))
-    return obs
+        out.append(obs)
+    return out
 
 
-def test_the_loader_rebuilds_the_per_bogie_law_and_adds_the_residual():
+def test_the_loader_rebuilds_the_wheelbase_mpc_and_adds_the_residual():
+    """Independent of ResidualPolicy: SB3's model on the pickled normaliser's own scaling, plus
+    the wheelbase MPC built here at the weights of the task's card, run through the same
+    observations from a fresh start."""
+    pytest.importorskip("daqp")
+    from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
     from capsule_env.agents.learning.sb3_policy import load_policy
     from stable_baselines3 import PPO
 
+    from capsule_env.evaluation.half_car import TUNED_MPC
+
     policy = load_policy(PRETRAINED / f"{NAME}.zip")
-    obs = _observations()
-    # independent of ResidualPolicy: SB3's model on the pickled normaliser's own scaling, plus
-    # the quarter-car's tuned clipped LQR gain applied to each bogie's own columns
     model = PPO.load(str(PRETRAINED / f"{NAME}.zip"), device="cpu")
     with (PRETRAINED / f"{NAME}.vecnormalize.pkl").open("rb") as fh:
         norm = pickle.load(fh)
-    residual, _ = model.predict(norm.normalize_obs(obs), deterministic=True)
-    from capsule_env.agents.controllers.classical import make_controller
-
-    gain = np.asarray(make_controller("lqr-clipped-biexp-meas").gain)
-    per = obs.reshape(len(obs), 2, 8)  # stroke, rate, 2 accelerations, gap, 2 estimates, cmd
-    state = np.stack([per[..., 0], per[..., 5], per[..., 4], per[..., 6]], axis=-1)
-    law = np.clip(-(state @ gain) / 8000.0, -1.0, 1.0)
-    expected = np.clip(law + 0.5 * residual, -1.0, 1.0)
-    got, _ = policy.predict(obs, deterministic=True)
-    assert got.shape == (64, 2)
-    np.testing.assert_allclose(got, expected, atol=1e-6)
-    assert np.ptp(residual) > 0.05  # the network's part is not nothing
+    law = HalfCarMPC(**TUNED_MPC["wheelbase-mpc-biexp-meas"], preview=True)
+    observations = _trajectory_observations(8, steps=30)
+    policy.reset()
+    spread = []
+    for obs in observations:
+        residual, _ = model.predict(norm.normalize_obs(obs), deterministic=True)
+        expected = np.clip(law.predict(obs.astype(np.float64))[0] + 0.5 * residual, -1.0, 1.0)
+        got, _ = policy.predict(obs, deterministic=True)
+        assert got.shape == (8, 2)
+        np.testing.assert_allclose(got, expected, atol=1e-6)
+        spread.append(np.ptp(residual))
+    assert max(spread) > 0.05  # the network's part is not nothing
 
 
 def test_a_declared_policy_on_an_unknown_law_is_one_clear_error(tmp_path):
@@ -70,6 +76,14 @@ def test_a_declared_policy_on_an_unknown_law_is_one_clear_error(tmp_path):
     (tmp_path / "x.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match="residual law 'mpc-biexp-meas' is not one a half_car"):
         load_policy(tmp_path / "x.zip")
+
+
+def test_the_wheelbase_mpc_is_the_half_cars_law_only():
+    from capsule_env.agents.learning.sb3_policy import declared_law
+
+    with pytest.raises(ValueError, match="x.zip: its residual law wheelbase-mpc-biexp-meas is "
+                                         "the half_car's; its vehicle is 'other'"):  # fmt: skip
+        declared_law("wheelbase-mpc-biexp-meas", "other", "x.zip")
 
 
 def test_it_is_the_half_car_cards_policy_and_not_the_quarter_cars():
@@ -88,7 +102,7 @@ def test_it_is_the_half_car_cards_policy_and_not_the_quarter_cars():
 def test_it_scores_its_recorded_validation_score():
     """The choice's figure: this policy on the validation bank (guideway seed 7, episodes
     5000..5009), never evaluate.py's bank (guideway seed 2026)."""
-    from capsule_env.agents.learning.sb3_policy import load_policy
+    from capsule_env.agents.learning.sb3_policy import load_policy, use_one_torch_thread
 
     from capsule_env.evaluation.half_car import episode_metrics, rollout
 
@@ -96,10 +110,13 @@ def test_it_scores_its_recorded_validation_score():
     valid = meta["validation"]
     assert valid["guideway_seed"] == 7 and valid["seeds"] == [5000, 5009]
     episodes = list(range(valid["seeds"][0], valid["seeds"][1] + 1))
+    use_one_torch_thread()  # as the selection and evaluate.py run it (the metadata's note)
     policy = load_policy(PRETRAINED / f"{NAME}.zip")
     wk = episode_metrics(rollout(policy, episodes, valid["guideway_seed"]))
+    # 1e-4: the network's last bits differ across CPUs and PyTorch builds, and the MPC's plans
+    # amplify them (two threads against one moved this score by 9e-6 relative here)
     assert float(wk["wk_rms_body_acc_m_s2"].mean()) == pytest.approx(
-        valid["wk_rms_body_acc_m_s2"], rel=1e-6
+        valid["wk_rms_body_acc_m_s2"], rel=1e-4
     )
     # chosen as the lowest of the runs recorded
     assert valid["wk_rms_body_acc_m_s2"] == min(valid["runs"].values())
@@ -121,8 +138,8 @@ def test_it_exports_with_a_contract_of_the_half_cars_columns(tmp_path):
     assert units["front_secondary_damper_upper_acceleration_m_s2"] == "m/s^2"
     assert units["rear_secondary_damper_last_current_command_a"] == "A"
     assert card["task"] == "CapsuleHalfRide-v0" and card["action"]["size"] == 2
-    assert card["residual"]["law"] == "lqr-clipped-biexp-meas"
-    assert card["residual"]["rig_provides_law"] is True  # not the 1/4-car's law written in C
+    assert card["residual"]["law"] == "wheelbase-mpc-biexp-meas"
+    assert card["residual"]["rig_provides_law"] is True  # a QP each step: not written in C
     assert "capsule_law" not in files[f"{NAME}.c"].read_text()
 
 

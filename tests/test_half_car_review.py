@@ -157,10 +157,12 @@ def test_the_pages_learned_table_quotes_the_learned_file():
     text = (ROOT / "docs" / "half-car.md").read_text()
     data = json.loads((ROOT / "docs" / "figures" / "learned-CapsuleHalfRide-v0.json").read_text())
     table = _table(text, "| group | each seed's Wk")
-    assert len(table) == 2
-    for cells, group in zip(table, ("ppo", "residual-ppo"), strict=True):
+    groups = ("ppo", "residual-ppo", "residual-ppo-mpc", "residual-ppo-mpc-lr1e-4")
+    assert len(table) == len(groups)
+    for cells, group in zip(table, groups, strict=True):
         seeds = [float(np.mean(v)) for v in data[f"{group}_per_seed"].values()]
         quoted = re.findall(r"[0-9]+\.[0-9]+", cells[1])
         assert len(quoted) == len(seeds) and all(map(_agrees, quoted, seeds))
-        ratio = re.findall(r"[0-9]+\.[0-9]+", cells[2])
-        assert all(map(_agrees, ratio, data[f"{group}_iqm_ratio_to_lqr"]))
+        for cell, law in ((cells[2], "lqr"), (cells[3], "mpc")):
+            ratio = re.findall(r"[0-9]+\.[0-9]+", cell)
+            assert len(ratio) == 3 and all(map(_agrees, ratio, data[f"{group}_iqm_ratio_to_{law}"]))

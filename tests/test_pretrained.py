@@ -116,7 +116,7 @@ def test_evaluate_lists_the_shipped_policy(tmp_path):
     names = set(json.loads(out.read_text())["settings"]["hils"]["controllers"])
     # the shipped policies trained in the paper's env; the trip task's own are its
     # evaluation's (test_trip_policy), the half-car's its (test_half_car_policy)
-    trip = ("ppo-trip", "residual-ppo-mpc-trip", "residual-ppo-lqr-half-car")  # + the half-car's
+    trip = ("ppo-trip", "residual-ppo-mpc-trip", "residual-ppo-mpc-half-car")  # + the half-car's
     paper = [p for p in SHIPPED if Path(p).stem not in trip]
     shipped = {json.loads(files_of(p)[2].read_text()).get("name", Path(p).stem) for p in paper}
     assert {"ppo-hils", "ppo-measured", "ppo-preview"} <= shipped and shipped <= names

@@ -100,8 +100,8 @@ def shipped_policy_paths(env_kwargs: dict[str, Any] | None = None) -> list[str]:
 def shipped_policies() -> dict[str, Controller]:
     """The pretrained policies shipped with the package, loaded, by name (``ppo-hils``,
     ``ppo-measured``, ``ppo-preview``, ``ppo-trip``, ``residual-ppo-mpc`` and
-    ``residual-ppo-mpc-trip`` (the trip task's) and ``residual-ppo-lqr-half-car`` (the half-car
-    task's, on its per-bogie clipped LQR, two actions):
+    ``residual-ppo-mpc-trip`` (the trip task's) and ``residual-ppo-mpc-half-car`` (the half-car
+    task's, on its wheelbase-preview MPC, two actions):
     :class:`~capsule_env.agents.learning.residual.ResidualPolicy`, the MPC plus its learned correction).
     Each carries the env arguments it was trained with (``env_kwargs``: pass them to
     ``gymnasium.make``) and acts through ``predict``. Needs the ``rl`` extra; a residual on
@@ -145,21 +145,42 @@ def load_policy(path: str | Path, require_normalization: bool = True) -> Control
 
 
 #: The laws a declared vehicle's residual policy may ride on, by the name its metadata's
-#: ``residual`` block gives (the per-slot law of the half-car task's card).
-DECLARED_LAWS = ("lqr-clipped-biexp-meas",)
+#: ``residual`` block gives: the per-slot law of the half-car task's card, and the half-car's
+#: wheelbase-preview MPC (its tuned weights; DAQP, the ``mpc`` extra).
+DECLARED_LAWS = ("lqr-clipped-biexp-meas", "wheelbase-mpc-biexp-meas")
 
 
 def declared_law(name: str, vehicle: str, path: str | Path) -> Controller:
     """The law ``name`` of a residual policy trained on the declared vehicle ``vehicle``:
     ``lqr-clipped-biexp-meas`` is one tuned quarter-car clipped LQR per damper slot
-    (:class:`~capsule_env.agents.controllers.declared_lqr.IndependentClippedLQR`, what
-    ``experiments/half_car_ppo.py --residual`` trains on). ``ValueError`` naming the file
-    for another name or an unknown vehicle."""
+    (:class:`~capsule_env.agents.controllers.declared_lqr.IndependentClippedLQR`), and
+    ``wheelbase-mpc-biexp-meas`` the half-car's semi-active MPC with the wheelbase preview at
+    the weights of the task's card
+    (:data:`capsule_env.evaluation.half_car.TUNED_MPC`), the laws
+    ``experiments/half_car_ppo.py --residual --law NAME`` trains on. ``ValueError`` naming the
+    file for another name or a vehicle without that law."""
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
 
     if name not in DECLARED_LAWS:
         raise ValueError(f"{path}: its residual law {name!r} is not one a {vehicle} policy rides "
                          f"on; accepted: {', '.join(DECLARED_LAWS)}")  # fmt: skip
+    if name == "wheelbase-mpc-biexp-meas":
+        if vehicle != "half_car":
+            raise ValueError(f"{path}: its residual law {name} is the half_car's; its vehicle "
+                             f"is {vehicle!r}")  # fmt: skip
+        from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
+        from capsule_env.agents.controllers.mpc_solver import solver_available
+
+        from capsule_env.evaluation.half_car import TUNED_MPC
+
+        if not solver_available():
+            raise ValueError(f"{path}: its residual law {name} needs a QP solver: "
+                             "pip install 'capsule-env[mpc]'")  # fmt: skip
+        weights = TUNED_MPC[name]
+        law = HalfCarMPC(weights["q_stroke"], weights["q_levitation"], weights["r_force"],
+                         preview=True)  # fmt: skip
+        law.gains_tuned = True
+        return law
     try:
         return IndependentClippedLQR(vehicle)
     except (KeyError, ValueError) as exc:

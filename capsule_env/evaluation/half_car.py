@@ -18,7 +18,7 @@ seeds 0..9). Intervals: 95 % bootstrap over the episodes (paired for ratios), se
 ``--tune`` re-tunes the coupled law's weights (about a minute); ``--oracle-iterations N`` adds
 the oracle (started from the best law's own currents, so never worse than it; ``evaluate.py
 --oracle``: :data:`ORACLE_ITERATIONS`). The shipped policies trained on the task
-(``capsule_env/pretrained``, e.g. ``residual-ppo-lqr-half-car``) are rows too unless
+(``capsule_env/pretrained``, e.g. ``residual-ppo-mpc-half-car``) are rows too unless
 ``--no-shipped-policy``. The JSON has ``evaluate.py``'s layout (:func:`evaluation_results`):
 each row under ``settings.hils.controllers`` with the headline ``wk_rms_body_acc_m_s2`` and what
 the row reads, so that the task cards and tables read every task's file alike.

@@ -83,9 +83,11 @@ def _residual(block: Any, path: Path, vehicle: str = "quarter_car") -> Residual 
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < scale <= 2.0:
         raise ValueError(f"{path}: its residual scale must be a number in (0, 2], got {scale!r}")
     if declared:
-        reason = (f"{law_name} on the {vehicle} is one law per damper slot on its own slot's "
-                  "columns; its C form is not generated: the rig must provide it, and combine "
-                  "each slot's action with capsule_combine")  # fmt: skip
+        what = ("a semi-active MPC over both damper slots, a QP solve each step"
+                if "mpc" in law_name.split("-")
+                else "one law per damper slot on its own slot's columns")  # fmt: skip
+        reason = (f"{law_name} on the {vehicle} is {what}; its C form is not generated: the rig "
+                  "must provide it, and combine each slot's action with capsule_combine")  # fmt: skip
         return Residual(law_name, float(scale), None, reason)
     reason = c_law_reason(law_name)
     law = None if reason else make_controller(law_name)
