@@ -297,8 +297,10 @@ class BranchProblem:
         -y . b - z . h - |r_F| . f_abs``. Any ``(y_w, z)`` with ``z >= 0`` gives a valid
         bound, the solver's are only a good choice; scaled by ``t >= 0`` they
         give ``t S - t^2 Q``, at best ``S^2 / (4 Q)`` when ``S > 0`` (a Farkas ray of an
-        infeasible node, ``Q = 0``, gives ``inf``); and ``J >= 0``. Up to the floating point
-        rounding of these sums (relative 1e-15 of their terms)."""
+        infeasible node, ``Q = 0``, gives ``inf``); and ``J >= 0``. The floating point sums
+        are made safe in :meth:`certify` (a rounding budget taken off ``S``): the value is at
+        most the exact ``S^2 / (4 Q)`` at the multipliers it used. Exact for the lifted plant's
+        arithmetic, not the kernel's (they agree to about 1e-15 relative, :mod:`.lifted`)."""
         gf, gv, h = self.rows(sigma)
         y_w, z, forces = self._sparse.solve(gf, gv, h)
         return self.certify(gf, gv, h, y_w, z), forces
@@ -307,16 +309,50 @@ class BranchProblem:
         self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray, y_w: np.ndarray, z: np.ndarray
     ) -> float:
         """The bound of :meth:`node_bound` at multipliers ``y_w`` (T) and ``z`` (clipped to
-        ``>= 0``), in the dense lift (:mod:`.lifted`, the tested one), with ``y_v = -Gv^T z``
-        so that ``r_v = 0``; any multipliers give a valid bound."""
-        n, t = self.n, self.t
+        ``>= 0``), in the dense lift (:mod:`.lifted`, the tested one), with ``y_v = -Gv^T z``;
+        any multipliers give a valid bound (non-finite ones the trivial 0).
+
+        Rounding: the multipliers are first scaled by a power of two (exact; the bound does not
+        depend on their scale) so that the largest is about 1, and ``S`` loses a budget of
+        ``gamma = 2 (K + 8) eps`` (``K`` the longest dot product) times the sum of its terms'
+        magnitudes, which covers every rounding in ``S`` and in ``r_F``, and ``r_v = y_v + Gv^T
+        z`` (not exactly 0 in floating point) paid with :func:`force_magnitude_bounds`'s rate
+        bound. ``|y_w|`` comes from ``math.hypot`` (no underflow). The result is at most the
+        exact ``S^2 / (4 Q)`` at the multipliers used."""
+        if not (np.isfinite(y_w).all() and np.isfinite(z).all()):
+            return 0.0
         z = np.maximum(z, 0.0)
+        big = max(float(np.abs(y_w).max(initial=0.0)), float(z.max(initial=0.0)))
+        if big == 0.0:
+            return 0.0
+        scale = math.ldexp(1.0, -math.frexp(big)[1])
+        y_w, z = y_w * scale, z * scale
+        return self._safe_bound(gf, gv, h, y_w, z)
+
+    def _safe_bound(
+        self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray, y_w: np.ndarray, z: np.ndarray
+    ) -> float:
+        """:meth:`certify` at multipliers already scaled (module doc of the rounding budget)."""
+        n, t, a = self.n, self.t, self.a_aug
+        eps = np.finfo(float).eps
+        gamma = 2.0 * (n + t + h.size + 8) * eps
         y_v = -(gv.T @ z)
-        r_f = -self.wf.T @ y_w - self.a_aug[:, :n].T @ y_v + gf.T @ z
-        quad = t * float(y_w @ y_w) / 4.0
-        lin = (-float(y_w @ self.wc) - float(y_v @ self.a_aug[:, n]) - float(z @ h)
-               - float(np.abs(r_f) @ self.f_abs))  # fmt: skip
-        return 0.0 if lin <= 0.0 else (math.inf if quad == 0.0 else lin * lin / (4.0 * quad))
+        r_f = -self.wf.T @ y_w - a[:, :n].T @ y_v + gf.T @ z
+        r_f_mag = (np.abs(self.wf).T @ np.abs(y_w) + np.abs(a[:, :n]).T @ np.abs(y_v)
+                   + abs(gf).T @ z)  # fmt: skip
+        r_v_mag = abs(gv).T @ z  # |y_v + Gv^T z| <= gamma this
+        terms = (-float(y_w @ self.wc), -float(y_v @ a[:, n]), -float(z @ h),
+                 -float(np.abs(r_f) @ self.f_abs))  # fmt: skip
+        mags = (float(np.abs(y_w) @ np.abs(self.wc)) + float(np.abs(y_v) @ np.abs(a[:, n]))
+                + float(z @ np.abs(h)) + float((np.abs(r_f) + r_f_mag) @ self.f_abs)
+                + float(r_v_mag @ self.v_abs))  # fmt: skip
+        lin = math.fsum(terms) - gamma * mags
+        if lin <= 0.0:
+            return 0.0
+        norm = math.hypot(*(float(x) for x in y_w)) * (1.0 + 4.0 * eps)
+        if norm == 0.0:
+            return math.inf  # a Farkas ray: no trajectory in the node
+        return (lin / (math.sqrt(t) * norm)) ** 2 * (1.0 - 8.0 * eps)
 
     def violation(self, forces_kn: np.ndarray) -> np.ndarray:
         """(N,) kN: how far each evaluation's relaxed force is from the nearer sign's cuts."""
