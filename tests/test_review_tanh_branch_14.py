@@ -1,7 +1,12 @@
-"""Review of the branch and bound's certificate (capsule_env.bounds.branch, session 14):
-``BranchProblem.certify`` promises a valid bound at *any* multipliers (``z >= 0``); these
-tests hold it to that at multipliers far from 1 in scale and against the same bound evaluated
-in exact rational arithmetic."""
+"""Review (session 14) of two unreviewed pieces.
+
+The branch and bound's certificate (capsule_env.bounds.branch): ``BranchProblem.certify``
+promises a valid bound at *any* multipliers (``z >= 0``); these tests hold it to that at
+multipliers far from 1 in scale, against the same bound in exact rational arithmetic, and on
+nodes holding trajectories the simulator runs.
+
+The vectorised ``tanh`` (capsule_env.plant.glibc_tanh) outside the start-up probe's range, and
+the lanes kernel with it forced off (the path of a machine where the probe refuses it)."""
 
 from __future__ import annotations
 
@@ -15,6 +20,8 @@ from capsule_env.bounds.branch import BranchProblem
 from capsule_env.bounds.lifted import closed_loop, lift_episode
 from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_force_parts
 from capsule_env.oracle.plant import OracleEpisodes
+from capsule_env.plant.declared_lanes import VECTOR_TANH, lanes_step, plant_form
+from capsule_env.plant.glibc_tanh import _tanh_both, matches_libm
 
 
 @pytest.fixture(scope="module")
@@ -142,3 +149,55 @@ def test_leaves_of_real_trajectories_stay_below_their_simulated_j(seed: int) -> 
             node = np.where(rng.random(sigma.size) < keep, sigma, 0).astype(np.int8)
             bound, _ = problem.node_bound(node)
             assert math.isfinite(bound) and 0.0 <= bound <= j_env
+
+
+@pytest.mark.skipif(
+    not matches_libm(), reason="glibc_tanh is this machine's tanh only where the probe says"
+)
+def test_glibc_tanh_is_the_librarys_outside_the_probes_range() -> None:
+    """The probe draws magnitudes from 1e-20 to 30 (and 0, inf); the kernel can feed any
+    number (a substep's path times sqrt(A p)). Subnormals, 1e-300..1e-20, 30..1e308, the
+    largest double and quiet NaNs of both signs with payloads: the same bits. A signalling
+    NaN is the one difference (the copy returns it as it is, the library quiets it):
+    arithmetic never makes one, so the kernel never meets it."""
+    rng = np.random.default_rng(14)
+    tiny = np.finfo(float).tiny
+    quiet = np.array([0x7FF8000000000001, 0xFFF8000000000123, 0x7FF8000000000000], np.uint64)
+    xs = np.concatenate([rng.uniform(0.0, tiny, 20_000), [5e-324, np.nextafter(tiny, 0.0)],
+                         10.0 ** rng.uniform(-300.0, -20.0, 50_000),
+                         10.0 ** rng.uniform(math.log10(30.0), 308.0, 50_000),
+                         [np.finfo(float).max, 2.0**1023, 709.8, 710.0]])  # fmt: skip
+    xs = np.concatenate([xs, -xs, quiet.view(np.float64)])
+    port, libm = np.empty_like(xs), np.empty_like(xs)
+    _tanh_both(xs, port, libm)
+    assert (port.view(np.int64) == libm.view(np.int64)).all()
+    signalling = np.array([0x7FF0000000000001], np.uint64).view(np.float64)
+    _tanh_both(signalling, port[:1], libm[:1])
+    assert port[:1].view(np.uint64)[0] == 0x7FF0000000000001
+    assert libm[:1].view(np.uint64)[0] == 0x7FF8000000000001
+
+
+def test_the_lanes_kernel_without_vector_tanh_is_the_declared_plant_bit_for_bit() -> None:
+    """The half-car on ``hils`` (Spencer's dampers: the split loops) with ``VECTOR_TANH``
+    forced off (the C library's ``tanh`` lane by lane, what a machine where the probe refuses
+    the copy runs) against ``declared_step``, 30 steps of currents over every bin."""
+    from test_declared_lanes import _batch, _run
+
+    from capsule_env.plant.declared import declared_step
+
+    batch = _batch("half_car", "hils")
+    code, n, form = batch.damper.code, batch.num_envs, plant_form(batch.plant)
+    off = form - VECTOR_TANH if form // VECTOR_TANH % 2 == 1 else form
+    assert off // VECTOR_TANH % 2 == 0
+    command = np.random.default_rng(11).uniform(-0.1, 1.1, (30, n, batch.n_slots)) * batch.i_max
+
+    def old(plant, x, c, route, dt, out):
+        declared_step(code, 0, n, plant, x, c, route, dt, out)
+
+    def fallback(plant, x, c, route, dt, out):
+        lanes_step(code, off, 0, n, plant, x, c, route, dt, out)
+
+    for (x_old, out_old), (x_new, out_new) in zip(_run(old, batch, command, 30),
+                                                  _run(fallback, batch, command, 30), strict=True):  # fmt: skip
+        assert np.isfinite(x_old).all() and np.abs(x_old).max() > 0.0
+        assert (x_new == x_old).all() and (out_new == out_old).all()

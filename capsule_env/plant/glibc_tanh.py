@@ -6,7 +6,9 @@ library's ``tanh`` once per slot and stage: a call per lane that stops LLVM vect
 loop, a fifth of the lanes kernel's time on the half-car. This is the same arithmetic as that
 library's code (fdlibm's ``s_tanh.c`` and ``s_expm1.c``, with the fused multiply-adds that GCC
 formed in ``__expm1_fma``, read from its disassembly), each branch computed and the lane's chosen,
-so it returns the library's bits wherever the library is that one. Elsewhere (another C library,
+so it returns the library's bits wherever the library is that one (a signalling NaN aside: the
+library quiets it, this returns it as it is; arithmetic never makes one, so the kernel never
+meets it; ``tests/test_review_tanh_branch_14.py``). Elsewhere (another C library,
 a CPU without FMA, where glibc picks its plain ``__expm1``) it need not:
 :func:`matches_libm` compares it with the library on :func:`probe_values` (every branch of both
 functions), and the lanes kernel uses it only where they agree (``tests/test_glibc_tanh.py``).
