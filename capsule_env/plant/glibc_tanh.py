@@ -13,7 +13,12 @@ a CPU without FMA, where glibc picks its plain ``__expm1``) it need not:
 :func:`matches_libm` compares it with the library on :func:`probe_values` (every branch of both
 functions), and the lanes kernel uses it only where they agree (``tests/test_glibc_tanh.py``).
 
-The algorithm and its constants are fdlibm's, whose notice is preserved here as it asks:
+The algorithm and its constants are fdlibm's; the polynomial's evaluation order in ``_expm1``
+(``R1 + h2 R2 + h4 R3``, needed for the library's bits) is glibc's own change to fdlibm's
+``s_expm1.c`` (marked there "Modified by Naohiko Shimizu/Tokai University, Japan 1997/08/25,
+for performance improvement on pipelined processors"), which glibc distributes under its
+LGPL-2.1-or-later; whether Sun's notice alone covers this copy under the package's MIT licence
+is for the maintainers to settle (not settled here). fdlibm's notice, preserved as it asks:
 
     Copyright (C) 1993 by Sun Microsystems, Inc. All rights reserved.
     Developed at SunPro, a Sun Microsystems, Inc. business.
