@@ -9,7 +9,10 @@ per-bogie clipped LQR on the held-out episodes; checkpoints and resumes.
 
 Read top to bottom: the arguments, one seed's training (SB3 PPO with ``hyperparams/ppo.yml``'s
 ride-task values, the training bank ``guideway_seed`` 0, a checkpoint every
-``--checkpoint-every`` steps, resumed from the newest after an interruption), one seed's
+``--checkpoint-every`` steps, resumed from the newest after an interruption; the run folder's
+``run.json`` records the options that shape the networks, ``--residual``, ``--law``,
+``--learning-rate``, ``--num-envs``, and a resume with others, or ``--evaluate`` with another
+law, is refused), one seed's
 evaluation (10 s episodes 1000.. of the evaluation bank 2026, the deterministic action), and
 the group's IQM over the seeds against the per-bogie LQR (and the law a residual rides on) on the
 same episodes with a 95 %
@@ -242,6 +245,53 @@ def evaluate(args: Args) -> dict[str, Any]:
     return out
 
 
+#: The run folder's record of the options that shape its saved networks (``run.json``).
+RUN_RECORD = "run.json"
+#: The options ``--evaluate`` must repeat (the law under the networks); training repeats all.
+_SCORED = ("residual", "law")
+
+
+def _run_options(args: Args) -> dict[str, Any]:
+    """The options that shape a run's saved networks: the law under them (none without
+    ``--residual``), the learning rate, the vehicles per step."""
+    return {"residual": args.residual, "law": args.law if args.residual else None,
+            "learning_rate": args.learning_rate, "num_envs": args.num_envs}  # fmt: skip
+
+
+def _record_problem(args: Args) -> str:
+    """Why ``args`` cannot resume (or, with ``--evaluate``, score) the run folder it names: the
+    options its ``run.json`` records differ (``""`` when they agree or there is no record)."""
+    path = args.out / RUN_RECORD
+    if not path.is_file():
+        return ""
+    try:
+        recorded = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        recorded = None
+    if not isinstance(recorded, dict):
+        return f"--out {args.out}: its {RUN_RECORD} is not a JSON object"
+    mine = _run_options(args)
+    keys = _SCORED if args.evaluate_only else tuple(mine)
+    was = ", ".join(f"--{k.replace('_', '-')} {recorded.get(k)!r} (given {mine[k]!r})"
+                    for k in keys if recorded.get(k) != mine[k])  # fmt: skip
+    return (
+        f"--out {args.out} was trained with {was}: pass the same options, or another --out"
+        if was
+        else ""
+    )
+
+
+def _record_options(args: Args) -> None:
+    """Write the run folder's ``run.json`` (atomically) unless it is there already."""
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / RUN_RECORD
+    if path.is_file():
+        return
+    with tempfile.NamedTemporaryFile("w", dir=args.out, suffix=".tmp", delete=False) as f:
+        json.dump(_run_options(args), f, indent=1)
+    os.replace(f.name, path)
+
+
 def parse_args(argv: list[str] | None = None) -> Args:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", required=True, type=Path)
@@ -270,18 +320,25 @@ def parse_args(argv: list[str] | None = None) -> Args:
         )
     if a.evaluate and not a.out.is_dir():
         p.exit(2, f"error: --out must be an existing run folder with --evaluate, got {a.out}\n")
+    if a.out.exists() and not a.out.is_dir():
+        p.exit(2, f"error: --out must be a run folder (or a new one), got the file {a.out}\n")
     if not 0.0 < a.learning_rate <= 1.0:  # NaN fails too
         p.exit(2, f"error: --learning-rate must be in (0, 1], got {a.learning_rate}\n")
     if min(a.total_timesteps, a.num_envs, a.checkpoint_every) < 1 or a.eval_episodes < 2:
         p.exit(2, "error: --total-timesteps, --num-envs, --checkpoint-every >= 1 and "
                   "--eval-episodes >= 2\n")  # fmt: skip
-    return Args(a.out, seeds, a.total_timesteps, a.num_envs, a.checkpoint_every,
+    args = Args(a.out, seeds, a.total_timesteps, a.num_envs, a.checkpoint_every,
                 a.eval_episodes, a.evaluate, a.residual, a.law, a.learning_rate)  # fmt: skip
+    problem = _record_problem(args)
+    if problem:
+        p.exit(2, f"error: {problem}\n")
+    return args
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if not args.evaluate_only:
+        _record_options(args)
         for seed in args.seeds:
             train_seed(args, seed)
     result = {"command": "python experiments/half_car_ppo.py " + " ".join(argv or sys.argv[1:]),

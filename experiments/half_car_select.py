@@ -5,7 +5,8 @@
 Every saved seed of ``experiments/half_car_ppo.py``'s runs (``runs/half_car_ppo``, PPO from
 scratch; ``runs/half_car_residual``, the residual on the per-bogie clipped LQR;
 ``runs/half_car_residual_mpc`` and ``runs/half_car_residual_mpc_lr1e-4``, the residual on the
-wheelbase MPC at the learning rates 1e-3 and 1e-4; a run not on disk is skipped), its
+wheelbase MPC at the learning rates 1e-3 and 1e-4, under the working folder; a run not on
+disk is skipped, and none on disk is refused before anything is scored), its
 deterministic policy (``final.zip`` with its normaliser), on the validation bank: guideway seed 7,
 episodes 5000..5009 (the quarter-car tasks' validation bank), disjoint from the training bank
 (guideway seed 0) and from ``evaluate.py``'s evaluation bank (guideway seed 2026, episodes
@@ -48,6 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if not args.out.resolve().parent.is_dir():
         p.exit(2, f"error: --out's folder must exist, got {args.out}\n")
+    if args.out.is_dir():
+        p.exit(2, f"error: --out must name the JSON file to write, got the folder {args.out}\n")
+    if not any(any(folder.glob("seed*/final.zip")) for folder, _, _ in RUNS.values()):
+        p.exit(2, "error: no saved run (seed*/final.zip) in "
+                  f"{', '.join(str(folder) for folder, _, _ in RUNS.values())} "
+                  f"under the working folder {Path.cwd()}\n")  # fmt: skip
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import torch
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
