@@ -1,15 +1,20 @@
 """A hostile user of the half-car's learned policy scripts (session 14): a run folder resumed or
 evaluated with other options than it was trained with, an ``--out`` that is a file or a
-folder, and the selection script run where no run is saved."""
+folder, the selection script run where no run is saved, and the shipped residual on a
+non-finite observation."""
 
 from __future__ import annotations
 
+import copy
 import json
 import subprocess
 import sys
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
+import capsule_env  # noqa: F401  (registers the tasks)
 from tests.test_half_car_review import PPO_SCRIPT, ROOT, _ppo_script
 
 SELECT_SCRIPT = ROOT / "experiments" / "half_car_select.py"
@@ -112,3 +117,27 @@ def test_select_without_any_saved_run_is_refused(tmp_path):
     proc = _run(SELECT_SCRIPT, "--out", str(tmp_path / "select.json"), cwd=tmp_path)
     _refused(proc, "runs/half_car_ppo")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_shipped_residual_rides_its_law_through_a_non_finite_observation():
+    """The wheelbase MPC plans around a vehicle whose observation holds a NaN (0 N for it, the
+    others untouched: docs/controllers.md); the shipped residual on it raised torch's
+    ``ValueError`` for the whole batch. Now that vehicle gets its law's action alone (no
+    residual on a signal the network cannot read) and the others what they get without it."""
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("daqp")
+    from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR, load_policy
+
+    policy = load_policy(PRETRAINED_DIR / "residual-ppo-mpc-half-car.zip")
+    env = gym.make_vec("CapsuleHalfRide-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                       episode_length_s=0.1)  # fmt: skip
+    obs, _ = env.reset(seed=4)
+    broken = obs.copy()
+    broken[1, 0] = np.nan  # the front stroke of vehicle 1
+    start = np.ones(3, dtype=bool)
+    clean_action, _ = copy.deepcopy(policy).predict(obs, episode_start=start)
+    action, _ = copy.deepcopy(policy).predict(broken, episode_start=start)
+    law_action, _ = copy.deepcopy(policy.law).predict(broken, episode_start=start)
+    assert np.all(np.isfinite(action))
+    np.testing.assert_array_equal(action[1], law_action[1])
+    np.testing.assert_array_equal(action[[0, 2]], clean_action[[0, 2]])

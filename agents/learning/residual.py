@@ -165,7 +165,9 @@ class ResidualVectorEnv(gym.vector.VectorWrapper):
 class ResidualPolicy(Controller):
     """``law`` plus a learned residual ``policy`` (anything with SB3's ``predict``), as one
     controller: what :class:`ResidualEnv` applies, for evaluation; one action per damper slot
-    (a declared vehicle's law and policy act on each of its slots, e.g. the half-car's two)."""
+    (a declared vehicle's law and policy act on each of its slots, e.g. the half-car's two).
+    A vehicle whose observation holds a NaN or inf gets its law's action alone (the law
+    decides what to do with it; the network does not read it)."""
 
     def __init__(self, law: Controller, policy: Any, scale: float = 0.5, name: str = "") -> None:
         self.law, self.policy, self.scale = law, policy, _check_scale(scale)
@@ -189,9 +191,14 @@ class ResidualPolicy(Controller):
         start = (np.zeros(obs.shape[0], dtype=bool) if episode_start is None
                  else np.asarray(episode_start, dtype=bool))  # fmt: skip
         base, _ = self.law.predict(obs, episode_start=start, deterministic=True)  # (N, slots)
-        residual, state = self.policy.predict(obs.astype(np.float32), state=state,
+        finite = np.isfinite(obs)
+        unread = ~np.all(finite, axis=1)  # the network cannot read these: the law acts alone
+        network_obs = np.where(finite, obs, 0.0) if unread.any() else obs
+        residual, state = self.policy.predict(network_obs.astype(np.float32), state=state,
                                               episode_start=start, deterministic=deterministic)  # fmt: skip
-        return combine_actions(base, np.reshape(residual, base.shape), self.scale), state
+        residual = np.array(np.reshape(residual, base.shape), dtype=np.float64)
+        residual[unread] = 0.0
+        return combine_actions(base, residual, self.scale), state
 
 
 def zero_last_layer(model: Any) -> None:
