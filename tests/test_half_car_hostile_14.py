@@ -1,7 +1,7 @@
 """A hostile user of the half-car's learned policy scripts (session 14): a run folder resumed or
 evaluated with other options than it was trained with, an ``--out`` that is a file or a
 folder, the selection script run where no run is saved, and the shipped residual on a
-non-finite observation."""
+non-finite observation or on another task's observation."""
 
 from __future__ import annotations
 
@@ -141,3 +141,19 @@ def test_the_shipped_residual_rides_its_law_through_a_non_finite_observation():
     assert np.all(np.isfinite(action))
     np.testing.assert_array_equal(action[1], law_action[1])
     np.testing.assert_array_equal(action[[0, 2]], clean_action[[0, 2]])
+
+
+@pytest.mark.parametrize("task", ["CapsuleHalfRidePreview-v0", "CapsuleRide-v0"])
+def test_the_shipped_half_car_policy_on_another_tasks_observation_names_it(task):
+    """The shipped half-car policy reads the 16 measured columns of ``CapsuleHalfRide-v0``:
+    on the preview task's 80 columns its law reads the first 16 (documented) but the network's
+    normaliser failed with numpy's "operands could not be broadcast"; on the quarter-car's a
+    clear error came from the law. Both now name the observation and its width."""
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("daqp")
+    from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR, load_policy
+
+    policy = load_policy(PRETRAINED_DIR / "residual-ppo-mpc-half-car.zip")
+    obs, _ = gym.make(task, episode_length_s=0.05).reset(seed=1)
+    with pytest.raises(ValueError, match=r"observation must .*16 columns"):
+        policy.predict(obs)

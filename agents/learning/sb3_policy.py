@@ -341,7 +341,12 @@ class SB3Policy(Controller):
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        obs = self.normalize(np.atleast_2d(np.asarray(observation, dtype=np.float32)))
+        obs = np.atleast_2d(np.asarray(observation, dtype=np.float32))
+        shape = getattr(getattr(self.model, "observation_space", None), "shape", None)
+        if shape is not None and len(shape) == 1 and obs.shape[-1] != shape[0]:
+            raise ValueError(f"observation must have {shape[0]} columns, the env's it was "
+                             f"trained on ({self.env_kwargs}), got shape {obs.shape}")  # fmt: skip
+        obs = self.normalize(obs)
         action, state = self.model.predict(
             obs, state=state, episode_start=episode_start, deterministic=deterministic
         )
