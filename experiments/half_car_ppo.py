@@ -313,7 +313,10 @@ def parse_args(argv: list[str] | None = None) -> Args:
     try:
         seeds = tuple(int(s) for s in a.seeds.split(","))
     except ValueError:
-        p.exit(2, f"error: --seeds must be comma-separated integers, got {a.seeds!r}\n")
+        seeds = ()
+    if not seeds or len(set(seeds)) < len(seeds) or not all(0 <= s < 2**32 for s in seeds):
+        p.exit(2, "error: --seeds must be distinct comma-separated integers in [0, 2**32), "
+                  f"got {a.seeds!r}\n")  # fmt: skip
     if a.law not in LAWS or (a.law != LAWS[0] and not a.residual):
         p.exit(
             2, f"error: --law must be one of {', '.join(LAWS)}, with --residual, got {a.law!r}\n"

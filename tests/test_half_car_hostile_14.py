@@ -157,3 +157,15 @@ def test_the_shipped_half_car_policy_on_another_tasks_observation_names_it(task)
     obs, _ = gym.make(task, episode_length_s=0.05).reset(seed=1)
     with pytest.raises(ValueError, match=r"observation must .*16 columns"):
         policy.predict(obs)
+
+
+@pytest.mark.parametrize("seeds", ["-1", "0,0", str(2**32)])
+def test_seeds_out_of_range_or_repeated_are_refused(tmp_path, seeds):
+    """``--seeds=-1`` created the run folder and ``seed-1/`` and then died with the env's
+    seed ``ValueError`` traceback; a repeated seed trained once and was scored as one seed
+    (no interval) without a word."""
+    out = tmp_path / "run"
+    proc = _run(PPO_SCRIPT, "--out", str(out), f"--seeds={seeds}", "--total-timesteps", "1",
+                "--num-envs", "1")  # fmt: skip
+    _refused(proc, "--seeds")
+    assert not out.exists()
