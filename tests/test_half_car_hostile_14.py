@@ -169,3 +169,17 @@ def test_seeds_out_of_range_or_repeated_are_refused(tmp_path, seeds):
                 "--num-envs", "1")  # fmt: skip
     _refused(proc, "--seeds")
     assert not out.exists()
+
+
+def test_select_refuses_a_run_folder_recorded_with_another_law(tmp_path):
+    """``runs/half_car_residual_mpc`` is scored as a residual on the wheelbase MPC; a folder
+    whose ``run.json`` says it was trained on the per-bogie LQR would be scored on a law its
+    networks never saw. Refused in one line naming the record, before anything is scored."""
+    folder = tmp_path / "runs" / "half_car_residual_mpc"
+    (folder / "seed0").mkdir(parents=True)
+    (folder / "seed0" / "final.zip").write_bytes(b"")
+    (folder / "run.json").write_text(json.dumps({"residual": True, "law": "lqr-clipped-biexp-meas",
+                                                 "learning_rate": 1e-3, "num_envs": 256}))  # fmt: skip
+    proc = _run(SELECT_SCRIPT, "--out", str(tmp_path / "select.json"), cwd=tmp_path)
+    _refused(proc, "run.json")
+    assert not (tmp_path / "select.json").exists()
