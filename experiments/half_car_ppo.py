@@ -258,18 +258,30 @@ def _run_options(args: Args) -> dict[str, Any]:
             "learning_rate": args.learning_rate, "num_envs": args.num_envs}  # fmt: skip
 
 
-def _record_problem(args: Args) -> str:
-    """Why ``args`` cannot resume (or, with ``--evaluate``, score) the run folder it names: the
-    options its ``run.json`` records differ (``""`` when they agree or there is no record)."""
-    path = args.out / RUN_RECORD
+def read_record(folder: Path) -> dict[str, Any] | None:
+    """``folder``'s ``run.json`` (None when it has none); ``ValueError`` naming the file when
+    it is not a JSON object."""
+    path = folder / RUN_RECORD
     if not path.is_file():
-        return ""
+        return None
     try:
         recorded = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         recorded = None
     if not isinstance(recorded, dict):
-        return f"--out {args.out}: its {RUN_RECORD} is not a JSON object"
+        raise ValueError(f"{path} is not a JSON object")
+    return recorded
+
+
+def _record_problem(args: Args) -> str:
+    """Why ``args`` cannot resume (or, with ``--evaluate``, score) the run folder it names: the
+    options its ``run.json`` records differ (``""`` when they agree or there is no record)."""
+    try:
+        recorded = read_record(args.out)
+    except ValueError as exc:
+        return f"--out: {exc}"
+    if recorded is None:
+        return ""
     mine = _run_options(args)
     keys = _SCORED if args.evaluate_only else tuple(mine)
     was = ", ".join(f"--{k.replace('_', '-')} {recorded.get(k)!r} (given {mine[k]!r})"

@@ -46,18 +46,17 @@ def _score(policy: object) -> list[float]:
 def _record_problem() -> str:
     """A run folder whose ``run.json`` (``half_car_ppo.py``'s record) says it was trained
     otherwise than :data:`RUNS` scores it (another law under its networks); ``""`` if none."""
+    from half_car_ppo import RUN_RECORD, read_record
+
     for group, (folder, residual, law) in RUNS.items():
-        path = folder / "run.json"
-        if not path.is_file():
-            continue
         try:
-            recorded = json.loads(path.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            recorded = None
-        if not isinstance(recorded, dict):
-            return f"{path} is not a JSON object"
-        if (recorded.get("residual"), recorded.get("law")) != (residual, law):
-            return (f"{path} records residual={recorded.get('residual')!r}, "
+            recorded = read_record(folder)
+        except ValueError as exc:
+            return str(exc)
+        if recorded is not None and (recorded.get("residual"), recorded.get("law")) != (
+            residual, law
+        ):  # fmt: skip
+            return (f"{folder / RUN_RECORD} records residual={recorded.get('residual')!r}, "
                     f"law={recorded.get('law')!r}; {group} is scored as residual={residual!r}, "
                     f"law={law!r}")  # fmt: skip
     return ""
@@ -75,10 +74,10 @@ def main(argv: list[str] | None = None) -> int:
         p.exit(2, "error: no saved run (seed*/final.zip) in "
                   f"{', '.join(str(folder) for folder, _, _ in RUNS.values())} "
                   f"under the working folder {Path.cwd()}\n")  # fmt: skip
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
     problem = _record_problem()
     if problem:
         p.exit(2, f"error: {problem}\n")
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     import torch
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
     from half_car_ppo import _law, _Policy
