@@ -32,8 +32,22 @@ __all__ = [
 SIGNAL_NAMES = ("stroke_m", "stroke_rate_m_s", "damper_force_n", "coil_current_a",
                 "current_command_a", "comfort_acceleration_m_s2", "slot_end_acceleration_m_s2",
                 "guideway_elevation_m", "gap_m")  # fmt: skip
+#: Positions of :func:`signal_arrays`'s arrays, by :data:`SIGNAL_NAMES`.
+_STROKE, _RATE, _CURRENT, _COMFORT, _ENDS, _ELEVATION, _GAP = (
+    SIGNAL_NAMES.index(name) for name in ("stroke_m", "stroke_rate_m_s", "coil_current_a",
+                                          "comfort_acceleration_m_s2",
+                                          "slot_end_acceleration_m_s2", "guideway_elevation_m",
+                                          "gap_m"))  # fmt: skip
 #: The observation sets' codes for :func:`observe_set`.
 OBSERVATION_CODES = {"full_state": 0, "sensors": 1, "measured": 2}
+#: A slot's observation columns: the first ``_SENSED`` measured channels (stroke, stroke rate,
+#: the two accelerations), with ``measured`` the gap and the two velocity estimates, then the
+#: last command (``DeclaredBatch._set_names``).
+_SENSED = 4
+_SENSORS_PER_SLOT, _MEASURED_PER_SLOT = _SENSED + 1, _SENSED + 1 + 2 + 1
+#: The state after ``q`` and ``q'``: per slot the Bouc-Wen ``z``, the dashpot's ``y`` and the
+#: coil current (``capsule_env/plant/declared.py``), then the time.
+_SLOT_STATES, _COIL = 3, 2
 
 
 @njit(**FAST)
@@ -109,7 +123,7 @@ def signal_arrays(state, out, requested, rows, ns, nc):  # pragma: no cover - nu
     for i in range(n):
         for s in range(ns):
             gap[i, s] = gap[i, s] - ground[i, s]
-            current[i, s] = state[i, base + 2 + 3 * s]
+            current[i, s] = state[i, base + _COIL + _SLOT_STATES * s]
     return (
         stroke,
         rate,
@@ -234,11 +248,11 @@ def observe_set(
     """The observation set's columns (:data:`OBSERVATION_CODES` ``code``) of a new (N,
     ``width``) float32 array (numpy's cast); the columns after the set's are left for the
     preview. ``sig``: :func:`signal_arrays`'s arrays; ``requested``: the last commands."""
-    stroke, rate, comfort, zg = sig[0], sig[1], sig[5], sig[7]
+    stroke, rate, comfort, zg = sig[_STROKE], sig[_RATE], sig[_COMFORT], sig[_ELEVATION]
     n, ns = stroke.shape
     obs = np.empty((n, width), np.float32)
     if code == 0:
-        nc = (state.shape[1] - 3 * ns - 1) // 2  # the state: q, v, 3 per slot, the time
+        nc = (state.shape[1] - _SLOT_STATES * ns - 1) // 2  # q, v, the slots, the time
         for i in range(n):
             for j in range(nc):
                 obs[i, 2 * j], obs[i, 2 * j + 1] = state[i, j], state[i, nc + j]
@@ -246,15 +260,17 @@ def observe_set(
             k = _put(obs, i, _put(obs, i, k, rate), comfort)
             _put(obs, i, k, zg)
         return obs
-    per, nch = (5 if code == 1 else 8), measured.shape[1] // ns
+    per = _SENSORS_PER_SLOT if code == 1 else _MEASURED_PER_SLOT
+    nch = measured.shape[1] // ns
     for i in range(n):
         for s in range(ns):
             k, m = s * per, s * nch
-            for c in range(4):
+            for c in range(_SENSED):
                 obs[i, k + c] = measured[i, m + c]
             if code == 2:
-                obs[i, k + 4], obs[i, k + 5] = measured[i, m + 4], estimates[i, s, 0]
-                obs[i, k + 6] = estimates[i, s, 1]
+                obs[i, k + _SENSED] = measured[i, m + _SENSED]  # the gap
+                obs[i, k + _SENSED + 1] = estimates[i, s, 0]
+                obs[i, k + _SENSED + 2] = estimates[i, s, 1]
             obs[i, k + per - 1] = requested[i, s]
     return obs
 
@@ -277,7 +293,7 @@ def sense(state, out, requested, rows, noise, measured, estimator, est_state,
     draws = np.empty((state.shape[0], measured.shape[1] + 1) if noisy else (0, 0))
     if noisy:
         normals(keys, steps, draws)
-    measure_slots((sig[0], sig[1], sig[6], sig[8]), noise_std, draws, noisy, measured, estimator,
+    measure_slots((sig[_STROKE], sig[_RATE], sig[_ENDS], sig[_GAP]), noise_std, draws, noisy, measured, estimator,
                   est_state, estimates)  # fmt: skip
     return sig
 
@@ -288,5 +304,5 @@ def sense_scored(state, out, requested, rows, noise, measured, estimator, est_st
     """:func:`sense`, then the reward (:func:`reward_terms`) and the observation set
     (:func:`observe_set`): a step's sensing in one call."""
     sig = sense(state, out, requested, rows, noise, measured, estimator, est_state, estimates)
-    terms = reward_terms(sig[5], sig[0], sig[3], reward_p)
+    terms = reward_terms(sig[_COMFORT], sig[_STROKE], sig[_CURRENT], reward_p)
     return sig, terms, observe_set(code, width, state, sig, measured, estimates, requested)
