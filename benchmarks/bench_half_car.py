@@ -49,7 +49,8 @@ import numpy as np
 
 import capsule_env  # noqa: F401  (registers the tasks)
 from capsule_env.engine import declared_batch
-from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD, _normals
+from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, PARALLEL_THRESHOLD
+from capsule_env.engine.declared_sensing import normals as _normals
 from capsule_env.plant.declared import declared_step_parallel
 from capsule_env.plant.declared_lanes import VECTOR_TANH, plant_form
 

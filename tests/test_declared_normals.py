@@ -1,4 +1,4 @@
-"""The declared batch's sensor noise (``declared_batch._normals``) is the counter-based hash of
+"""The declared batch's sensor noise (``declared_sensing.normals``) is the counter-based hash of
 ``(key, step, pair)`` of the quarter-car env (``env_kernel.gaussian_pair``), vehicle by vehicle
 and pair by pair, bit for bit, whatever the batch; a last odd column is left as it was."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from capsule_env.engine.declared_batch import _normals
+from capsule_env.engine.declared_sensing import normals as _normals
 from capsule_env.engine.env_kernel import gaussian_pair
 
 

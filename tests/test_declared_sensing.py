@@ -62,7 +62,7 @@ def test_the_measurements_and_estimates_are_the_numpy_ones(setting):
 
 
 def _normals_of(batch, d):
-    from capsule_env.engine.declared_batch import _normals
+    from capsule_env.engine.declared_sensing import normals as _normals
 
     normals = np.empty((batch.num_envs, d + 1))
     _normals(batch.noise_key, batch.step_count, normals)

@@ -15,8 +15,9 @@ import pytest
 import capsule_env  # noqa: F401  (registers the tasks)
 from capsule_env._jit import specialised
 from capsule_env.dampers.inverse import INVERSE_CODES, affine_in_current, invert_affine
-from capsule_env.engine.declared_batch import N_SLOT_CHANNELS, _normals
+from capsule_env.engine.declared_batch import N_SLOT_CHANNELS
 from capsule_env.engine.declared_sensing import mean_row, reward_terms
+from capsule_env.engine.declared_sensing import normals as _normals
 from capsule_env.envs.declared_vector import DeclaredVectorEnv
 
 CASES = {

@@ -45,7 +45,6 @@ from capsule_env.engine.declared_sensing import (
     sense_scored,
     signal_arrays,
 )
-from capsule_env.engine.declared_sensing import normals as _normals  # noqa: F401  (its old home)
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD
 from capsule_env.engine.observations import NOISE_CHANNELS
 from capsule_env.guideway import make_profile, random_profile
@@ -71,6 +70,8 @@ __all__ = ["DeclaredBatch", "DECLARED_OBSERVATIONS", "SLOT_CHANNELS", "SLOT_NOIS
 SLOT_CHANNELS = ("stroke_m", "stroke_rate_m_s", "upper_acceleration_m_s2",
                  "lower_acceleration_m_s2", "gap_m")  # fmt: skip
 N_SLOT_CHANNELS = len(SLOT_CHANNELS)
+#: The measured stroke's and stroke rate's positions among a slot's channels.
+_STROKE, _RATE = SLOT_CHANNELS.index("stroke_m"), SLOT_CHANNELS.index("stroke_rate_m_s")
 #: Their noise at ``sensor_noise=1``: the quarter-car's channels of the same sensors
 #: (:data:`capsule_env.engine.observations.NOISE_CHANNELS`) [reconstructed].
 SLOT_NOISE_STD = np.array([
@@ -356,9 +357,9 @@ def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):
 @specialised("code")
 def _invert(code, p, force_n, meas, i_max, out):
     """The inverse model's current for each requested force (closed form, semi-active), on each
-    slot's measured stroke and stroke rate (``meas[:, s, 0]``, ``meas[:, s, 1]``), slot by slot
-    through columns of their own (the vehicles innermost and contiguous: a loop that
-    vectorises, each vehicle's numbers as alone)."""
+    slot's measured stroke and stroke rate (``meas[:, s, _STROKE]``, ``meas[:, s, _RATE]``),
+    slot by slot through columns of their own (the vehicles innermost and contiguous: a loop
+    that vectorises, each vehicle's numbers as alone)."""
     c = code
 
     def impl(code, p, force_n, meas, i_max, out):
@@ -366,7 +367,7 @@ def _invert(code, p, force_n, meas, i_max, out):
         f, x, v, col = np.empty(n_envs), np.empty(n_envs), np.empty(n_envs), np.empty(n_envs)
         for s in range(out.shape[1]):
             for n in range(n_envs):
-                f[n], x[n], v[n] = force_n[n, s], meas[n, s, 0], meas[n, s, 1]
+                f[n], x[n], v[n] = force_n[n, s], meas[n, s, _STROKE], meas[n, s, _RATE]
             for n in range(n_envs):
                 f0, slope = affine_in_current(c, p, x[n], v[n], 0.0)
                 col[n] = invert_affine(f[n], f0, slope, v[n], i_max)
