@@ -59,9 +59,9 @@ LAWS = ("lqr-clipped-biexp-meas", "wheelbase-mpc-biexp-meas")
 
 def _law(name: str = LAWS[0]) -> Any:
     if name == "wheelbase-mpc-biexp-meas":
-        from capsule_env.evaluation.half_car import _mpc_laws
+        from capsule_env.evaluation.half_car import tuned_mpc
 
-        return _mpc_laws()[name]
+        return tuned_mpc(name)
     from capsule_env.agents.controllers.declared_lqr import IndependentClippedLQR
 
     return IndependentClippedLQR()

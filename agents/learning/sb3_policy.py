@@ -168,19 +168,14 @@ def declared_law(name: str, vehicle: str, path: str | Path) -> Controller:
         if vehicle != "half_car":
             raise ValueError(f"{path}: its residual law {name} is the half_car's; its vehicle "
                              f"is {vehicle!r}")  # fmt: skip
-        from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
         from capsule_env.agents.controllers.mpc_solver import solver_available
 
-        from capsule_env.evaluation.half_car import TUNED_MPC
+        from capsule_env.evaluation.half_car import tuned_mpc
 
         if not solver_available():
             raise ValueError(f"{path}: its residual law {name} needs a QP solver: "
                              "pip install 'capsule-env[mpc]'")  # fmt: skip
-        weights = TUNED_MPC[name]
-        law = HalfCarMPC(weights["q_stroke"], weights["q_levitation"], weights["r_force"],
-                         preview=True)  # fmt: skip
-        law.gains_tuned = True
-        return law
+        return tuned_mpc(name)
     try:
         return IndependentClippedLQR(vehicle)
     except (KeyError, ValueError) as exc:

@@ -40,7 +40,7 @@ from capsule_env.engine.config import check_seed
 from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
 
-__all__ = ["TASK_KWARGS", "rollout", "episode_metrics", "tune_coupled", "shipped_policies",
+__all__ = ["TASK_KWARGS", "tuned_mpc", "rollout", "episode_metrics", "tune_coupled", "shipped_policies",
            "evaluate", "evaluation_results", "layout", "format_rows", "run_cli", "main"]  # fmt: skip
 
 #: The task evaluated here, and its options (``capsule_env.tasks.DECLARED_TASKS``).
@@ -164,15 +164,23 @@ def tune_mpc(name: str, seeds: list[int] | None = None) -> dict[str, float]:
     return tune_coupled(seeds, make=lambda **w: HalfCarMPC(**w, preview=preview), grid=MPC_GRID)
 
 
-def _mpc_laws() -> dict[str, Any]:
-    """The half-car MPCs with their tuned weights (:data:`TUNED_MPC`)."""
+def tuned_mpc(name: str) -> Any:
+    """The half-car MPC ``name`` (a key of :data:`TUNED_MPC`) at its tuned weights: what the
+    task's rows, the residual policies trained on it and their loader run."""
     from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
 
-    laws = {name: HalfCarMPC(**TUNED_MPC[name], preview=name.startswith("wheelbase"))
-            for name in TUNED_MPC}  # fmt: skip
-    for law in laws.values():
-        law.gains_tuned = True
-    return laws
+    if not isinstance(name, str) or name not in TUNED_MPC:
+        raise ValueError(f"name must be one of {', '.join(TUNED_MPC)}, got {name!r}")
+    w = TUNED_MPC[name]
+    law = HalfCarMPC(w["q_stroke"], w["q_levitation"], w["r_force"],
+                     preview=name.startswith("wheelbase"))  # fmt: skip
+    law.gains_tuned = True
+    return law
+
+
+def _mpc_laws() -> dict[str, Any]:
+    """The half-car MPCs with their tuned weights (:data:`TUNED_MPC`)."""
+    return {name: tuned_mpc(name) for name in TUNED_MPC}
 
 
 def _solver_figures(name: str, law: Any) -> dict[str, float]:
