@@ -271,7 +271,10 @@ def _branch(episodes: Any, k: int, lifted: LiftedEpisode, max_nodes: int) -> dic
 
 def verify(result: FloorResult) -> np.ndarray:
     """Recompute every episode's ``g`` from the certificate's multipliers (independently of
-    the search): (E,) values; the floors are ``sqrt(max(g, 0))``."""
+    the search): (E,) values; the floors are ``sqrt(max(g, 0))``. The dual's certificate only:
+    a floor raised by the branch and bound (``branch_nodes`` > 0, ``branch[k]["floor_j"]``
+    above ``g``) is certified node by node as it runs (:meth:`.branch.BranchProblem.certify`)
+    but its open nodes' multipliers are not stored, so it is not re-checked here."""
     from capsule_env.oracle.plant import OracleEpisodes
 
     episodes = OracleEpisodes(result.env_kwargs, result.seeds, result.episode_length_s)
