@@ -43,15 +43,20 @@ def _oracle_currents(seeds: list[int], length_s: float) -> tuple[np.ndarray, np.
     return res.currents_a, res.wk_rms_body_acc_m_s2
 
 
-def _leaf(problem: BranchProblem, lifted: Any, ep: OracleEpisodes, k: int, currents: np.ndarray):
-    """(J of the trajectory, the bound of the leaf of its signs)."""
+def _rollout(lifted: Any, ep: OracleEpisodes, k: int, currents: np.ndarray) -> np.ndarray:
+    """The lifted plant's forces (N) under per-step ``currents`` (A)."""
     p = ep.damper_params[k]
 
     def law(x: float, v: float, step: int) -> float:
         d, c = model_force_parts(ep.code, p, np.array([x]), np.array([v]), currents[[step]])
         return float(d[0] + c[0])
 
-    forces = closed_loop(lifted, law)
+    return closed_loop(lifted, law)
+
+
+def _leaf(problem: BranchProblem, lifted: Any, ep: OracleEpisodes, k: int, currents: np.ndarray):
+    """(J of the trajectory, the bound of the leaf of its signs)."""
+    forces = _rollout(lifted, ep, k, currents)
     v = lifted.affine(lifted.v_rows, forces)
     bound, _ = problem.node_bound(np.where(v >= 0.0, 1, -1).astype(np.int8))
     return problem.ride(forces / FORCE_SCALE_N), bound
@@ -114,6 +119,79 @@ def narrowed(seed: int, length_s: float) -> dict[str, float]:
     return out
 
 
+def _causal_realisation(
+    problem: BranchProblem, lifted: Any, ep: OracleEpisodes, k: int, target_kn: np.ndarray
+) -> float:
+    """Wk of the plant run causally towards the relaxed forces ``target_kn``: per control step,
+    the current (of 301 in ``[0, i_max]``) whose force at the step's first evaluation is
+    nearest the relaxed one, held for the step's evaluations."""
+    p, grid = ep.damper_params[k], np.linspace(0.0, ep.i_max, 301)
+    chosen: dict[int, float] = {}
+    counter = iter(range(lifted.n_forces))
+
+    def law(x: float, v: float, step: int) -> float:
+        s = next(counter)
+        if step not in chosen:
+            d, c = model_force_parts(ep.code, p, np.full(grid.size, x), np.full(grid.size, v), grid)
+            chosen[step] = float(grid[np.argmin(np.abs(d + c - target_kn[s] * FORCE_SCALE_N))])
+        d, c = model_force_parts(ep.code, p, np.array([x]), np.array([v]), np.array([chosen[step]]))
+        return float(d[0] + c[0])
+
+    return math.sqrt(problem.ride(closed_loop(lifted, law) / FORCE_SCALE_N))
+
+
+def diagnose_leaf(problem: BranchProblem, lifted: Any, ep: OracleEpisodes, k: int,
+                  *node: np.ndarray) -> dict[str, float]:  # fmt: skip
+    """How the leaf ``node`` (``problem.node_bound``'s arguments)'s relaxed solution departs from the plant: the share of its
+    force evaluations outside the model's band ``[F(0 A), F(i_max)]`` at their own relaxed
+    stroke and rate (above it, below it in raw force; stronger: beyond it in the stroke
+    rate's direction; 1e-3 kN tolerance), the mean excess over
+    all evaluations (kN), the mean ``|F|``, the within-step spread (max - min) of the current
+    fraction each relaxed force needs (clipped to [0, 1]; mean and median over steps), and the
+    Wk of realising the relaxed forces causally (:func:`_causal_realisation`)."""
+    bound, forces = problem.node_bound(*node)
+    f0, n, p = FORCE_SCALE_N, lifted.n_forces, ep.damper_params[k]
+    v = lifted.affine(lifted.v_rows, forces * f0)
+    x = lifted.affine(lifted.x_rows, forces * f0)
+    zero = np.sum(model_force_parts(ep.code, p, x, v, np.zeros(n)), axis=0) / f0
+    full = np.sum(model_force_parts(ep.code, p, x, v, np.full(n, ep.i_max)), axis=0) / f0
+    lo, hi = np.minimum(zero, full), np.maximum(zero, full)
+    excess = np.maximum(lo - forces, 0.0) + np.maximum(forces - hi, 0.0)
+    width = full - zero
+    safe = np.where(np.abs(width) > 1e-9, width, 1.0)
+    theta = np.clip((forces - zero) / safe, 0.0, 1.0)
+    spread = np.array([np.ptp(theta[lifted.step_of == t]) for t in range(ep.n_steps)])
+    return {"leaf_bound_wk": math.sqrt(bound),
+            "outside_share": float(np.mean(excess > 1e-3)),
+            "above_share": float(np.mean(forces - hi > 1e-3)),
+            "below_share": float(np.mean(lo - forces > 1e-3)),
+        "stronger_share": float(np.mean(np.where(v >= 0.0, forces - hi, lo - forces) > 1e-3)),
+            "mean_excess_kn": float(excess.mean()), "mean_abs_force_kn": float(np.abs(forces).mean()),
+            "step_spread_mean": float(spread.mean()), "step_spread_median": float(np.median(spread)),
+            "causal_realisation_wk": _causal_realisation(problem, lifted, ep, k, forces)}  # fmt: skip
+
+
+def diagnose(seed: int, length_s: float, stroke: bool = False) -> dict[str, Any]:
+    """:func:`diagnose_leaf` at the leaves of the oracle's and of 0 A's stroke-rate signs
+    (``stroke``: and their strokes' sides, :mod:`capsule_env.bounds.stroke`)."""
+    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts, stroke_sides
+
+    ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), [seed], length_s)
+    oracle_i, oracle_wk = _oracle_currents([seed], length_s)
+    lifted, p = lift_episode(ep, 0), ep.damper_params[0]
+    cuts = side_cuts(ep.code, p)
+    problem = (StrokeBranchProblem(lifted, damper_envelope(ep.code, p), cuts) if stroke
+               else BranchProblem(lifted, damper_envelope(ep.code, p)))  # fmt: skip
+    out: dict[str, Any] = {"length_s": length_s, "seed": seed, "oracle_wk": float(oracle_wk[0])}
+    for name, currents in (("oracle_signs", oracle_i[0]), ("zero_a_signs", np.zeros(ep.n_steps))):
+        forces = _rollout(lifted, ep, 0, currents)
+        node = [np.where(lifted.affine(lifted.v_rows, forces) >= 0.0, 1, -1).astype(np.int8)]
+        if stroke:
+            node.append(stroke_sides(lifted.affine(lifted.x_rows, forces), cuts.blend_m))
+        out[name] = diagnose_leaf(problem, lifted, ep, 0, *node)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
@@ -122,6 +200,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, default=None)
     p.add_argument("--narrowed", action="store_true",
                    help="print only the 0 A leaf with narrowed (not valid) cut sets")  # fmt: skip
+    p.add_argument(
+        "--stroke",
+        action="store_true",
+        help="with --diagnose: leaves that also fix the stroke's side of the blend",
+    )
+    p.add_argument(
+        "--diagnose",
+        action="store_true",
+        help="print only how the leaves at the oracle's and 0 A's signs depart "
+        "from the plant (band excess, per-step current spread, causal realisation)",
+    )
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
@@ -129,6 +218,11 @@ def main(argv: list[str] | None = None) -> int:
         for length in args.lengths:
             for seed in args.seeds:
                 print(json.dumps({"length_s": length, "seed": seed, **narrowed(seed, length)}))
+        return 0
+    if args.diagnose:
+        for length in args.lengths:
+            for seed in args.seeds:
+                print(json.dumps(diagnose(seed, length, args.stroke)), flush=True)
         return 0
     rows = [r for length in args.lengths for r in run(args.seeds, length, args.nodes)]
     if args.json is not None:

@@ -335,7 +335,7 @@ class BranchProblem:
         """:meth:`certify` at multipliers already scaled (module doc of the rounding budget)."""
         n, t, a = self.n, self.t, self.a_aug
         eps = np.finfo(float).eps
-        gamma = 2.0 * (n + t + h.size + 8) * eps
+        gamma = 2.0 * (a.shape[0] + t + h.size + 8) * eps  # a: N rows (2N with strokes)
         y_v = -(gv.T @ z)
         r_f = -self.wf.T @ y_w - a[:, :n].T @ y_v + gf.T @ z
         r_f_mag = (np.abs(self.wf).T @ np.abs(y_w) + np.abs(a[:, :n]).T @ np.abs(y_v)

@@ -26,8 +26,8 @@ __all__ = ["SparseLift", "sparse_lift"]
 @dataclass(frozen=True)
 class SparseLift:
     """``dyn [X; F] = dyn_rhs`` (the start state and every substep), ``v = v_x X + v_f F +
-    v_c`` (N), ``acc = acc_x X + acc_f F + acc_c`` (T); forces in N, ``X`` flattened (4 (K +
-    1),)."""
+    v_c`` (N), ``acc = acc_x X + acc_f F + acc_c`` (T), the strokes ``x = x_x X + x_f F +
+    x_c`` (N); forces in N, ``X`` flattened (4 (K + 1),)."""
 
     n_x: int
     dyn: sp.csr_matrix
@@ -38,6 +38,9 @@ class SparseLift:
     acc_x: sp.csr_matrix
     acc_f: sp.csr_matrix
     acc_c: np.ndarray
+    x_x: sp.csr_matrix
+    x_f: sp.csr_matrix
+    x_c: np.ndarray
 
 
 class _Rows:
@@ -66,8 +69,8 @@ def sparse_lift(lifted: LiftedEpisode) -> SparseLift:
     n_k = t_steps * n_sub
     n_x = 4 * (n_k + 1)
     h = lifted.dt_s / n_sub
-    dx, df, vx, vf, ax, af = (_Rows() for _ in range(6))
-    rhs, v_c, acc_c = np.zeros(n_x), np.zeros(n), np.zeros(t_steps)
+    dx, df, vx, vf, ax, af, xx, xf = (_Rows() for _ in range(8))
+    rhs, v_c, acc_c, x_c = np.zeros(n_x), np.zeros(n), np.zeros(t_steps), np.zeros(n)
     for i in range(4):
         dx.add(i, np.array([i]), np.array([1.0]))
     rhs[:4] = lifted.state0
@@ -83,6 +86,9 @@ def sparse_lift(lifted: LiftedEpisode) -> SparseLift:
             vx.add(col + j, xs, v_loc[4 + j, :4])
             vf.add(col + j, forces, v_loc[4 + j, 4:8])
             v_c[col + j] = v_loc[4 + j, 8]
+            xx.add(col + j, xs, x_loc[4 + j, :4])
+            xf.add(col + j, forces, x_loc[4 + j, 4:8])
+            x_c[col + j] = x_loc[4 + j, 8]
         for i in range(4):  # X_{k+1} - Phi X_k - Psi F = phi
             row = 4 * (k + 1) + i
             dx.add(row, np.r_[4 * (k + 1) + i, xs], np.r_[1.0, -new[i, :4]])
@@ -94,10 +100,12 @@ def sparse_lift(lifted: LiftedEpisode) -> SparseLift:
     for step, (zg, zg_rate) in enumerate(lifted.output_inputs):
         col, xs = step * per + 4 * n_sub, 4 * ((step + 1) * n_sub) + np.arange(4)
         vx.add(col, xs[[1, 3]], np.array([1.0, -1.0]))
+        xx.add(col, xs[[0, 2]], np.array([1.0, -1.0]))
         acc = _rates(out_basis, 4, zg, zg_rate, lifted.vehicles[step])[1]
         ax.add(step, xs, acc[:4])
         af.add(step, np.array([col]), acc[4:5])
         acc_c[step] = acc[5]
     dyn = sp.hstack([dx.matrix((n_x, n_x)), df.matrix((n_x, n))]).tocsr()
     return SparseLift(n_x, dyn, rhs, vx.matrix((n, n_x)), vf.matrix((n, n)), v_c,
-                      ax.matrix((t_steps, n_x)), af.matrix((t_steps, n)), acc_c)  # fmt: skip
+                      ax.matrix((t_steps, n_x)), af.matrix((t_steps, n)), acc_c,
+                      xx.matrix((n, n_x)), xf.matrix((n, n)), x_c)  # fmt: skip

@@ -1,0 +1,236 @@
+"""Nodes that also fix the stroke's side of the branch blend: the offset tied to the stroke.
+
+:mod:`.branch`'s cuts within a stroke-rate sign hold for every stroke, so they let the offset
+``c`` be anywhere in ``[c_lo, c_hi]`` (-362..346 N on the ``sim`` damper) at either sign of the
+stroke, and take ``c_hi`` at 0 A together with ``a_hi, b_hi`` at ``i_max``. Beyond the blend
+(``|x| >= branch_blend_m``) the blend weight is exactly 0 or 1, so the force is *one* branch's,
+``F(i) = a(i) S_d(v) + b(i) v + c(i)`` with ``a, b, c`` affine in the one current ``i`` and
+``d`` fixed. A node here fixes, beside the stroke rate's sign ``sigma`` at each force
+evaluation, the stroke's side ``tau``:
+
+* ``tau = +1``: ``x >= blend`` (the upper branch), ``tau = -1``: ``x <= -blend`` (the lower
+  one), ``tau = 2``: ``-blend <= x <= blend`` (inside the blend), ``tau = 0``: not fixed.
+  The three fixed values partition every stroke (the boundaries shared), so the children
+  ``+1, -1, 2`` of an evaluation cover every trajectory of their parent.
+* Where ``tau = +-1`` the node has the linear cut ``tau x_s >= blend`` (``x_s`` affine in the
+  forces, :mod:`.lifted`), where ``tau = 2`` the two cuts ``|x_s| <= blend``, and where also
+  ``sigma`` is fixed the branch's own cuts (:func:`side_cuts`); every node keeps
+  :mod:`.branch`'s cuts too (valid at every stroke).
+
+The node's bound is certified exactly as :meth:`.branch.BranchProblem.node_bound` certifies it:
+the stroke ``x`` enters as further affine rows beside the stroke rate (``[v; x] = [A; B] F +
+[alpha; beta]``), their residual priced with an a-priori bound on ``|x_s|`` from
+:func:`~.branch.force_magnitude_bounds`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from capsule_env.bounds.branch import CUT_SLACK_KN, TANGENT_RATES_M_S, BranchProblem
+from capsule_env.bounds.lifted import LiftedEpisode
+from capsule_env.bounds.relaxation import FORCE_SCALE_N, SLOPE_SLACK_REL, DamperEnvelope
+from capsule_env.dampers.registry import model_of_code
+
+__all__ = [
+    "INSIDE_BLEND",
+    "SideCuts",
+    "StrokeBranchProblem",
+    "branch_corners",
+    "side_cut_values",
+    "side_cuts",
+    "stroke_sides",
+]
+
+#: ``tau`` of an evaluation whose stroke is inside the blend, ``|x| <= blend``.
+INSIDE_BLEND = 2
+
+
+def branch_corners(code: int, params: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(corners, blend_m)``: ``corners[jx, ji] = (a, b, c, d)`` (SI) of the branch on side
+    ``jx`` (0: ``x >= blend``, the upper branch; 1: ``x <= -blend``, the lower) at current
+    ``ji`` (0: 0 A, 1: ``i_max``). The passive linear damper is one branch, ``(0, c_lin, 0,
+    0)`` at every current, with blend 0."""
+    name = model_of_code(code).name
+    p = np.asarray(params, dtype=float)
+    if name == "passive":
+        return np.tile([0.0, float(p[0]), 0.0, 0.0], (2, 2, 1)), 0.0
+    if name != "bi_exponential":
+        raise ValueError(f"branch_corners: no branch form for the damper {name!r}")
+    from capsule_env.dampers import bi_exponential as be
+    from capsule_env.dampers.base import BRANCH_BLEND, I_MAX
+
+    out = np.zeros((2, 2, 4))
+    for jx, o in enumerate((be.UPPER, be.LOWER)):
+        for ji, i in enumerate((0.0, float(p[I_MAX]))):
+            out[jx, ji] = (p[o + be.A0] + p[o + be.A1] * i, p[o + be.B0] + p[o + be.B1] * i,
+                           p[o + be.C0] + p[o + be.C1] * i, p[o + be.D])  # fmt: skip
+    if out[..., 0].min() < 0.0 or out[..., 1].min() < 0.0 or out[..., 3].min() < 0.0:
+        raise ValueError("branch_corners: a negative yield force, slope or d at some current")
+    return out, float(p[BRANCH_BLEND])
+
+
+def _sup_above_line(a: np.ndarray, b: np.ndarray, d: np.ndarray, m: float) -> np.ndarray:
+    """``sup_{u >= 0} a (1 - exp(-d u)) + (b - m) u`` for ``a, d >= 0`` and ``m >= b``.
+
+    With ``r = m - b >= 0`` the function ``h`` is concave, ``h' = a d exp(-d u) - r``. If
+    ``r >= a d``, ``h' <= 0``: the sup is ``h(0) = 0``. If ``0 < r < a d``, ``h' = 0`` at
+    ``exp(-d u*) = r / (a d)``, the global maximum: ``a - r/d - (r/d) ln(a d / r)``. If ``r =
+    0 < a d``, ``h`` increases to ``a``."""
+    r = m - b
+    ad = a * d
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inner = a - r / d - (r / d) * np.log(ad / r)
+    return np.where(r >= ad, 0.0, np.where(r <= 0.0, a, inner))
+
+
+@dataclass(frozen=True)
+class SideCuts:
+    """The cuts of one damper with the stroke rate's sign ``sigma`` and the stroke's side
+    ``tau`` (beyond the blend) fixed, forces in kN, indexed ``[jv, jx]`` (0 for ``+1``, 1 for
+    ``-1``): with ``u = sigma v >= 0``, ``sigma F >= lo_slope u + lo_off`` and ``sigma F <=
+    up_icpt[..., k] + up_slope[..., k] u`` for every ``k``; ``blend_m`` the blend's width."""
+
+    lo_slope: np.ndarray
+    lo_off: np.ndarray
+    up_icpt: np.ndarray
+    up_slope: np.ndarray
+    blend_m: float
+
+
+def side_cuts(
+    code: int, params: np.ndarray, rates_m_s: tuple[float, ...] = TANGENT_RATES_M_S
+) -> SideCuts:
+    """:class:`SideCuts` of a damper row.
+
+    Proof. Beyond the blend on side ``tau`` the force is the branch's ``F(i) = a(i) S_d(v) +
+    b(i) v + c(i)``, affine in ``i`` at fixed ``v`` (``a, b, c`` affine in ``i``, ``d`` the
+    branch's), so for every ``i`` in ``[0, i_max]`` ``sigma F(i)`` lies between its values at
+    the corners ``i in {0, i_max}``: ``f_j(u) = a_j (1 - exp(-d u)) + b_j u + sigma c_j`` with
+    ``u = sigma v >= 0`` (``sigma S_d(v) = 1 - exp(-d u)``). Lower: ``a_j (1 - exp(-d u)) >=
+    0``, so ``f_j(u) >= min_j b_j u + min_j sigma c_j``. Upper: for any slope ``m >= max_j
+    b_j``, ``f_j(u) <= m u + sigma c_j + sup_u (a_j (1 - exp(-d u)) + (b_j - m) u)`` (closed
+    form in :func:`_sup_above_line`), so the line with intercept the max over the corners lies
+    above both; the slopes ``m`` are each corner's at each tangent point ``u_k`` (raised to
+    ``max_j b_j`` where below it). The kernel's fast exp (a few ulp) and the closed form's rounding
+    (a few ulp of at most a few kN) are covered by :data:`~.branch.CUT_SLACK_KN` on each cut
+    and :data:`~.relaxation.SLOPE_SLACK_REL` on the lower slope. Unlike :func:`.branch.sign_cuts`
+    the offset is the branch's (about -362..-230 N below, +222..+346 N above on ``sim``) and at
+    the same current as ``a`` and ``b``."""
+    corners, blend = branch_corners(code, params)
+    f0 = FORCE_SCALE_N
+    u = np.asarray(rates_m_s, dtype=float)
+    if u.size == 0 or np.any(~(u >= 0.0)):
+        raise ValueError(f"side_cuts: rates_m_s must be numbers >= 0, got {rates_m_s!r}")
+    lo_slope, lo_off = np.zeros((2, 2)), np.zeros((2, 2))
+    up_icpt, up_slope = np.zeros((2, 2, 2 * u.size)), np.zeros((2, 2, 2 * u.size))
+    for jv, sigma in enumerate((1.0, -1.0)):
+        for jx in range(2):
+            a, b, c, d = (corners[jx, :, q] / (f0 if q < 3 else 1.0) for q in range(4))
+            sc = sigma * c
+            lo_slope[jv, jx] = b.min() / (1.0 + SLOPE_SLACK_REL)
+            lo_off[jv, jx] = sc.min() - CUT_SLACK_KN
+            slopes = a[None, :] * d[None, :] * np.exp(-d[None, :] * u[:, None]) + b[None, :]
+            for k, m in enumerate(np.maximum(slopes.ravel(), b.max())):
+                up_slope[jv, jx, k] = m
+                up_icpt[jv, jx, k] = float(np.max(_sup_above_line(a, b, d, float(m)) + sc))
+    return SideCuts(lo_slope, lo_off, up_icpt + CUT_SLACK_KN, up_slope, blend)
+
+
+def side_cut_values(
+    cuts: SideCuts, sigma: float, tau: float, force_kn: np.ndarray, v: np.ndarray
+) -> np.ndarray:
+    """The cuts at ``(sigma, tau)`` at forces ``force_kn`` and rates ``v`` (M,): an (M, 2 + K)
+    array, each entry ``>= 0`` where the cut holds (sign, lower edge, tangents)."""
+    jv, jx = int(sigma < 0), int(tau < 0)
+    u, f = sigma * np.asarray(v, dtype=float), sigma * np.asarray(force_kn, dtype=float)
+    lower = f - cuts.lo_slope[jv, jx] * u - cuts.lo_off[jv, jx]
+    upper = cuts.up_icpt[jv, jx][None, :] + cuts.up_slope[jv, jx][None, :] * u[:, None]
+    return np.column_stack([u, lower, upper - f[:, None]])
+
+
+def stroke_sides(x_m: np.ndarray, blend_m: float) -> np.ndarray:
+    """``tau`` of strokes ``x_m``: +1 beyond ``+blend``, -1 beyond ``-blend``, else
+    :data:`INSIDE_BLEND`."""
+    x = np.asarray(x_m, dtype=float)
+    return np.where(x >= blend_m, 1, np.where(x <= -blend_m, -1, INSIDE_BLEND)).astype(np.int8)
+
+
+class StrokeBranchProblem(BranchProblem):
+    """:class:`~.branch.BranchProblem` whose nodes also fix the stroke's side ``tau`` (module
+    doc); the certificate's affine rows are ``[v; x]`` (2N), forces in kN."""
+
+    def __init__(self, lifted: LiftedEpisode, env: DamperEnvelope, cuts: SideCuts) -> None:
+        from capsule_env.bounds.sparse import sparse_lift
+
+        super().__init__(lifted, env)
+        f0, n = FORCE_SCALE_N, self.n
+        self.side = cuts
+        self.v_aug = self.a_aug
+        x_aug = lifted.x_rows.copy()
+        x_aug[:, :n] *= f0
+        self.a_aug = np.vstack([self.v_aug, x_aug])
+        x_abs = np.abs(x_aug[:, n]) + np.abs(x_aug[:, :n]) @ self.f_abs
+        self.v_abs = np.r_[self.v_abs, x_abs * (1.0 + 1e-12)]
+        sl, sq = sparse_lift(lifted), self._sparse
+        sq.v_x = sp.vstack([sq.v_x, sl.x_x]).tocsr()
+        sq.v_f = sp.vstack([sq.v_f, sl.x_f * f0]).tocsr()
+        sq.v_c = np.r_[sq.v_c, sl.x_c]
+
+    def rows(  # type: ignore[override]
+        self, sigma: np.ndarray, tau: np.ndarray | None = None
+    ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:
+        """The node's cuts ``GF F + Gv [v; x] <= h``: :meth:`.branch.BranchProblem.rows`,
+        the stroke's side cuts where ``tau`` is fixed and the branch's cuts where ``sigma`` is
+        fixed too."""
+        n, c = self.n, self.side
+        gf0, gv0, h0 = super().rows(sigma)
+        gv0 = sp.hstack([gv0, sp.csr_matrix((h0.size, n))]).tocsr()
+        if tau is None:
+            return gf0, gv0, h0
+        tau = np.asarray(tau)
+        dec = np.flatnonzero((np.abs(tau) == 1) & (sigma != 0))
+        sg = sigma[dec].astype(float)
+        jv, jx = (sigma[dec] < 0).astype(int), (tau[dec] < 0).astype(int)
+        idx, cf, cv, cx = [dec], [-sg], [c.lo_slope[jv, jx] * sg], [np.zeros(dec.size)]
+        rhs = [-c.lo_off[jv, jx]]
+        for k in range(c.up_slope.shape[2]):  # sigma F - m sigma v <= icpt
+            idx.append(dec)
+            cf.append(sg)
+            cv.append(-c.up_slope[jv, jx, k] * sg)
+            cx.append(np.zeros(dec.size))
+            rhs.append(c.up_icpt[jv, jx, k])
+        side, inside = np.flatnonzero(np.abs(tau) == 1), np.flatnonzero(tau == INSIDE_BLEND)
+        for at, coef in ((side, -tau[side].astype(float)), (inside, np.ones(inside.size)),
+                         (inside, -np.ones(inside.size))):  # fmt: skip
+            idx.append(at)  # coef x <= -blend (tau x >= blend) or +-x <= blend
+            cf.append(np.zeros(at.size))
+            cv.append(np.zeros(at.size))
+            cx.append(coef)
+            rhs.append(np.full(at.size, -c.blend_m if at is side else c.blend_m))
+        col = np.concatenate(idx)
+        row = np.arange(col.size)
+        gf = sp.csr_matrix((np.concatenate(cf), (row, col)), shape=(col.size, n))
+        gv = sp.csr_matrix((np.r_[np.concatenate(cv), np.concatenate(cx)],
+                            (np.r_[row, row], np.r_[col, col + n])), shape=(col.size, 2 * n))  # fmt: skip
+        return (sp.vstack([gf0, gf]).tocsr(), sp.vstack([gv0, gv]).tocsr(),
+                np.r_[h0, np.concatenate(rhs)])  # fmt: skip
+
+    def node_bound(  # type: ignore[override]
+        self, sigma: np.ndarray, tau: np.ndarray | None = None
+    ) -> tuple[float, np.ndarray]:
+        """The certified bound of the node ``(sigma, tau)`` and its relaxed forces (kN)."""
+        gf, gv, h = self.rows(sigma, tau)
+        y_w, z, forces = self._sparse.solve(gf, gv, h)
+        return self.certify(gf, gv, h, y_w, z), forces
+
+    def violation(self, forces_kn: np.ndarray) -> np.ndarray:
+        """As :meth:`.branch.BranchProblem.violation` (the stroke-rate sign's cuts)."""
+        a, self.a_aug = self.a_aug, self.v_aug
+        try:
+            return super().violation(forces_kn)
+        finally:
+            self.a_aug = a

@@ -1,0 +1,154 @@
+"""Nodes that also fix the stroke's side of the blend (capsule_env.bounds.stroke): the
+branch's cuts hold on the damper model and on rollouts, the tie of the offset to the stroke
+cuts off forces the untied cuts admit, and the leaves bound the trajectories they contain."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_bounds_branch import _rollout
+
+from capsule_env import metrics
+from capsule_env.bounds.branch import BranchProblem, sign_cut_values, sign_cuts
+from capsule_env.bounds.lifted import LiftedEpisode
+from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_force_parts
+from capsule_env.bounds.stroke import (
+    INSIDE_BLEND,
+    StrokeBranchProblem,
+    side_cut_values,
+    side_cuts,
+    stroke_sides,
+)
+from capsule_env.engine.layout import OUT_BODY_ACC
+from capsule_env.oracle.plant import OracleEpisodes
+
+
+@pytest.fixture(scope="module")
+def sim() -> OracleEpisodes:
+    return OracleEpisodes({"setting": "sim"}, [1000], 0.1)
+
+
+@pytest.fixture(scope="module")
+def window() -> OracleEpisodes:
+    return OracleEpisodes({"setting": "sim"}, [1000], 0.35)
+
+
+def _model(ep: OracleEpisodes, x: np.ndarray, v: np.ndarray, i: np.ndarray) -> np.ndarray:
+    d, c = model_force_parts(ep.code, ep.damper_params[0], x, v, i)
+    return (d + c) / FORCE_SCALE_N
+
+
+def test_side_cuts_hold_on_the_model_beyond_the_blend(sim: OracleEpisodes) -> None:
+    cuts = side_cuts(sim.code, sim.damper_params[0])
+    blend = cuts.blend_m
+    assert blend == pytest.approx(1e-4)
+    rates = np.r_[-np.logspace(-7, 0.3, 80), 0.0, np.logspace(-7, 0.3, 80)]
+    for tau in (1.0, -1.0):
+        strokes = tau * blend * np.r_[1.0, 1.0 + 1e-12, 1.5, 10.0, 300.0]
+        x, v, i = np.meshgrid(strokes, rates, np.linspace(0.0, 1.5, 13))
+        x, v, i = x.ravel(), v.ravel(), i.ravel()
+        force = _model(sim, x, v, i)
+        for sigma in (1.0, -1.0):
+            at = sigma * v >= 0.0
+            assert side_cut_values(cuts, sigma, tau, force[at], v[at]).min() >= 0.0
+    # a force against the stroke rate is cut off, as with the stroke-rate sign alone
+    assert side_cut_values(cuts, 1.0, 1.0, np.array([-0.5]), np.array([0.05])).min() < 0.0
+
+
+def test_the_offset_tie_cuts_off_forces_the_untied_cuts_admit(sim: OracleEpisodes) -> None:
+    """Stroke beyond +blend, rate negative: the upper branch's offset (+222..+346 N) opposes
+    the rate, so the largest ``-F`` is well below what cuts that let the offset be the lower
+    branch's (-362 N) admit. The model's own maximum over the currents is the independent
+    fact: the untied cuts admit forces above it by about 0.5 kN, the tied ones do not."""
+    env = damper_envelope(sim.code, sim.damper_params[0])
+    untied, tied = sign_cuts(env), side_cuts(sim.code, sim.damper_params[0])
+    for rate in (-0.002, -0.02, -0.1):
+        x = np.full(301, 5e-3)
+        real_max = float(np.max(-_model(sim, x, np.full(301, rate), np.linspace(0, 1.5, 301))))
+        v = np.array([rate])
+        untied_max = float(np.min(sign_cut_values(untied, -1.0, np.zeros(1), v)[0, 2:]))
+        tied_max = float(np.min(side_cut_values(tied, -1.0, 1.0, np.zeros(1), v)[0, 2:]))
+        # -F at most untied_max and tied_max (the cut values at F = 0 are the upper edges)
+        assert untied_max - real_max > 0.45
+        assert tied_max >= real_max - 1e-9
+        assert tied_max - real_max < untied_max - real_max - 0.4
+        # the untied cuts hold at a force 0.4 kN beyond the model; the tied ones cut it off
+        beyond = np.array([-(real_max + 0.4)])
+        assert sign_cut_values(untied, -1.0, beyond, v).min() >= 0.0
+        assert side_cut_values(tied, -1.0, 1.0, beyond, v).min() < 0.0
+
+
+def test_stroke_sides_partition_the_strokes() -> None:
+    x = np.array([-1e-3, -1e-4, -5e-5, 0.0, 5e-5, 1e-4, 1e-3])
+    assert stroke_sides(x, 1e-4).tolist() == [-1, -1, INSIDE_BLEND, INSIDE_BLEND,
+                                              INSIDE_BLEND, 1, 1]  # fmt: skip
+
+
+def test_sparse_strokes_reproduce_the_dense_lift(sim: OracleEpisodes) -> None:
+    from scipy.sparse.linalg import spsolve_triangular
+
+    from capsule_env.bounds.sparse import sparse_lift
+
+    lifted, forces = _rollout(sim, np.random.default_rng(2).uniform(0, 1.5, sim.n_steps))
+    sl = sparse_lift(lifted)
+    state = spsolve_triangular(sl.dyn[:, : sl.n_x].tocsr(),
+                               sl.dyn_rhs - sl.dyn[:, sl.n_x :] @ forces)  # fmt: skip
+    x = sl.x_x @ state + sl.x_f @ forces + sl.x_c
+    assert np.allclose(x, lifted.affine(lifted.x_rows, forces), rtol=0, atol=1e-15)
+
+
+def _signs(lifted: LiftedEpisode, forces: np.ndarray, blend: float):
+    v = lifted.affine(lifted.v_rows, forces)
+    x = lifted.affine(lifted.x_rows, forces)
+    return np.where(v >= 0.0, 1, -1).astype(np.int8), stroke_sides(x, blend), v, x
+
+
+def test_rollouts_lie_in_their_leaf_and_the_leaf_bounds_them(window: OracleEpisodes) -> None:
+    """Every force evaluation of 0 A, random and on-off rollouts satisfies its own side's
+    cuts; the leaf of the trajectory's own (rate, stroke) signs is certified below its
+    simulated J (the compiled env's: an independent number) and is at least the leaf of
+    the rate's signs alone (its cuts are a superset)."""
+    p = window.damper_params[0]
+    env, cuts = damper_envelope(window.code, p), side_cuts(window.code, p)
+    rng = np.random.default_rng(11)
+    leaves = []
+    for currents in (np.zeros(window.n_steps), rng.uniform(0, 1.5, window.n_steps),
+                     rng.choice([0.0, 1.5], window.n_steps)):  # fmt: skip
+        lifted, forces = _rollout(window, currents)
+        sigma, tau, v, x = _signs(lifted, forces, cuts.blend_m)
+        f = forces / FORCE_SCALE_N
+        for s_v in (1, -1):
+            for s_x in (1, -1):
+                at = (sigma == s_v) & (tau == s_x)
+                assert side_cut_values(cuts, s_v, s_x, f[at], v[at]).min(initial=0.0) >= 0.0
+        problem = StrokeBranchProblem(lifted, env, cuts)
+        assert np.all(np.abs(x) <= problem.v_abs[problem.n :])
+        bound, _ = problem.node_bound(sigma, tau)
+        plain, _ = BranchProblem(lifted, env).node_bound(sigma)
+        _, out = window.run(np.array([0]), currents[None], substeps="env")
+        env_wk = float(metrics.wk_weighted_rms(out[0, :, OUT_BODY_ACC], window.dt_s))
+        assert 0.0 <= bound <= env_wk**2
+        assert bound >= plain * (1.0 - 1e-6)
+        leaves.append((bound, plain))
+    assert leaves[0][0] > 1.5 * leaves[0][1]  # the tie matters on the 0 A leaf
+
+
+def test_any_multipliers_certify_below_the_trajectory_with_strokes(
+    window: OracleEpisodes,
+) -> None:
+    """Weak duality with the stroke rows: random multipliers, not the solver's, still bound
+    the 0 A trajectory's J from below."""
+    p = window.damper_params[0]
+    cuts = side_cuts(window.code, p)
+    lifted, forces = _rollout(window, np.zeros(window.n_steps))
+    problem = StrokeBranchProblem(lifted, damper_envelope(window.code, p), cuts)
+    sigma, tau, _, _ = _signs(lifted, forces, cuts.blend_m)
+    gf, gv, h = problem.rows(sigma, tau)
+    assert np.all(gv @ problem.a_aug @ np.r_[forces / FORCE_SCALE_N, 1.0]
+                  + gf @ (forces / FORCE_SCALE_N) <= h)  # fmt: skip
+    y_w, z, _ = problem._sparse.solve(gf, gv, h)
+    ride = problem.ride(forces / FORCE_SCALE_N)
+    rng = np.random.default_rng(4)
+    for scale in (0.5, 1.0, 2.0):
+        assert problem.certify(gf, gv, h, scale * y_w, z * rng.uniform(0, 2, z.size)) <= ride
+    assert ride >= problem.certify(gf, gv, h, y_w, z) > 0.0
