@@ -49,21 +49,42 @@ TOLERANCE = 1e-5
 NO_COMPILER = "no C compiler on this machine (cc, gcc, clang or $CC): the C export is not built"
 
 
-def rollout_obs(policy, env_kwargs: dict, vehicles: int = 4, steps: int = 200) -> np.ndarray:
+def rollout_obs(policy, env_kwargs: dict, vehicles: int = 4, steps: int = 200,
+                episode_length_s: float = 2.0) -> np.ndarray:  # fmt: skip
     """The observations of ``steps`` control steps of ``vehicles`` episodes that ``policy``
-    drives (its deterministic actions), guideway bank 3, seeds 40.. (rows: every step)."""
+    drives (its deterministic actions), guideway bank 3, seeds 40.. (rows: every step).
+    ``episode_start`` is SB3's: True where the observation is a new episode's first. The envs
+    autoreset on the step after an episode's end (NEXT_STEP): the observation returned with
+    ``terminated | truncated`` is the old episode's last, the next step's is the new one's first."""
     make = DeclaredVectorEnv if "vehicle" in env_kwargs else CapsuleSuspensionVectorEnv
-    env = make(num_envs=vehicles, guideway_seed=3, episode_length_s=2.0, **env_kwargs)
+    env = make(num_envs=vehicles, guideway_seed=3, episode_length_s=episode_length_s, **env_kwargs)
     obs, _ = env.reset(seed=list(range(40, 40 + vehicles)))
     policy.reset() if hasattr(policy, "reset") else None
-    start, rows = np.ones(vehicles, dtype=bool), []
+    start, ended, rows = np.ones(vehicles, dtype=bool), np.zeros(vehicles, dtype=bool), []
     for _ in range(steps):
         rows.append(obs.copy())
         action, _ = policy.predict(obs, episode_start=start, deterministic=True)
         obs, _, terminated, truncated, _ = env.step(np.asarray(action, np.float32))
-        start = terminated | truncated
+        start, ended = ended, terminated | truncated
     env.close()
     return np.concatenate(rows).astype(np.float32)
+
+
+def test_the_rollout_flags_each_episode_first_observation():
+    """Episodes of 10 control steps (50 ms at 5 ms): the episode ends with the 10th step, the
+    11th step only resets (NEXT_STEP), so the episodes' first observations are rows 0, 11, 22."""
+
+    class Recorder:
+        def __init__(self) -> None:
+            self.starts: list[bool] = []
+
+        def predict(self, obs, episode_start=None, deterministic=True):
+            self.starts.append(bool(episode_start[0]))
+            return np.zeros((obs.shape[0], 1), np.float32), None
+
+    recorder = Recorder()
+    rollout_obs(recorder, {"setting": "hils"}, vehicles=1, steps=30, episode_length_s=0.05)
+    assert np.flatnonzero(recorder.starts).tolist() == [0, 11, 22]
 
 
 def network_of(policy):
