@@ -149,6 +149,10 @@ class IndependentClippedLQR(Controller):
     the 1/4-car whose values are the half-car's corners). It ignores the coupling through the
     body's pitch: the baseline a coupled law is measured against."""
 
+    #: The measured columns per slot, and the offsets within them of ``x_s``'s entries: the
+    #: stroke, the upper velocity estimate, the gap, the lower velocity estimate.
+    slot_columns, state_offsets = 8, (0, 5, 4, 6)
+
     def __init__(self, vehicle: str = "half_car", max_force_n: float = 8000.0) -> None:
         from capsule_env.agents.controllers.classical import make_controller
 
@@ -157,6 +161,8 @@ class IndependentClippedLQR(Controller):
         self.model = model_named(vehicle)
         self.name = "lqr-clipped-biexp-meas"
         self.max_force_n = float(max_force_n)
+        #: The constructor's arguments as plain JSON values (the export's contract carries them).
+        self.arguments: dict[str, Any] = {"vehicle": vehicle, "max_force_n": self.max_force_n}
         self.env_kwargs = {"vehicle": vehicle, "action_mode": "force", "observation": "measured",
                            "inverse_model": "bi_exponential", "max_force_n": self.max_force_n}  # fmt: skip
 
@@ -164,7 +170,6 @@ class IndependentClippedLQR(Controller):
         return {"gain_per_slot": self.gain.tolist()}
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        per = 8  # measured columns per slot: stroke, rate, 2 accelerations, gap, 2 estimates, cmd
-        x = np.atleast_2d(obs).reshape(np.atleast_2d(obs).shape[0], -1, per)
-        state = np.stack([x[..., 0], x[..., 5], x[..., 4], x[..., 6]], axis=-1)
+        x = np.atleast_2d(obs).reshape(np.atleast_2d(obs).shape[0], -1, self.slot_columns)
+        state = x[..., list(self.state_offsets)]
         return np.clip(-(state @ self.gain) / self.max_force_n, -1.0, 1.0)

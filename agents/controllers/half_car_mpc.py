@@ -37,6 +37,7 @@ non-finite columns enter the law's memories (the window, the coil current) as ze
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -234,7 +235,9 @@ class HalfCarMPC(WheelbasePreviewLQ):
     delay's; with ``preview`` the window, wheelbase / speed / ``dt_s``, at most
     :data:`MAX_WINDOW` intervals: above 24 km/h at 5 ms), ``max_force_n``, ``solver`` (the keys of
     :class:`~capsule_env.agents.controllers.mpc_solver.SolverOptions`, checked as the
-    quarter-car MPC checks them). A bad value raises ``ValueError`` naming the parameter."""
+    quarter-car MPC checks them). A bad value raises ``ValueError`` naming the parameter.
+    :attr:`arguments`: every constructor argument as checked, as plain JSON values
+    (``HalfCarMPC(**law.arguments)`` rebuilds the law; the export's contract carries them)."""
 
     #: Whether the weights are the training bank's tuned ones (the evaluation's rows set it).
     gains_tuned: bool = False
@@ -267,6 +270,12 @@ class HalfCarMPC(WheelbasePreviewLQ):
         super().__init__(*weights, dt_s=dt, speed_kmh=speed, delay_steps=nd,
                          max_force_n=force, preview=preview)  # fmt: skip
         self.name = "wheelbase-mpc-biexp-meas" if preview else "mpc-coupled-biexp-meas"
+        self.arguments: dict[str, Any] = {
+            "q_stroke": weights[0], "q_levitation": weights[1], "r_force": weights[2],
+            "preview": preview, "horizon_steps": horizon, "delay_steps": nd,
+            "move_blocks": None if blocks is None else [int(b) for b in blocks],
+            "coil_time_constant_s": tau, "dt_s": dt, "speed_kmh": speed, "max_force_n": force,
+            "solver": dataclasses.asdict(options)}  # fmt: skip
         self.weights, self.horizon_steps, self.coil_time_constant_s = weights, horizon, tau
         self.model = coupled_model(dt_s=dt, delay_steps=nd, coil_time_constant_s=tau,
                                    speed_m_s=kmh_to_m_s(speed), preview=preview)  # fmt: skip

@@ -12,7 +12,9 @@ The contract records, for the exported artifacts:
 - ``task``: the registered task whose options the policy was trained with (None when none
   matches; ``env_id`` and ``env_kwargs`` then say what it was trained on);
 - ``residual``: for a residual policy, the law it rides on, its scale and the combination rule,
-  and whether the C export includes the law (else the rig provides it);
+  and whether the C export includes the law (else the rig provides it); for a declared
+  vehicle's (the half-car's), ``base_law``: what the rig needs to rebuild that law, its
+  constructor's arguments included (:mod:`capsule_env.export.base_law`);
 - ``sources`` and ``artifacts``: sizes and SHA-256 of the policy's files (model, normaliser,
   metadata) and of each exported file.
 """
@@ -28,12 +30,15 @@ import numpy as np
 from capsule_env.common.safe_io import file_digest
 from capsule_env.engine import observations as obs_table
 from capsule_env.engine.config import EnvConfig, observation_bounds
+from capsule_env.export.base_law import base_law
 from capsule_env.export.network import Dense, DeterministicActor, Renorm
 from capsule_env.export.source import PolicySource
 from capsule_env.tasks import TASKS
 
 __all__ = ["CONTRACT_VERSION", "training_config", "task_of", "contract"]
 
+#: Raised when a field is removed or changes meaning; a field added (``residual.base_law``)
+#: keeps it, a reader ignoring what it does not know.
 CONTRACT_VERSION = 1
 #: Units of the columns appended after a set's own (the trip's, the preview's).
 _APPENDED_UNITS = {"speed_m_s": "m/s", "longitudinal_acceleration_m_s2": "m/s^2"}
@@ -175,7 +180,8 @@ def _network(actor: DeterministicActor) -> dict[str, Any]:
                                   for v in vars(layer).values() if isinstance(v, np.ndarray)))}  # fmt: skip
 
 
-def _residual(source: PolicySource) -> dict[str, Any] | None:
+def _residual(source: PolicySource, kwargs: dict[str, Any],
+              names: tuple[str, ...]) -> dict[str, Any] | None:  # fmt: skip
     res = source.residual
     if res is None:
         return None
@@ -183,7 +189,8 @@ def _residual(source: PolicySource) -> dict[str, Any] | None:
             "combine": "action = clip(law_action + scale * residual, -1, 1) (double precision, "
                        "then float32); the artifacts' action is the residual",
             "law_in_c": res.law is not None, "law_gains": res.law.gains() if res.law else None,
-            "rig_provides_law": res.law is None, "why_not_in_c": res.reason or None}  # fmt: skip
+            "rig_provides_law": res.law is None, "why_not_in_c": res.reason or None,
+            "base_law": base_law(source, kwargs, names)}  # fmt: skip
 
 
 def _sources(source: PolicySource) -> dict[str, Any]:
@@ -199,6 +206,8 @@ def contract(source: PolicySource, actor: DeterministicActor,
              artifacts: dict[str, bytes]) -> dict[str, Any]:  # fmt: skip
     """The contract of ``source`` exported as ``artifacts`` (file name -> content)."""
     config, kwargs = training_config(source)
+    observation = _observation(config, actor, kwargs)
+    names = tuple(column["name"] for column in observation["columns"])
     return {
         "contract_version": CONTRACT_VERSION,
         "name": source.name,
@@ -206,10 +215,10 @@ def contract(source: PolicySource, actor: DeterministicActor,
         "env_id": "CapsuleSuspension-v0",
         "env_kwargs": kwargs,
         "control": _control(config),
-        "observation": _observation(config, actor, kwargs),
+        "observation": observation,
         "action": _action(config, actor),
         "network": _network(actor),
-        "residual": _residual(source),
+        "residual": _residual(source, kwargs, names),
         "sources": _sources(source),
         "artifacts": {
             name: {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
