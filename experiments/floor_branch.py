@@ -10,6 +10,12 @@ check is bypassed, the search itself needs none), 0 A's Wk, the branch and bound
 1, 10, 100, ``--nodes`` node QPs and its time per node, and the bound of the single leaf that
 fixes the 0 A trajectory's signs and the oracle's (complete branching can certify at most the
 least leaf bound: these two bound what any budget can reach with these cuts).
+
+Leaf diagnostics instead (each prints one JSON line per window and seed): ``--narrowed``
+(narrowed, not valid, cut sets), ``--diagnose`` (how the leaves' relaxed solutions depart
+from the plant; with ``--stroke`` the leaves that also fix the stroke's side of the blend,
+capsule_env.bounds.stroke), ``--current-tie`` (the oracle's (rate, stroke) leaf with the
+per-step current's cuts).
 """
 
 from __future__ import annotations
@@ -192,6 +198,40 @@ def diagnose(seed: int, length_s: float, stroke: bool = False) -> dict[str, Any]
     return out
 
 
+def _tie_leaf(problem: Any, sigma: np.ndarray, tau: np.ndarray, rate_bound: np.ndarray):
+    """(certified bound, J at the solver's relaxed forces) of the leaf with the per-step
+    current's cuts at rate bounds ``rate_bound`` (valid only if they bound every ``|v|``)."""
+    gf, gv, h, extra = problem.tied_rows(sigma, tau, rate_bound)
+    y_w, z, forces = problem._sparse.solve(gf, gv, h)
+    return problem.certify(gf, gv, h, y_w, z, extra), problem.ride(forces)
+
+
+def current_tie(seed: int, length_s: float) -> dict[str, Any]:
+    """The leaf at the oracle's (rate, stroke) signs without and with the per-step current's
+    cuts (:func:`capsule_env.bounds.stroke.current_tie_rows`), Wk: certified and at the
+    solver's relaxed forces, with the a-priori rate bound (valid) and, as a what-if that is
+    NOT a valid bound, twice the oracle run's largest ``|v|``."""
+    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts, stroke_sides
+
+    ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), [seed], length_s)
+    oracle_i, oracle_wk = _oracle_currents([seed], length_s)
+    lifted, p = lift_episode(ep, 0), ep.damper_params[0]
+    cuts = side_cuts(ep.code, p)
+    problem = StrokeBranchProblem(lifted, damper_envelope(ep.code, p), cuts)
+    forces = _rollout(lifted, ep, 0, oracle_i[0])
+    v = lifted.affine(lifted.v_rows, forces)
+    sigma = np.where(v >= 0.0, 1, -1).astype(np.int8)
+    tau = stroke_sides(lifted.affine(lifted.x_rows, forces), cuts.blend_m)
+    bound, relaxed = problem.node_bound(sigma, tau)
+    out = {"oracle_wk": float(oracle_wk[0]), "leaf_wk": math.sqrt(bound),
+           "leaf_solver_wk": math.sqrt(problem.ride(relaxed))}  # fmt: skip
+    for name, rate in (("apriori", problem.v_abs[: problem.n]),
+                       ("twice_oracle_max_not_valid", np.full(problem.n, 2 * np.abs(v).max()))):  # fmt: skip
+        bound, ride = _tie_leaf(problem, sigma, tau, rate)
+        out[f"tie_{name}_wk"], out[f"tie_{name}_solver_wk"] = math.sqrt(bound), math.sqrt(ride)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
@@ -200,6 +240,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, default=None)
     p.add_argument("--narrowed", action="store_true",
                    help="print only the 0 A leaf with narrowed (not valid) cut sets")  # fmt: skip
+    p.add_argument(
+        "--current-tie",
+        action="store_true",
+        help="print only the oracle's (rate, stroke) leaf with the per-step current's cuts "
+        "(solver optima, not certified)",
+    )
     p.add_argument(
         "--stroke",
         action="store_true",
@@ -214,16 +260,15 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
-    if args.narrowed:
-        for length in args.lengths:
-            for seed in args.seeds:
-                print(json.dumps({"length_s": length, "seed": seed, **narrowed(seed, length)}))
-        return 0
-    if args.diagnose:
-        for length in args.lengths:
-            for seed in args.seeds:
-                print(json.dumps(diagnose(seed, length, args.stroke)), flush=True)
-        return 0
+    modes = {"narrowed": narrowed, "current_tie": current_tie,
+             "diagnose": lambda seed, length: diagnose(seed, length, args.stroke)}  # fmt: skip
+    for name, fn in modes.items():
+        if getattr(args, name):
+            for length in args.lengths:
+                for seed in args.seeds:
+                    print(json.dumps({"length_s": length, "seed": seed, **fn(seed, length)}),
+                          flush=True)  # fmt: skip
+            return 0
     rows = [r for length in args.lengths for r in run(args.seeds, length, args.nodes)]
     if args.json is not None:
         tmp = args.json.with_suffix(".tmp")

@@ -15,6 +15,7 @@ from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_
 from capsule_env.bounds.stroke import (
     INSIDE_BLEND,
     StrokeBranchProblem,
+    current_tie_rows,
     side_cut_values,
     side_cuts,
     stroke_sides,
@@ -103,52 +104,92 @@ def _signs(lifted: LiftedEpisode, forces: np.ndarray, blend: float):
     return np.where(v >= 0.0, 1, -1).astype(np.int8), stroke_sides(x, blend), v, x
 
 
+def _cases(ep: OracleEpisodes, seed: int):
+    """0 A, random and on-off rollouts: ``(currents, lifted, forces, problem, the compiled
+    env's J)`` (the env's J an independent number: its own kernel)."""
+    p = ep.damper_params[0]
+    env, cuts = damper_envelope(ep.code, p), side_cuts(ep.code, p)
+    rng = np.random.default_rng(seed)
+    for currents in (np.zeros(ep.n_steps), rng.uniform(0, 1.5, ep.n_steps),
+                     rng.choice([0.0, 1.5], ep.n_steps)):  # fmt: skip
+        lifted, forces = _rollout(ep, currents)
+        _, out = ep.run(np.array([0]), currents[None], substeps="env")
+        env_wk = float(metrics.wk_weighted_rms(out[0, :, OUT_BODY_ACC], ep.dt_s))
+        yield currents, lifted, forces, StrokeBranchProblem(lifted, env, cuts), env_wk**2
+
+
 def test_rollouts_lie_in_their_leaf_and_the_leaf_bounds_them(window: OracleEpisodes) -> None:
     """Every force evaluation of 0 A, random and on-off rollouts satisfies its own side's
     cuts; the leaf of the trajectory's own (rate, stroke) signs is certified below its
     simulated J (the compiled env's: an independent number) and is at least the leaf of
     the rate's signs alone (its cuts are a superset)."""
-    p = window.damper_params[0]
-    env, cuts = damper_envelope(window.code, p), side_cuts(window.code, p)
-    rng = np.random.default_rng(11)
     leaves = []
-    for currents in (np.zeros(window.n_steps), rng.uniform(0, 1.5, window.n_steps),
-                     rng.choice([0.0, 1.5], window.n_steps)):  # fmt: skip
-        lifted, forces = _rollout(window, currents)
+    for _, lifted, forces, problem, env_j in _cases(window, 11):
+        cuts = problem.side
         sigma, tau, v, x = _signs(lifted, forces, cuts.blend_m)
         f = forces / FORCE_SCALE_N
         for s_v in (1, -1):
             for s_x in (1, -1):
                 at = (sigma == s_v) & (tau == s_x)
                 assert side_cut_values(cuts, s_v, s_x, f[at], v[at]).min(initial=0.0) >= 0.0
-        problem = StrokeBranchProblem(lifted, env, cuts)
         assert np.all(np.abs(x) <= problem.v_abs[problem.n :])
         bound, _ = problem.node_bound(sigma, tau)
+        env = damper_envelope(window.code, window.damper_params[0])
         plain, _ = BranchProblem(lifted, env).node_bound(sigma)
-        _, out = window.run(np.array([0]), currents[None], substeps="env")
-        env_wk = float(metrics.wk_weighted_rms(out[0, :, OUT_BODY_ACC], window.dt_s))
-        assert 0.0 <= bound <= env_wk**2
+        assert 0.0 <= bound <= env_j
         assert bound >= plain * (1.0 - 1e-6)
         leaves.append((bound, plain))
     assert leaves[0][0] > 1.5 * leaves[0][1]  # the tie matters on the 0 A leaf
 
 
-def test_any_multipliers_certify_below_the_trajectory_with_strokes(
-    window: OracleEpisodes,
-) -> None:
-    """Weak duality with the stroke rows: random multipliers, not the solver's, still bound
-    the 0 A trajectory's J from below."""
+def test_rollouts_satisfy_the_per_step_current_cuts(window: OracleEpisodes) -> None:
+    """At a rollout's own forces, with ``theta`` its steps' currents over ``i_max`` and ``w
+    = theta u``, every per-step current cut holds (the rollout's currents are the independent
+    fact); the leaf with them is certified below the compiled env's J and at least the leaf
+    without them, and on the 0 A rollout above it."""
+    gains = []
+    for currents, lifted, forces, problem, env_j in _cases(window, 5):
+        cuts = problem.side
+        sigma, tau, v, x = _signs(lifted, forces, cuts.blend_m)
+        rate = problem.v_abs[: problem.n]
+        gf, gv, h, extra = current_tie_rows(cuts, lifted.step_of, sigma, tau, rate)
+        sel = np.flatnonzero((np.abs(tau) == 1) & (sigma != 0))
+        theta = currents / 1.5
+        w = theta[lifted.step_of[sel]] * sigma[sel] * v[sel]
+        e = np.r_[theta - 0.5, w - np.maximum(rate[sel], 1e-9) / 2]
+        assert np.all(np.abs(e) <= extra)
+        lhs = gf @ np.r_[forces / FORCE_SCALE_N, e] + gv @ np.r_[v, x]
+        assert np.all(lhs <= h + 1e-12)  # at theta = 1, w = u: equal up to rounding
+        tied, _ = problem.node_bound(sigma, tau, current_tie=True)
+        untied, _ = problem.node_bound(sigma, tau)
+        assert untied * (1.0 - 1e-6) <= tied <= env_j
+        gains.append(tied / untied)
+    assert gains[0] > 1.05
+
+
+@pytest.mark.parametrize("tie", [False, True])
+def test_any_multipliers_certify_below_the_trajectory(window: OracleEpisodes, tie: bool) -> None:
+    """Weak duality with the stroke rows (and the per-step current's variables, priced by
+    their ranges): random multipliers, not the solver's, still bound the 0 A trajectory's J
+    from below; a wrong number of ranges is refused."""
     p = window.damper_params[0]
     cuts = side_cuts(window.code, p)
     lifted, forces = _rollout(window, np.zeros(window.n_steps))
     problem = StrokeBranchProblem(lifted, damper_envelope(window.code, p), cuts)
     sigma, tau, _, _ = _signs(lifted, forces, cuts.blend_m)
-    gf, gv, h = problem.rows(sigma, tau)
-    assert np.all(gv @ problem.a_aug @ np.r_[forces / FORCE_SCALE_N, 1.0]
-                  + gf @ (forces / FORCE_SCALE_N) <= h)  # fmt: skip
+    if tie:
+        gf, gv, h, extra = problem.tied_rows(sigma, tau)
+    else:
+        (gf, gv, h), extra = problem.rows(sigma, tau), np.zeros(0)
+    # the trajectory is in the node: theta = 0 and w = 0 at 0 A
+    at = np.r_[forces / FORCE_SCALE_N, -extra]
+    assert np.all(gv @ problem.a_aug @ np.r_[forces / FORCE_SCALE_N, 1.0] + gf @ at <= h + 1e-12)
     y_w, z, _ = problem._sparse.solve(gf, gv, h)
     ride = problem.ride(forces / FORCE_SCALE_N)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(8)
     for scale in (0.5, 1.0, 2.0):
-        assert problem.certify(gf, gv, h, scale * y_w, z * rng.uniform(0, 2, z.size)) <= ride
-    assert ride >= problem.certify(gf, gv, h, y_w, z) > 0.0
+        noisy = z * rng.uniform(0, 2, z.size)
+        assert problem.certify(gf, gv, h, scale * y_w, noisy, extra) <= ride
+    assert ride >= problem.certify(gf, gv, h, y_w, z, extra) > 0.0
+    with pytest.raises(ValueError, match="extra_abs"):
+        problem.certify(gf, gv, h, y_w, z, np.r_[extra, 1.0])

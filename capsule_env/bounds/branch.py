@@ -217,12 +217,19 @@ class _SparseQP:
         self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Clarabel on the cuts ``gf F + gv v <= h`` (``v`` replaced by its sparse form):
-        the multipliers of ``w`` (T) and of the cuts, and the forces (kN; zeros if none)."""
+        the multipliers of ``w`` (T) and of the cuts, and the forces (kN; zeros if none).
+        Columns of ``gf`` beyond the N forces are further variables (in no equality)."""
         import clarabel
 
         nx, n, t = self.nx, self.n, self.t
-        g = sp.hstack([gv @ self.v_x, gf + gv @ self.v_f, sp.csr_matrix((h.size, 2 * t))])
-        a = sp.vstack([self.eq, g]).tocsc()
+        e = gf.shape[1] - n
+        g = sp.hstack([gv @ self.v_x, gf[:, :n] + gv @ self.v_f, sp.csr_matrix((h.size, 2 * t)),
+                       gf[:, n:]])  # fmt: skip
+        eq, p = self.eq, self.p
+        if e:
+            eq = sp.hstack([eq, sp.csr_matrix((eq.shape[0], e))])
+            p = sp.block_diag([p, sp.csr_matrix((e, e))]).tocsc()
+        a = sp.vstack([eq, g]).tocsc()
         settings = clarabel.DefaultSettings()
         settings.verbose = False
         # J is 1e-5..1e-1 (m/s^2)^2: the default absolute gap (1e-8) would be 1e-3 of it
@@ -230,7 +237,7 @@ class _SparseQP:
         m = self.b_eq.size
         cones = [clarabel.ZeroConeT(m), clarabel.NonnegativeConeT(h.size)]
         b = np.r_[self.b_eq, h - gv @ self.v_c]
-        sol = clarabel.DefaultSolver(self.p, np.zeros(a.shape[1]), a, b, cones, settings).solve()
+        sol = clarabel.DefaultSolver(p, np.zeros(a.shape[1]), a, b, cones, settings).solve()
         dual, x = np.asarray(sol.z), np.asarray(sol.x)
         forces = x[nx : nx + n] if x.size else np.zeros(n)
         return dual[m - t : m], dual[m:], forces
@@ -306,7 +313,13 @@ class BranchProblem:
         return self.certify(gf, gv, h, y_w, z), forces
 
     def certify(
-        self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray, y_w: np.ndarray, z: np.ndarray
+        self,
+        gf: sp.csr_matrix,
+        gv: sp.csr_matrix,
+        h: np.ndarray,
+        y_w: np.ndarray,
+        z: np.ndarray,
+        extra_abs: np.ndarray | None = None,
     ) -> float:
         """The bound of :meth:`node_bound` at multipliers ``y_w`` (T) and ``z`` (clipped to
         ``>= 0``), in the dense lift (:mod:`.lifted`, the tested one), with ``y_v = -Gv^T z``;
@@ -318,7 +331,10 @@ class BranchProblem:
         magnitudes, which covers every rounding in ``S`` and in ``r_F``, and ``r_v = y_v + Gv^T
         z`` (not exactly 0 in floating point) paid with :func:`force_magnitude_bounds`'s rate
         bound. ``|y_w|`` comes from ``math.hypot`` (no underflow). The result is at most the
-        exact ``S^2 / (4 Q)`` at the multipliers used."""
+        exact ``S^2 / (4 Q)`` at the multipliers used. Columns of ``gf`` beyond the N forces
+        are further variables, each at most ``extra_abs`` in magnitude on every trajectory of
+        the node (:mod:`.stroke`'s per-step current): their residual ``Ge^T z`` is priced like
+        the forces'."""
         if not (np.isfinite(y_w).all() and np.isfinite(z).all()):
             return 0.0
         z = np.maximum(z, 0.0)
@@ -327,24 +343,30 @@ class BranchProblem:
             return 0.0
         scale = math.ldexp(1.0, -math.frexp(big)[1])
         y_w, z = y_w * scale, z * scale
-        return self._safe_bound(gf, gv, h, y_w, z)
+        extra = np.zeros(0) if extra_abs is None else np.asarray(extra_abs, dtype=float)
+        if extra.size != gf.shape[1] - self.n:
+            raise ValueError("certify: extra_abs must have one entry per column beyond N")
+        return self._safe_bound((gf, gv, h), y_w, z, np.r_[self.f_abs, extra])
 
     def _safe_bound(
-        self, gf: sp.csr_matrix, gv: sp.csr_matrix, h: np.ndarray, y_w: np.ndarray, z: np.ndarray
-    ) -> float:
-        """:meth:`certify` at multipliers already scaled (module doc of the rounding budget)."""
-        n, t, a = self.n, self.t, self.a_aug
+        self, rows: tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray], y_w: np.ndarray,
+        z: np.ndarray, f_abs: np.ndarray,
+    ) -> float:  # fmt: skip
+        """:meth:`certify` at multipliers already scaled (module doc of the rounding budget)
+        for the cuts ``rows = (gf, gv, h)``; ``f_abs`` bounds every column of ``gf``."""
+        (gf, gv, h), n, t, a = rows, self.n, self.t, self.a_aug
         eps = np.finfo(float).eps
         gamma = 2.0 * (a.shape[0] + t + h.size + 8) * eps  # a: N rows (2N with strokes)
         y_v = -(gv.T @ z)
-        r_f = -self.wf.T @ y_w - a[:, :n].T @ y_v + gf.T @ z
-        r_f_mag = (np.abs(self.wf).T @ np.abs(y_w) + np.abs(a[:, :n]).T @ np.abs(y_v)
-                   + abs(gf).T @ z)  # fmt: skip
+        r_f = gf.T @ z
+        r_f[:n] += -self.wf.T @ y_w - a[:, :n].T @ y_v
+        r_f_mag = abs(gf).T @ z
+        r_f_mag[:n] += np.abs(self.wf).T @ np.abs(y_w) + np.abs(a[:, :n]).T @ np.abs(y_v)
         r_v_mag = abs(gv).T @ z  # |y_v + Gv^T z| <= gamma this
         terms = (-float(y_w @ self.wc), -float(y_v @ a[:, n]), -float(z @ h),
-                 -float(np.abs(r_f) @ self.f_abs))  # fmt: skip
+                 -float(np.abs(r_f) @ f_abs))  # fmt: skip
         mags = (float(np.abs(y_w) @ np.abs(self.wc)) + float(np.abs(y_v) @ np.abs(a[:, n]))
-                + float(z @ np.abs(h)) + float((np.abs(r_f) + r_f_mag) @ self.f_abs)
+                + float(z @ np.abs(h)) + float((np.abs(r_f) + r_f_mag) @ f_abs)
                 + float(r_v_mag @ self.v_abs))  # fmt: skip
         lin = math.fsum(terms) - gamma * mags
         if lin <= 0.0:

@@ -17,6 +17,10 @@ evaluation, the stroke's side ``tau``:
   ``sigma`` is fixed the branch's own cuts (:func:`side_cuts`); every node keeps
   :mod:`.branch`'s cuts too (valid at every stroke).
 
+Optionally (``node_bound(..., current_tie=True)``) the nine evaluations of a control step are
+tied to one current: :func:`current_tie_rows` (a per-step current fraction and McCormick's
+envelope of its product with the rate), their variables priced by their ranges.
+
 The node's bound is certified exactly as :meth:`.branch.BranchProblem.node_bound` certifies it:
 the stroke ``x`` enters as further affine rows beside the stroke rate (``[v; x] = [A; B] F +
 [alpha; beta]``), their residual priced with an a-priori bound on ``|x_s|`` from
@@ -37,6 +41,7 @@ from capsule_env.dampers.registry import model_of_code
 
 __all__ = [
     "INSIDE_BLEND",
+    "current_tie_rows",
     "SideCuts",
     "StrokeBranchProblem",
     "branch_corners",
@@ -92,13 +97,15 @@ class SideCuts:
     """The cuts of one damper with the stroke rate's sign ``sigma`` and the stroke's side
     ``tau`` (beyond the blend) fixed, forces in kN, indexed ``[jv, jx]`` (0 for ``+1``, 1 for
     ``-1``): with ``u = sigma v >= 0``, ``sigma F >= lo_slope u + lo_off`` and ``sigma F <=
-    up_icpt[..., k] + up_slope[..., k] u`` for every ``k``; ``blend_m`` the blend's width."""
+    up_icpt[..., k] + up_slope[..., k] u`` for every ``k``; ``blend_m`` the blend's width,
+    ``corners`` :func:`branch_corners`'s."""
 
     lo_slope: np.ndarray
     lo_off: np.ndarray
     up_icpt: np.ndarray
     up_slope: np.ndarray
     blend_m: float
+    corners: np.ndarray
 
 
 def side_cuts(
@@ -137,7 +144,7 @@ def side_cuts(
             for k, m in enumerate(np.maximum(slopes.ravel(), b.max())):
                 up_slope[jv, jx, k] = m
                 up_icpt[jv, jx, k] = float(np.max(_sup_above_line(a, b, d, float(m)) + sc))
-    return SideCuts(lo_slope, lo_off, up_icpt + CUT_SLACK_KN, up_slope, blend)
+    return SideCuts(lo_slope, lo_off, up_icpt + CUT_SLACK_KN, up_slope, blend, corners)
 
 
 def side_cut_values(
@@ -159,6 +166,75 @@ def stroke_sides(x_m: np.ndarray, blend_m: float) -> np.ndarray:
     return np.where(x >= blend_m, 1, np.where(x <= -blend_m, -1, INSIDE_BLEND)).astype(np.int8)
 
 
+def _corner_kn(cuts: SideCuts, tau: int) -> tuple[np.ndarray, ...]:
+    """``(a, b, c, d)`` of side ``tau``'s branch at 0 A and ``i_max`` (kN, kN s/m, kN, s/m)."""
+    k = cuts.corners[int(tau < 0)]
+    return k[:, 0] / FORCE_SCALE_N, k[:, 1] / FORCE_SCALE_N, k[:, 2] / FORCE_SCALE_N, k[:, 3]
+
+
+def _tie_rows_at(cuts: SideCuts, sv: float, tau: int, big: float) -> list[tuple[float, ...]]:
+    """One evaluation's per-step current cuts as ``(cF, cv, ctheta, cw, rhs)`` on ``cF F + cv
+    v + ctheta theta + cw w <= rhs`` (:func:`current_tie_rows`; ``big`` its rate bound)."""
+    a, b, c, d = _corner_kn(cuts, tau)
+    sc = sv * c
+    out = []
+    for uk in TANGENT_RATES_M_S:  # sigma F <= (1 - theta) L_0(u) + theta L_1(u)
+        m = a * d * np.exp(-d * uk) + b
+        icpt = np.array([_sup_above_line(a[j : j + 1], b[j], d[j : j + 1], float(m[j]))[0]
+                         for j in range(2)]) + sc + CUT_SLACK_KN  # fmt: skip
+        out.append((sv, -m[0] * sv, -(icpt[1] - icpt[0]), -(m[1] - m[0]), icpt[0]))
+    chord = a * (1.0 - np.exp(-d * big)) / big + b  # valid for u <= big (f_j concave)
+    for g in (b, chord):  # sigma F >= g_0 u + sc_0 + theta (sc_1 - sc_0) + (g_1 - g_0) w
+        out.append((-sv, g[0] * sv, sc[1] - sc[0], g[1] - g[0], -sc[0] + CUT_SLACK_KN))
+    # w = theta u, McCormick on [0, 1] x [0, big]: w >= 0, w <= u, w <= big theta,
+    # w >= u - big (1 - theta)
+    out += [(0.0, 0.0, 0.0, -1.0, 0.0), (0.0, -sv, 0.0, 1.0, 0.0), (0.0, 0.0, -big, 1.0, 0.0),
+            (0.0, sv, big, -1.0, big)]  # fmt: skip
+    return out
+
+
+def current_tie_rows(
+    cuts: SideCuts, step_of: np.ndarray, sigma: np.ndarray, tau: np.ndarray, rate_bound: np.ndarray
+) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, np.ndarray]:
+    """The per-step current's cuts ``GF [F; e] + Gv [v; x] <= h`` and ``e``'s magnitude
+    bounds, at the evaluations beyond the blend with both signs fixed (``M`` of them).
+
+    ``e = (theta - 1/2, w - U/2)``: per control step ``theta = i / i_max`` in ``[0, 1]`` (the
+    kernel clips the current), shared by the step's evaluations, and per evaluation ``w =
+    theta u`` in ``[0, U]`` (``u = sigma v`` in ``[0, U]``, ``U = rate_bound``, a bound on
+    ``|v|`` of every trajectory). Proof: at fixed ``u`` the force is affine in the current,
+    so ``sigma F = (1 - theta) f_0(u) + theta f_1(u)`` exactly (corners as :func:`side_cuts`);
+    each corner lies below its own tangent lines ``L_j`` (intercepts by
+    :func:`_sup_above_line`), above ``b_j u + sigma c_j`` and, on ``[0, U]``, above its chord
+    (concave), so ``(1 - theta) L_0 + theta L_1`` and the two lower combinations bound ``sigma
+    F``, linear in ``(F, v, theta, w)``; the McCormick inequalities hold at ``w = theta u``.
+    Slack :data:`~.branch.CUT_SLACK_KN` on each force cut, as :func:`side_cuts`."""
+    n, t_steps = sigma.size, int(step_of.max()) + 1
+    rate_bound = np.maximum(rate_bound, 1e-9)  # a larger bound stays valid; no 0 chord
+    sel = np.flatnonzero((np.abs(tau) == 1) & (sigma != 0))
+    rows, idx = [], []
+    for m, s in enumerate(sel):
+        for r in _tie_rows_at(cuts, float(sigma[s]), int(tau[s]), float(rate_bound[s])):
+            rows.append(r)
+            idx.append((s, m))
+    arr = np.array(rows, dtype=float).reshape(-1, 5)
+    at = np.array(idx, dtype=int).reshape(-1, 2)
+    big = rate_bound[sel]
+    # the shift to e: theta = e_theta + 1/2, w = e_w + U / 2
+    h = arr[:, 4] - 0.5 * arr[:, 2] - 0.5 * big[at[:, 1]] * arr[:, 3]
+    r = np.arange(arr.shape[0])
+    cols = np.r_[at[:, 0], n + step_of[at[:, 0]], n + t_steps + at[:, 1]]
+    gf = sp.csr_matrix((np.r_[arr[:, 0], arr[:, 2], arr[:, 3]], (np.r_[r, r, r], cols)),
+                       shape=(r.size, n + t_steps + sel.size))  # fmt: skip
+    gv = sp.csr_matrix((arr[:, 1], (r, at[:, 0])), shape=(r.size, 2 * n))
+    box = sp.hstack([sp.csr_matrix((2 * t_steps, n)),
+                     sp.vstack([sp.identity(t_steps), -sp.identity(t_steps)]),
+                     sp.csr_matrix((2 * t_steps, sel.size))])  # fmt: skip
+    gf = sp.vstack([gf, box]).tocsr()  # |theta - 1/2| <= 1/2
+    gv = sp.vstack([gv, sp.csr_matrix((2 * t_steps, 2 * n))]).tocsr()
+    return gf, gv, np.r_[h, np.full(2 * t_steps, 0.5)], np.r_[np.full(t_steps, 0.5), big / 2]
+
+
 class StrokeBranchProblem(BranchProblem):
     """:class:`~.branch.BranchProblem` whose nodes also fix the stroke's side ``tau`` (module
     doc); the certificate's affine rows are ``[v; x]`` (2N), forces in kN."""
@@ -168,7 +244,7 @@ class StrokeBranchProblem(BranchProblem):
 
         super().__init__(lifted, env)
         f0, n = FORCE_SCALE_N, self.n
-        self.side = cuts
+        self.side, self.step_of = cuts, lifted.step_of
         self.v_aug = self.a_aug
         x_aug = lifted.x_rows.copy()
         x_aug[:, :n] *= f0
@@ -219,13 +295,29 @@ class StrokeBranchProblem(BranchProblem):
         return (sp.vstack([gf0, gf]).tocsr(), sp.vstack([gv0, gv]).tocsr(),
                 np.r_[h0, np.concatenate(rhs)])  # fmt: skip
 
-    def node_bound(  # type: ignore[override]
-        self, sigma: np.ndarray, tau: np.ndarray | None = None
-    ) -> tuple[float, np.ndarray]:
-        """The certified bound of the node ``(sigma, tau)`` and its relaxed forces (kN)."""
+    def tied_rows(
+        self, sigma: np.ndarray, tau: np.ndarray, rate_bound: np.ndarray | None = None
+    ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, np.ndarray]:
+        """:meth:`rows` and :func:`current_tie_rows` together: ``GF [F; e] + Gv [v; x] <=
+        h`` and ``e``'s bounds (``rate_bound`` default the a-priori one; a smaller one is
+        valid only if it bounds every ``|v|`` of the node)."""
         gf, gv, h = self.rows(sigma, tau)
+        bound = self.v_abs[: self.n] if rate_bound is None else rate_bound
+        tf, tv, th, extra = current_tie_rows(self.side, self.step_of, sigma, np.asarray(tau), bound)
+        gf = sp.vstack([sp.hstack([gf, sp.csr_matrix((h.size, extra.size))]), tf]).tocsr()
+        return gf, sp.vstack([gv, tv]).tocsr(), np.r_[h, th], extra
+
+    def node_bound(  # type: ignore[override]
+        self, sigma: np.ndarray, tau: np.ndarray | None = None, current_tie: bool = False
+    ) -> tuple[float, np.ndarray]:
+        """The certified bound of the node ``(sigma, tau)`` and its relaxed forces (kN);
+        ``current_tie``: with :func:`current_tie_rows` (:meth:`tied_rows`)."""
+        if current_tie and tau is not None:
+            gf, gv, h, extra = self.tied_rows(sigma, tau)
+        else:
+            (gf, gv, h), extra = self.rows(sigma, tau), None
         y_w, z, forces = self._sparse.solve(gf, gv, h)
-        return self.certify(gf, gv, h, y_w, z), forces
+        return self.certify(gf, gv, h, y_w, z, extra), forces
 
     def violation(self, forces_kn: np.ndarray) -> np.ndarray:
         """As :meth:`.branch.BranchProblem.violation` (the stroke-rate sign's cuts)."""
