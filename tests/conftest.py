@@ -87,3 +87,55 @@ def local_ray():
     yield ray
     if started:
         ray.shutdown()
+
+
+def residual_copy(folder: Path, source: str, law: str, name: str) -> Path:
+    """The shipped residual policy ``source``'s files copied into ``folder`` as ``res.*``, its
+    metadata's law set to ``law`` (scale 0.5) and its name to ``name``; returns the ``.zip``."""
+    import json
+    import shutil
+
+    from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR
+
+    for suffix in (".zip", ".vecnormalize.pkl"):
+        shutil.copy(PRETRAINED_DIR / f"{source}{suffix}", folder / f"res{suffix}")
+    meta = json.loads((PRETRAINED_DIR / f"{source}.json").read_text())
+    meta.update(name=name, residual={"law": law, "scale": 0.5})
+    (folder / "res.json").write_text(json.dumps(meta))
+    return folder / "res.zip"
+
+
+class ResidualRig:
+    """What a rig runs for a residual policy: ``law``'s action plus ``scale`` times the
+    ``network``'s residual, combined as the export's contract states (in double precision,
+    clipped to [-1, 1], then float32); the law restarts where an episode does."""
+
+    def __init__(self, law, network, scale: float) -> None:
+        self.law, self.network, self.scale = law, network, scale
+
+    def predict(self, obs, episode_start=None):
+        import numpy as np
+
+        base = self.law.predict(obs, episode_start=episode_start)[0]
+        residual = self.network.predict(obs.astype(np.float32), deterministic=True)[0]
+        total = np.clip(np.float64(base) + self.scale * np.float64(residual), -1.0, 1.0)
+        return total.astype(np.float32), None
+
+
+def check_mpc_block(card: dict, cls: type) -> dict:
+    """Assert that a contract's ``residual.base_law`` records every argument of ``cls``'s
+    constructor, each with its units, and that the MPC's model assumes the env the residual was
+    trained in (the contract's control period, delay, coil lag, force scale); the block."""
+    import inspect
+
+    block = card["residual"]["base_law"]
+    assert block["rig_solves_qp"] is True and card["residual"]["rig_provides_law"] is True
+    signature = inspect.signature(cls.__init__).parameters
+    assert set(block["constructor"]) == set(signature) - {"self"}
+    assert set(block["units"]) == set(block["constructor"])
+    args = block["constructor"]
+    assert args["dt_s"] == card["control"]["period_s"]
+    assert args["delay_steps"] == card["control"]["delay_steps"]
+    assert args["coil_time_constant_s"] == card["control"]["coil_time_constant_s"]
+    assert args["max_force_n"] == card["action"]["max_force_n"]
+    return block

@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import json
 import pickle
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import NO_SB3
+from conftest import NO_SB3, residual_copy
 
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 EXPORT_EXTRA = "optional, in the export extra: pip install 'capsule-env[export]'"
@@ -183,12 +182,7 @@ def test_contracts_name_the_task_and_a_residual_law(exported):
 
 def _residual_set(folder: Path, law: str) -> Path:
     """``residual-ppo-mpc``'s files copied, its metadata's law changed to ``law``."""
-    for suffix in (".zip", ".vecnormalize.pkl"):
-        shutil.copy(PRETRAINED_DIR / f"residual-ppo-mpc{suffix}", folder / f"res{suffix}")
-    meta = json.loads((PRETRAINED_DIR / "residual-ppo-mpc.json").read_text())
-    meta.update(name="res-lqr", residual={"law": law, "scale": 0.5})
-    (folder / "res.json").write_text(json.dumps(meta))
-    return folder / "res.zip"
+    return residual_copy(folder, "residual-ppo-mpc", law, "res-lqr")
 
 
 def test_a_residual_on_the_clipped_lqr_exports_its_law_in_c(tmp_path):
@@ -208,6 +202,32 @@ def test_a_residual_on_the_clipped_lqr_exports_its_law_in_c(tmp_path):
     )
     card = json.loads(files["res-lqr.contract.json"].read_text())
     assert card["residual"]["law_in_c"] and "k_stroke_n_m" in card["residual"]["law_gains"]
+
+
+def test_a_residual_export_gives_0_on_a_non_finite_observation(tmp_path):
+    """ResidualPolicy gives a row whose observation holds a NaN or inf its law's action alone
+    (the residual 0); the ONNX graph and the C file give the residual 0 there, so that the C
+    file's capsule_control is the policy's action. The NaN and the infs are in columns the
+    clipped LQR does not read (accelerations, the last command): its action stays finite."""
+    zip_path = _residual_set(tmp_path, "lqr-clipped-biexp-meas")
+    files = export_policy(str(zip_path), tmp_path / "out")
+    policy = load_policy(zip_path)
+    obs = rollout_obs(policy, policy.env_kwargs | {"setting": "hils"}, vehicles=1, steps=8)
+    obs[1, 0], obs[3, 6], obs[5, 1] = np.nan, np.inf, -np.inf
+    bad = ~np.all(np.isfinite(obs), axis=1)
+    expected, _ = policy.predict(obs, deterministic=True)
+    law_alone, _ = policy.law.predict(obs)
+    np.testing.assert_array_equal(expected[bad], law_alone[bad])  # the Python rule
+    network, _ = policy.policy.predict(np.where(bad[:, None], 0.0, obs), deterministic=True)
+    assert np.all(np.abs(network[~bad]) > 1e-3)  # the good rows' residual is not 0
+    onnx = ort.InferenceSession(str(files["res-lqr.onnx"]), providers=["CPUExecutionProvider"])
+    got_onnx = onnx.run(None, {"obs": obs})[0]
+    assert np.all(got_onnx[bad] == 0.0)
+    np.testing.assert_allclose(got_onnx[~bad], network[~bad], rtol=0, atol=TOLERANCE)
+    lib = c_policy(files, "res-lqr", obs.shape[1], tmp_path)
+    assert np.all(lib.policy(obs)[bad] == 0.0)
+    np.testing.assert_allclose(lib.policy(obs)[~bad], network[~bad], rtol=0, atol=TOLERANCE)
+    np.testing.assert_allclose(lib.control(obs), expected, rtol=0, atol=TOLERANCE)
 
 
 C_LAW_NAMES = ["skyhook-biexp", "skyhook-cont-biexp", "hybrid-biexp", "lqr-clipped-biexp",

@@ -14,15 +14,13 @@ time limit).
 from __future__ import annotations
 
 import importlib
-import inspect
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import NO_SB3
+from conftest import NO_SB3, ResidualRig, check_mpc_block, residual_copy
 
 pytest.importorskip("stable_baselines3", reason=NO_SB3)
 
@@ -71,25 +69,9 @@ def drive(laws: list, env_kwargs: dict, steps: int = 300, vehicles: int = 2) -> 
     return [np.stack(rows) for rows in out]
 
 
-def test_a_quarter_car_residual_has_no_base_law_block(tmp_path):
-    files = export_policy("residual-ppo-mpc", tmp_path, "c")
-    card = json.loads(files["residual-ppo-mpc.contract.json"].read_text())
-    assert card["residual"]["base_law"] is None  # its law is the 1/4-car's MPC, named by law
-
-
 def test_the_block_records_every_constructor_argument_and_the_env_it_assumes(card):
-    block = card["residual"]["base_law"]
+    block = check_mpc_block(card, HalfCarMPC)
     assert block["name"] == LAW and block["class"].endswith(".HalfCarMPC")
-    assert block["rig_solves_qp"] is True and card["residual"]["rig_provides_law"] is True
-    signature = inspect.signature(HalfCarMPC.__init__).parameters
-    assert set(block["constructor"]) == set(signature) - {"self"}
-    assert set(block["units"]) == set(block["constructor"])
-    args = block["constructor"]
-    # the MPC's model assumes the env the residual was trained in (the contract's control)
-    assert args["dt_s"] == card["control"]["period_s"]
-    assert args["delay_steps"] == card["control"]["delay_steps"]
-    assert args["coil_time_constant_s"] == card["control"]["coil_time_constant_s"]
-    assert args["max_force_n"] == card["action"]["max_force_n"]
     assert block["slots"] == ["front_secondary_damper", "rear_secondary_damper"]
     assert block["vehicle_parameters"]["front_bogie_position_m"] == 10.0
     assert block["inverse_model"]["name"] == card["env_kwargs"].get("inverse_model",
@@ -134,15 +116,7 @@ def test_the_rebuilt_law_plus_the_residual_is_the_policy(card):
     law = rebuild_base_law(card["residual"]["base_law"])
     network = SB3Policy.load(PRETRAINED_DIR / f"{NAME}.zip")
     scale = card["residual"]["scale"]
-
-    class Rig:
-        def predict(self, obs, episode_start=None):
-            base = law.predict(obs, episode_start=episode_start)[0]
-            residual = network.predict(obs.astype(np.float32), deterministic=True)[0]
-            total = np.clip(np.float64(base) + scale * np.float64(residual), -1.0, 1.0)
-            return total.astype(np.float32), None
-
-    expected, got = drive([policy, Rig()], card["env_kwargs"], steps=250)
+    expected, got = drive([policy, ResidualRig(law, network, scale)], card["env_kwargs"], steps=250)
     np.testing.assert_array_equal(got, expected)
 
 
@@ -159,12 +133,7 @@ def test_rebuilding_refuses_a_contract_built_from_other_parameters(card):
 
 def _lqr_residual(folder: Path) -> Path:
     """The half-car residual's files, its metadata's law the per-bogie LQR."""
-    for suffix in (".zip", ".vecnormalize.pkl"):
-        shutil.copy(PRETRAINED_DIR / f"{NAME}{suffix}", folder / f"res{suffix}")
-    meta = json.loads((PRETRAINED_DIR / f"{NAME}.json").read_text())
-    meta.update(name="res-lqr", residual={"law": "lqr-clipped-biexp-meas", "scale": 0.5})
-    (folder / "res.json").write_text(json.dumps(meta))
-    return folder / "res.zip"
+    return residual_copy(folder, NAME, "lqr-clipped-biexp-meas", "res-lqr")
 
 
 def test_the_per_bogie_lqr_block_is_its_formula(tmp_path):

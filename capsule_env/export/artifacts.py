@@ -69,7 +69,7 @@ def build_artifacts(source: PolicySource, formats: Sequence[str]) -> dict[str, b
     training_config(source)  # refuses bad recorded env options before the slow export
     files: dict[str, bytes] = {}
     if "onnx" in formats:
-        files[f"{source.name}.onnx"] = onnx_bytes(actor)
+        files[f"{source.name}.onnx"] = onnx_bytes(actor, source.residual is not None)
     if "c" in formats:
         files.update(_c_files(source, actor))
     card = contract(source, actor, files)

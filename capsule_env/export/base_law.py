@@ -1,8 +1,11 @@
-"""The contract's ``residual.base_law``: what a rig needs to rebuild a declared vehicle's law.
+"""The contract's ``residual.base_law``: what a rig needs to rebuild a residual policy's law.
 
-A residual policy's artifacts compute the residual alone. On a declared vehicle (the half-car)
-the law it rides on (:data:`~capsule_env.agents.learning.sb3_policy.DECLARED_LAWS`) has no C
-form, so the rig runs it. The block says what that law is: its name and class, every
+A residual policy's artifacts compute the residual alone. A quarter-car residual's law is the
+registry's (:mod:`capsule_env.export.quarter_law`: in the C file when it has a C form, else
+rebuilt from its constructor's arguments, the semi-active MPC's among them). On a declared
+vehicle (the half-car) the law it rides on
+(:data:`~capsule_env.agents.learning.sb3_policy.DECLARED_LAWS`) has no C form, so the rig runs
+it. The block says what that law is: its name and class, every
 constructor argument as plain JSON values (the law's ``arguments``: ``cls(**constructor)``
 rebuilds it, the tuned weights included) with their units, the vehicle's and the inverse
 model's parameters it was built from, the observation columns it reads, the memories it keeps,
@@ -18,7 +21,14 @@ from typing import Any
 
 from capsule_env.export.source import PolicySource
 
-__all__ = ["base_law", "declared_residual_law", "rebuild_base_law"]
+__all__ = [
+    "base_law",
+    "declared_residual_law",
+    "rebuild_base_law",
+    "class_path",
+    "combine_rule",
+    "inverse_model_record",
+]
 
 #: Units of the half-car MPC's constructor arguments.
 _MPC_UNITS = {"q_stroke": "1/s^4", "q_levitation": "1/s^4", "r_force": "1/kg^2",
@@ -53,7 +63,7 @@ def declared_residual_law(name: str, vehicle: str, path: Any) -> Any:
     return tuned_mpc(name)
 
 
-def _class_path(law: Any) -> str:
+def class_path(law: Any) -> str:
     """The law's class as its public import path (``capsule_env.agents...``)."""
     return f"{type(law).__module__}.{type(law).__qualname__}"
 
@@ -64,14 +74,24 @@ def _slots(vehicle: str) -> list[str]:
     return [d.name for d in model_named(vehicle).dampers]
 
 
-def _combine(scale: float, slots: list[str]) -> str:
+def combine_rule(scale: float, slots: list[str]) -> str:
+    """The combination of the law's and the residual's action, per damper slot, in words."""
     order = ", ".join(f"{k} {s}" for k, s in enumerate(slots))
     return (f"per damper slot s ({order}; the action's index): action[s] = clip(law_action[s] "
             f"+ {scale:g} * residual[s], -1, 1) in double precision, then float32 (the C "
             "file's capsule_combine, called once per slot); law_action[s] = the law's force "
-            "request for slot s / max_force_n, clipped to [-1, 1] and rounded to float32; "
-            "where a vehicle's observation has a non-finite value, the Python policy sets its "
-            "residual to 0 (the law alone)")  # fmt: skip
+            "request for slot s / max_force_n, rounded to float32, then clipped to [-1, 1]; "
+            "where a vehicle's observation has a non-finite value (NaN, inf) its residual is 0 "
+            "on every slot (the law alone): the Python policy, the C file's capsule_policy "
+            "and the ONNX graph alike")  # fmt: skip
+
+
+def inverse_model_record(damper: Any) -> dict[str, Any]:
+    """A Bi-exponential inverse model's name, parameters and their units."""
+    parameters = dataclasses.asdict(damper)
+    return {"name": damper.name, "parameters": parameters,
+            "units": {p: next(u for end, u in _DAMPER_UNITS if p.endswith(end))
+                      for p in parameters}}  # fmt: skip
 
 
 def _mpc_block(law: Any, names: tuple[str, ...], slots: list[str]) -> dict[str, Any]:
@@ -89,9 +109,7 @@ def _mpc_block(law: Any, names: tuple[str, ...], slots: list[str]) -> dict[str, 
         "vehicle_parameters_note": "the prediction model is the vehicle's relative form at these "
                                    "values (units in the names), not an argument: the class "
                                    "builds it from the registered vehicle",
-        "inverse_model": {"name": damper.name, "parameters": dataclasses.asdict(damper),
-                          "units": {p: next(u for end, u in _DAMPER_UNITS if p.endswith(end))
-                                    for p in dataclasses.asdict(damper)}},  # fmt: skip
+        "inverse_model": inverse_model_record(damper),
         "reads": {"columns": read, "note": "the raw observation (not "
                   "normalised), in the contract's order and units"},  # fmt: skip
         "state": "per vehicle, restarted at each episode's first step (episode_start): the "
@@ -131,16 +149,20 @@ def _lqr_block(law: Any, names: tuple[str, ...]) -> dict[str, Any]:
 def base_law(source: PolicySource, kwargs: dict[str, Any],
              names: tuple[str, ...]) -> dict[str, Any] | None:  # fmt: skip
     """The ``base_law`` block (module doc) of ``source`` trained with the env options
-    ``kwargs`` (observation columns ``names``); None unless a declared vehicle's residual."""
+    ``kwargs`` (observation columns ``names``); None unless a residual policy."""
     from capsule_env.agents.controllers.half_car_mpc import HalfCarMPC
+    from capsule_env.export.quarter_law import quarter_car_block
 
     vehicle, res = str(kwargs.get("vehicle", "quarter_car")), source.residual
-    if res is None or vehicle == "quarter_car":
+    if res is None:
         return None
+    if vehicle == "quarter_car":
+        return quarter_car_block(res.law_name, res.scale, names)
     law = declared_residual_law(res.law_name, vehicle, source.zip_path)
     slots = _slots(vehicle)
-    block = {"name": law.name, "class": _class_path(law), "constructor": dict(law.arguments),
-             "vehicle": vehicle, "slots": slots, "combine": _combine(res.scale, slots)}  # fmt: skip
+    block = {"name": law.name, "class": class_path(law), "constructor": dict(law.arguments),
+             "vehicle": vehicle, "slots": slots, "combine": combine_rule(res.scale, slots),
+             "in_c_file": False}  # fmt: skip
     if isinstance(law, HalfCarMPC):
         return block | _mpc_block(law, names, slots)
     return block | _lqr_block(law, names)

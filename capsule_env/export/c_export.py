@@ -7,8 +7,10 @@ clip of SB3's ``predict`` and the clip to ``[-1, 1]``. No allocation (two stack 
 widest layer), no global state, re-entrant; the only library function is ``tanhf`` from
 ``<math.h>`` (link with ``-lm``), and only when the network has a tanh.
 
-A residual policy's ``capsule_policy`` gives the residual (its network's action); the file adds
-``float capsule_combine(float law_action, float residual)``, the env's action
+A residual policy's ``capsule_policy`` gives the residual (its network's action), 0 when an
+observation value is not finite (NaN, inf: the law alone, as
+:class:`~capsule_env.agents.learning.residual.ResidualPolicy` acts; C99's ``isfinite`` macro);
+the file adds ``float capsule_combine(float law_action, float residual)``, the env's action
 ``clip(law_action + scale * residual, -1, 1)``, and, when its law has a C form
 (:mod:`capsule_env.export.laws_c`), ``float capsule_law(const float *obs)`` (static) and
 ``void capsule_control(const float *obs, float *action)``: the law and the residual together.
@@ -81,6 +83,19 @@ _HELPERS = {
 }
 """,
 }
+
+
+#: A residual policy's first lines: a non-finite observation value gets the residual 0.
+_NONFINITE = [
+    "for (i = 0; i < N_OBS; ++i) {",
+    "    if (!isfinite(obs[i])) { /* the network cannot read it: the law alone */",
+    "        for (i = 0; i < N_ACTION; ++i) {",
+    "            action[i] = 0.0f;",
+    "        }",
+    "        return;",
+    "    }",
+    "}",
+]
 
 
 def c_identifier(name: str) -> str:
@@ -218,7 +233,9 @@ def c_source(actor: DeterministicActor, name: str, banner: str, residual_scale: 
     out_consts, out_lines = _output_lines(actor, out)
     widest = max([actor.obs_size] + [layer.weight.shape[0] for layer in actor.layers
                                      if isinstance(layer, Dense)])  # fmt: skip
-    body = ["float a[WIDTH], b[WIDTH];", "int i;", *norm_lines, *net_lines, *out_lines]
+    body = ["float a[WIDTH], b[WIDTH];", "int i;",
+            *(_NONFINITE if residual_scale is not None else []),
+            *norm_lines, *net_lines, *out_lines]  # fmt: skip
     parts = [
         banner, f'#include "{name}.h"\n\n#include <math.h>\n',
         f"#define N_OBS {actor.obs_size}\n#define N_ACTION {actor.action_size}\n"
@@ -236,8 +253,9 @@ def c_header(actor: DeterministicActor, name: str, banner: str, residual: bool, 
              period_s: float) -> str:  # fmt: skip
     """``NAME.h``: the functions of ``NAME.c`` and the sizes."""
     guard = f"CAPSULE_POLICY_{c_identifier(name)}_H"
-    decls = ["/* the policy's deterministic action; for a residual policy its residual */",
-             "void capsule_policy(const float *obs, float *action);"]  # fmt: skip
+    what = ("its residual; 0 when an obs value is NaN or inf (the law alone)" if residual
+            else "the policy's deterministic action")  # fmt: skip
+    decls = [f"/* {what} */", "void capsule_policy(const float *obs, float *action);"]
     if residual:
         decls += ["/* the env's action: clip(law_action + scale * residual, -1, 1) */",
                   "float capsule_combine(float law_action, float residual);"]  # fmt: skip

@@ -12,9 +12,9 @@ The contract records, for the exported artifacts:
 - ``task``: the registered task whose options the policy was trained with (None when none
   matches; ``env_id`` and ``env_kwargs`` then say what it was trained on);
 - ``residual``: for a residual policy, the law it rides on, its scale and the combination rule,
-  and whether the C export includes the law (else the rig provides it); for a declared
-  vehicle's (the half-car's), ``base_law``: what the rig needs to rebuild that law, its
-  constructor's arguments included (:mod:`capsule_env.export.base_law`);
+  and whether the C export includes the law (else the rig provides it); ``base_law``: the law
+  in the C file, or what the rig needs to rebuild it, its constructor's arguments included
+  (:mod:`capsule_env.export.base_law`, :mod:`capsule_env.export.quarter_law`);
 - ``sources`` and ``artifacts``: sizes and SHA-256 of the policy's files (model, normaliser,
   metadata) and of each exported file.
 """
@@ -187,7 +187,8 @@ def _residual(source: PolicySource, kwargs: dict[str, Any],
         return None
     return {"law": res.law_name, "scale": res.scale,
             "combine": "action = clip(law_action + scale * residual, -1, 1) (double precision, "
-                       "then float32); the artifacts' action is the residual",
+                       "then float32); the artifacts' action is the residual, 0 on a row whose "
+                       "observation holds a NaN or inf (the law alone)",
             "law_in_c": res.law is not None, "law_gains": res.law.gains() if res.law else None,
             "rig_provides_law": res.law is None, "why_not_in_c": res.reason or None,
             "base_law": base_law(source, kwargs, names)}  # fmt: skip

@@ -3,7 +3,9 @@
 The graph takes ``obs`` (float32, ``(batch, n_obs)``, the env's raw observation) and gives
 ``action`` (float32, ``(batch, n_action)``): the ``VecNormalize`` normalisation (in double
 precision, its clip included), SB3's own actor modules, the squashing or clipping SB3's
-``predict`` applies and the clip to ``[-1, 1]`` (:mod:`capsule_env.export.network`). Needs the
+``predict`` applies and the clip to ``[-1, 1]`` (:mod:`capsule_env.export.network`); for a
+residual policy, a row of ``obs`` holding a NaN or inf gets the residual 0 (the law alone, as
+:class:`~capsule_env.agents.learning.residual.ResidualPolicy` acts). Needs the
 ``export`` extra (onnx, onnxscript: torch's exporter; onnxruntime to run the graph).
 """
 
@@ -23,8 +25,9 @@ __all__ = ["OPSET", "onnx_module", "onnx_bytes"]
 OPSET = 18
 
 
-def onnx_module(actor: DeterministicActor) -> Any:
-    """A ``torch.nn.Module`` whose forward is the deterministic action of ``actor``."""
+def onnx_module(actor: DeterministicActor, residual: bool = False) -> Any:
+    """A ``torch.nn.Module`` whose forward is the deterministic action of ``actor``; with
+    ``residual``, 0 on the rows of ``obs`` that hold a NaN or inf."""
     import torch
 
     class DeterministicAction(torch.nn.Module):
@@ -52,7 +55,10 @@ def onnx_module(actor: DeterministicActor) -> Any:
                 a = self.low + 0.5 * (a + 1.0) * (self.high - self.low)
             else:
                 a = torch.minimum(torch.maximum(a, self.low), self.high)
-            return a.clamp(-1.0, 1.0)
+            a = a.clamp(-1.0, 1.0)
+            if residual:  # a row the network cannot read: the law alone
+                a = torch.where(torch.isfinite(obs).all(dim=1, keepdim=True), a, 0.0)
+            return a
 
     return DeterministicAction().eval()
 
@@ -66,14 +72,15 @@ def _check_installed() -> None:
                          "pip install 'capsule-env[export]'")  # fmt: skip
 
 
-def onnx_bytes(actor: DeterministicActor) -> bytes:
-    """The serialised ONNX model (opset :data:`OPSET`, a dynamic batch dimension), checked
-    by ``onnx.checker``. ``ValueError`` when onnx or onnxscript is not installed."""
+def onnx_bytes(actor: DeterministicActor, residual: bool = False) -> bytes:
+    """The serialised ONNX model of :func:`onnx_module` (opset :data:`OPSET`, a dynamic batch
+    dimension), checked by ``onnx.checker``. ``ValueError`` when onnx or onnxscript is not
+    installed."""
     _check_installed()
     import onnx
     import torch
 
-    module = onnx_module(actor)
+    module = onnx_module(actor, residual)
     example = torch.zeros(1, actor.obs_size, dtype=torch.float32)
     batch = torch.export.Dim("batch", min=1)
     quiet = logging.getLogger("torch.onnx")
