@@ -15,7 +15,7 @@ Leaf diagnostics instead (each prints one JSON line per window and seed): ``--na
 (narrowed, not valid, cut sets), ``--diagnose`` (how the leaves' relaxed solutions depart
 from the plant; with ``--stroke`` the leaves that also fix the stroke's side of the blend,
 capsule_env.bounds.stroke), ``--current-tie`` (the oracle's (rate, stroke) leaf with the
-per-step current's cuts).
+per-step current's cuts and with its rate classes, and 0 A's leaf with both).
 """
 
 from __future__ import annotations
@@ -198,37 +198,47 @@ def diagnose(seed: int, length_s: float, stroke: bool = False) -> dict[str, Any]
     return out
 
 
-def _tie_leaf(problem: Any, sigma: np.ndarray, tau: np.ndarray, rate_bound: np.ndarray):
-    """(certified bound, J at the solver's relaxed forces) of the leaf with the per-step
-    current's cuts at rate bounds ``rate_bound`` (valid only if they bound every ``|v|``)."""
-    gf, gv, h, extra = problem.tied_rows(sigma, tau, rate_bound)
-    y_w, z, forces = problem._sparse.solve(gf, gv, h)
-    return problem.certify(gf, gv, h, y_w, z, extra), problem.ride(forces)
+def _leaf_signs(problem: Any, lifted: Any, ep: OracleEpisodes, currents: np.ndarray):
+    """``(sigma, tau, kappa, v)`` of the trajectory under ``currents``: its rate signs,
+    stroke sides and rate classes (:data:`~capsule_env.bounds.stroke.RATE_BREAKS_M_S`)."""
+    from capsule_env.bounds.stroke import RATE_BREAKS_M_S, stroke_sides
+
+    forces = _rollout(lifted, ep, 0, currents)
+    v = lifted.affine(lifted.v_rows, forces)
+    tau = stroke_sides(lifted.affine(lifted.x_rows, forces), problem.side.blend_m)
+    kappa = np.searchsorted(np.asarray(RATE_BREAKS_M_S), np.abs(v), side="right") - 1
+    return np.where(v >= 0.0, 1, -1).astype(np.int8), tau, kappa, v
 
 
 def current_tie(seed: int, length_s: float) -> dict[str, Any]:
-    """The leaf at the oracle's (rate, stroke) signs without and with the per-step current's
-    cuts (:func:`capsule_env.bounds.stroke.current_tie_rows`), Wk: certified and at the
-    solver's relaxed forces, with the a-priori rate bound (valid) and, as a what-if that is
-    NOT a valid bound, twice the oracle run's largest ``|v|``."""
-    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts, stroke_sides
+    """The leaf at the oracle's (rate, stroke) signs (Wk, certified and at the solver's
+    relaxed forces): as is; with the per-step current's cuts
+    (:func:`capsule_env.bounds.stroke.current_tie_rows`) at the a-priori rate bound (valid)
+    and, as a what-if that is NOT valid, at twice the oracle run's largest ``|v|``; with the
+    oracle's rate classes (:func:`~capsule_env.bounds.stroke.rate_class_rows`), alone and with
+    the per-step current at each class's upper end (valid in that leaf); and 0 A's (rate,
+    stroke, class) leaf with both."""
+    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts
 
     ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), [seed], length_s)
     oracle_i, oracle_wk = _oracle_currents([seed], length_s)
     lifted, p = lift_episode(ep, 0), ep.damper_params[0]
-    cuts = side_cuts(ep.code, p)
-    problem = StrokeBranchProblem(lifted, damper_envelope(ep.code, p), cuts)
-    forces = _rollout(lifted, ep, 0, oracle_i[0])
-    v = lifted.affine(lifted.v_rows, forces)
-    sigma = np.where(v >= 0.0, 1, -1).astype(np.int8)
-    tau = stroke_sides(lifted.affine(lifted.x_rows, forces), cuts.blend_m)
-    bound, relaxed = problem.node_bound(sigma, tau)
-    out = {"oracle_wk": float(oracle_wk[0]), "leaf_wk": math.sqrt(bound),
-           "leaf_solver_wk": math.sqrt(problem.ride(relaxed))}  # fmt: skip
-    for name, rate in (("apriori", problem.v_abs[: problem.n]),
-                       ("twice_oracle_max_not_valid", np.full(problem.n, 2 * np.abs(v).max()))):  # fmt: skip
-        bound, ride = _tie_leaf(problem, sigma, tau, rate)
-        out[f"tie_{name}_wk"], out[f"tie_{name}_solver_wk"] = math.sqrt(bound), math.sqrt(ride)
+    problem = StrokeBranchProblem(lifted, damper_envelope(ep.code, p), side_cuts(ep.code, p))
+    sigma, tau, kappa, v = _leaf_signs(problem, lifted, ep, oracle_i[0])
+    zero = _leaf_signs(problem, lifted, ep, np.zeros(ep.n_steps))[:3]
+    cases = {"leaf": (sigma, tau, None, False, None),
+             "tie_apriori": (sigma, tau, None, True, None),
+             "tie_twice_oracle_max_not_valid": (sigma, tau, None, True,
+                                                np.full(problem.n, 2 * np.abs(v).max())),
+             "classes": (sigma, tau, kappa, False, None),
+             "classes_tie": (sigma, tau, kappa, True, None),
+             "zero_a_classes_tie": (*zero, True, None)}  # fmt: skip
+    out: dict[str, Any] = {"oracle_wk": float(oracle_wk[0])}
+    for name, args in cases.items():
+        gf, gv, h, extra = problem.node_rows(*args)
+        y_w, z, forces = problem._sparse.solve(gf, gv, h)
+        out[f"{name}_wk"] = math.sqrt(problem.certify(gf, gv, h, y_w, z, extra))
+        out[f"{name}_solver_wk"] = math.sqrt(problem.ride(forces))
     return out
 
 
@@ -244,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         "--current-tie",
         action="store_true",
         help="print only the oracle's (rate, stroke) leaf with the per-step current's cuts "
-        "(solver optima, not certified)",
+        "and the rate classes (certified, and J at the solver's relaxed forces)",
     )
     p.add_argument(
         "--stroke",

@@ -14,8 +14,10 @@ from capsule_env.bounds.lifted import LiftedEpisode
 from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_force_parts
 from capsule_env.bounds.stroke import (
     INSIDE_BLEND,
+    RATE_BREAKS_M_S,
     StrokeBranchProblem,
     current_tie_rows,
+    rate_class_rows,
     side_cut_values,
     side_cuts,
     stroke_sides,
@@ -178,7 +180,7 @@ def test_any_multipliers_certify_below_the_trajectory(window: OracleEpisodes, ti
     problem = StrokeBranchProblem(lifted, damper_envelope(window.code, p), cuts)
     sigma, tau, _, _ = _signs(lifted, forces, cuts.blend_m)
     if tie:
-        gf, gv, h, extra = problem.tied_rows(sigma, tau)
+        gf, gv, h, extra = problem.node_rows(sigma, tau, current_tie=True)
     else:
         (gf, gv, h), extra = problem.rows(sigma, tau), np.zeros(0)
     # the trajectory is in the node: theta = 0 and w = 0 at 0 A
@@ -193,3 +195,51 @@ def test_any_multipliers_certify_below_the_trajectory(window: OracleEpisodes, ti
     assert ride >= problem.certify(gf, gv, h, y_w, z, extra) > 0.0
     with pytest.raises(ValueError, match="extra_abs"):
         problem.certify(gf, gv, h, y_w, z, np.r_[extra, 1.0])
+
+
+def test_rate_class_cuts_hold_on_the_model_and_keep_the_yield(sim: OracleEpisodes) -> None:
+    """In each rate class the lower edge's chord holds on the model (both sides beyond the
+    blend, both rate signs, 13 currents), and it cuts off what the class-free cuts admit:
+    a force at ``b u + c`` inside the yield band, below every current's force there."""
+    cuts = side_cuts(sim.code, sim.damper_params[0])
+    breaks = np.asarray(RATE_BREAKS_M_S)
+    rates = np.r_[np.logspace(-7, 0.3, 200), breaks[1:-1]]
+    for tau in (1, -1):
+        for sigma in (1, -1):
+            x, u, i = np.meshgrid(tau * np.array([1e-4, 5e-3]), rates, np.linspace(0, 1.5, 13))
+            v = sigma * u.ravel()
+            force = _model(sim, x.ravel(), v, i.ravel())
+            for k in range(breaks.size - 1):
+                at = (u.ravel() >= breaks[k]) & (u.ravel() <= breaks[k + 1])
+                n = int(at.sum())
+                kappa = np.full(n, k)
+                gf, gv, h = rate_class_rows(cuts, np.full(n, sigma, dtype=np.int8),
+                                            np.full(n, tau, dtype=np.int8), kappa)  # fmt: skip
+                lhs = gf @ force[at] + gv @ np.r_[v[at], x.ravel()[at]]
+                assert np.all(lhs <= h)
+    # at u = 10 mm/s (class 1), stroke 5 mm, v > 0: the model's least force (0 A, 0.90 kN)
+    # is 0.6 kN above b u + c (0.30 kN, the cuts without classes); 0.3 kN below it is cut
+    one = np.ones(1, dtype=np.int8)
+    least = float(_model(sim, np.array([5e-3]), np.array([0.01]), np.zeros(1))[0])
+    below = np.array([least - 0.3])
+    gf, gv, h = rate_class_rows(cuts, one, one, np.array([1]))
+    assert np.any(gf @ below + gv @ np.r_[0.01, 5e-3] > h)
+    untied = sign_cuts(damper_envelope(sim.code, sim.damper_params[0]))
+    assert sign_cut_values(untied, 1.0, below, np.array([0.01])).min() >= 0.0
+    assert side_cut_values(cuts, 1.0, 1.0, below, np.array([0.01])).min() >= 0.0
+
+
+def test_leaf_with_rate_classes_bounds_its_rollouts(window: OracleEpisodes) -> None:
+    """Rollouts lie in the leaf of their own (rate, stroke, rate class) and its bound, with
+    and without the per-step current (at each class's upper end), is below their J."""
+    breaks = np.asarray(RATE_BREAKS_M_S)
+    for _, lifted, forces, problem, env_j in _cases(window, 3):
+        sigma, tau, v, x = _signs(lifted, forces, problem.side.blend_m)
+        kappa = np.searchsorted(breaks, np.abs(v), side="right") - 1
+        gf, gv, h = rate_class_rows(problem.side, sigma, tau, kappa)
+        assert np.all(gf @ (forces / FORCE_SCALE_N) + gv @ np.r_[v, x] <= h)
+        rate = np.minimum(problem.v_abs[: problem.n], breaks[kappa + 1])
+        assert np.all(np.abs(v) <= rate)
+        for tie in (False, True):  # the tie at the class's upper end by default
+            bound, _ = problem.node_bound(sigma, tau, tie, kappa)
+            assert 0.0 < bound <= env_j

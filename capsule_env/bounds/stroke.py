@@ -20,6 +20,9 @@ evaluation, the stroke's side ``tau``:
 Optionally (``node_bound(..., current_tie=True)``) the nine evaluations of a control step are
 tied to one current: :func:`current_tie_rows` (a per-step current fraction and McCormick's
 envelope of its product with the rate), their variables priced by their ranges.
+And a node may fix the class of the stroke rate's magnitude (``kappa``,
+:data:`RATE_BREAKS_M_S`), which bounds the rate and keeps the lower edge's yield by a chord
+(:func:`rate_class_rows`).
 
 The node's bound is certified exactly as :meth:`.branch.BranchProblem.node_bound` certifies it:
 the stroke ``x`` enters as further affine rows beside the stroke rate (``[v; x] = [A; B] F +
@@ -29,6 +32,7 @@ the stroke ``x`` enters as further affine rows beside the stroke rate (``[v; x] 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +45,9 @@ from capsule_env.dampers.registry import model_of_code
 
 __all__ = [
     "INSIDE_BLEND",
+    "RATE_BREAKS_M_S",
     "current_tie_rows",
+    "rate_class_rows",
     "SideCuts",
     "StrokeBranchProblem",
     "branch_corners",
@@ -235,6 +241,45 @@ def current_tie_rows(
     return gf, gv, np.r_[h, np.full(2 * t_steps, 0.5)], np.r_[np.full(t_steps, 0.5), big / 2]
 
 
+#: Stroke-rate magnitude classes (m/s): class ``k`` is ``u = |v|`` in ``[b_k, b_{k+1}]``.
+RATE_BREAKS_M_S = (0.0, 0.005, 0.02, 0.06, math.inf)
+
+
+def rate_class_rows(
+    cuts: SideCuts, sigma: np.ndarray, tau: np.ndarray, kappa: np.ndarray,
+    breaks: tuple[float, ...] = RATE_BREAKS_M_S,
+) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:  # fmt: skip
+    """Cuts ``GF F + Gv [v; x] <= h`` of a node that also fixes the rate's magnitude class
+    ``kappa`` (-1: not fixed) where ``sigma`` is fixed: ``b_k <= u <= b_{k+1}`` (``u = sigma
+    v``; the classes cover ``u >= 0``), and where ``tau = +-1`` too the lower edge's yield.
+
+    Proof (lower edge). Beyond the blend ``sigma F >= g(u) = min_j f_j(u)`` (corners as
+    :func:`side_cuts`), ``g`` concave (a minimum of concave functions), so on ``[b_k,
+    b_{k+1}]`` it lies above its chord; on ``[b_k, inf)``, ``f_j(u) >= f_j(b_k) + b_j (u -
+    b_k)`` (``f_j' >= b_j``), so ``sigma F >= g(b_k) + min_j b_j (u - b_k)``. Slack
+    :data:`~.branch.CUT_SLACK_KN` on each."""
+    n = sigma.size
+    edges = np.asarray(breaks, dtype=float)
+    at = np.flatnonzero((np.asarray(kappa) >= 0) & (sigma != 0))
+    rows: list[tuple[int, float, float, float]] = []  # s, coefficient of F, of v, rhs
+    for s in at:
+        sv, lo, hi = float(sigma[s]), edges[kappa[s]], edges[kappa[s] + 1]
+        rows.append((s, 0.0, -sv, -lo))
+        if math.isfinite(hi):
+            rows.append((s, 0.0, sv, hi))
+        if abs(tau[s]) != 1:
+            continue
+        a, b, c, d = _corner_kn(cuts, int(tau[s]))
+        ends = [np.min(a * (1.0 - np.exp(-d * u)) + b * u + sv * c) if math.isfinite(u) else 0.0
+                for u in (lo, hi)]  # fmt: skip
+        slope = (ends[1] - ends[0]) / (hi - lo) if math.isfinite(hi) else float(b.min())
+        rows.append((s, -sv, slope * sv, -ends[0] + slope * lo + CUT_SLACK_KN))
+    arr = np.array(rows, dtype=float).reshape(-1, 4)
+    r, col = np.arange(arr.shape[0]), arr[:, 0].astype(int)
+    gf = sp.csr_matrix((arr[:, 1], (r, col)), shape=(r.size, n))
+    return gf, sp.csr_matrix((arr[:, 2], (r, col)), shape=(r.size, 2 * n)), arr[:, 3]
+
+
 class StrokeBranchProblem(BranchProblem):
     """:class:`~.branch.BranchProblem` whose nodes also fix the stroke's side ``tau`` (module
     doc); the certificate's affine rows are ``[v; x]`` (2N), forces in kN."""
@@ -295,27 +340,37 @@ class StrokeBranchProblem(BranchProblem):
         return (sp.vstack([gf0, gf]).tocsr(), sp.vstack([gv0, gv]).tocsr(),
                 np.r_[h0, np.concatenate(rhs)])  # fmt: skip
 
-    def tied_rows(
-        self, sigma: np.ndarray, tau: np.ndarray, rate_bound: np.ndarray | None = None
-    ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, np.ndarray]:
-        """:meth:`rows` and :func:`current_tie_rows` together: ``GF [F; e] + Gv [v; x] <=
-        h`` and ``e``'s bounds (``rate_bound`` default the a-priori one; a smaller one is
-        valid only if it bounds every ``|v|`` of the node)."""
-        gf, gv, h = self.rows(sigma, tau)
-        bound = self.v_abs[: self.n] if rate_bound is None else rate_bound
-        tf, tv, th, extra = current_tie_rows(self.side, self.step_of, sigma, np.asarray(tau), bound)
-        gf = sp.vstack([sp.hstack([gf, sp.csr_matrix((h.size, extra.size))]), tf]).tocsr()
-        return gf, sp.vstack([gv, tv]).tocsr(), np.r_[h, th], extra
+    def node_rows(
+        self, sigma: np.ndarray, tau: np.ndarray | None = None, kappa: np.ndarray | None = None,
+        current_tie: bool = False, tie_rate: np.ndarray | None = None,
+    ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, np.ndarray]:  # fmt: skip
+        """The node's cuts ``GF [F; e] + Gv [v; x] <= h`` and the ranges of ``e`` (empty
+        without the per-step current): :meth:`rows`, :func:`rate_class_rows` where ``kappa``
+        is given, and with ``current_tie`` :func:`current_tie_rows` at the rate bound
+        ``tie_rate``, default the a-priori one capped by each fixed class's upper end (valid
+        in the node; another is valid only if it bounds every ``|v|`` of the node)."""
+        parts, extra = [self.rows(sigma, tau)], np.zeros(0)
+        if kappa is not None and tau is not None:
+            parts.append(rate_class_rows(self.side, sigma, np.asarray(tau), np.asarray(kappa)))
+        if current_tie and tau is not None:
+            rate = self.v_abs[: self.n] if tie_rate is None else np.asarray(tie_rate, dtype=float)
+            if tie_rate is None and kappa is not None:
+                top = np.asarray(RATE_BREAKS_M_S)[np.asarray(kappa) + 1]
+                rate = np.where(np.asarray(kappa) >= 0, np.minimum(rate, top), rate)
+            *part, extra = current_tie_rows(self.side, self.step_of, sigma, np.asarray(tau), rate)
+            parts.append((part[0], part[1], part[2]))
+        width = self.n + extra.size
+        gf = sp.vstack([sp.hstack([f, sp.csr_matrix((f.shape[0], width - f.shape[1]))])
+                        for f, _, _ in parts]).tocsr()  # fmt: skip
+        gv = sp.vstack([v for _, v, _ in parts]).tocsr()
+        return gf, gv, np.concatenate([h for _, _, h in parts]), extra
 
     def node_bound(  # type: ignore[override]
-        self, sigma: np.ndarray, tau: np.ndarray | None = None, current_tie: bool = False
-    ) -> tuple[float, np.ndarray]:
-        """The certified bound of the node ``(sigma, tau)`` and its relaxed forces (kN);
-        ``current_tie``: with :func:`current_tie_rows` (:meth:`tied_rows`)."""
-        if current_tie and tau is not None:
-            gf, gv, h, extra = self.tied_rows(sigma, tau)
-        else:
-            (gf, gv, h), extra = self.rows(sigma, tau), None
+        self, sigma: np.ndarray, tau: np.ndarray | None = None, current_tie: bool = False,
+        kappa: np.ndarray | None = None,
+    ) -> tuple[float, np.ndarray]:  # fmt: skip
+        """The certified bound of the node (:meth:`node_rows`) and its relaxed forces (kN)."""
+        gf, gv, h, extra = self.node_rows(sigma, tau, kappa, current_tie)
         y_w, z, forces = self._sparse.solve(gf, gv, h)
         return self.certify(gf, gv, h, y_w, z, extra), forces
 
