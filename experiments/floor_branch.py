@@ -15,7 +15,8 @@ Leaf diagnostics instead (each prints one JSON line per window and seed): ``--na
 (narrowed, not valid, cut sets), ``--diagnose`` (how the leaves' relaxed solutions depart
 from the plant; with ``--stroke`` the leaves that also fix the stroke's side of the blend,
 capsule_env.bounds.stroke), ``--current-tie`` (the oracle's (rate, stroke) leaf with the
-per-step current's cuts and with its rate classes, and 0 A's leaf with both).
+per-step current's cuts and with its rate classes, and 0 A's leaf with both), ``--partial``
+(nodes fixing the oracle's labels at only a fraction of the evaluations).
 """
 
 from __future__ import annotations
@@ -242,6 +243,34 @@ def current_tie(seed: int, length_s: float) -> dict[str, Any]:
     return out
 
 
+def partial(seed: int, length_s: float) -> dict[str, Any]:
+    """Nodes that fix the oracle's (rate sign, stroke side, rate class) at only a fraction of
+    the evaluations (a random subset, seed 0, or the window's first part), the rest free,
+    with the per-step current: how much of the leaf's bound a partly decided node keeps."""
+    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts
+
+    ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), [seed], length_s)
+    oracle_i, oracle_wk = _oracle_currents([seed], length_s)
+    lifted, p = lift_episode(ep, 0), ep.damper_params[0]
+    problem = StrokeBranchProblem(lifted, damper_envelope(ep.code, p), side_cuts(ep.code, p))
+    sigma, tau, kappa, _ = _leaf_signs(problem, lifted, ep, oracle_i[0])
+    rng = np.random.default_rng(0)
+    out: dict[str, Any] = {"oracle_wk": float(oracle_wk[0])}
+    for frac in (1.0, 0.99, 0.9, 0.5):
+        draw = rng.random(problem.n)
+        for name, keep in (
+            ("random", draw < frac),
+            ("first", np.arange(problem.n) < frac * problem.n),
+        ):
+            node = (
+                np.where(keep, sigma, 0).astype(np.int8),
+                np.where(keep, tau, 0).astype(np.int8),
+            )
+            bound, _ = problem.node_bound(*node, True, np.where(keep, kappa, -1))
+            out[f"{name}_{frac:g}_wk"] = math.sqrt(bound)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
@@ -257,6 +286,11 @@ def main(argv: list[str] | None = None) -> int:
         "and the rate classes (certified, and J at the solver's relaxed forces)",
     )
     p.add_argument(
+        "--partial",
+        action="store_true",
+        help="print only nodes fixing the oracle's labels at a fraction of the evaluations",
+    )
+    p.add_argument(
         "--stroke",
         action="store_true",
         help="with --diagnose: leaves that also fix the stroke's side of the blend",
@@ -270,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
-    modes = {"narrowed": narrowed, "current_tie": current_tie,
+    modes = {"narrowed": narrowed, "current_tie": current_tie, "partial": partial,
              "diagnose": lambda seed, length: diagnose(seed, length, args.stroke)}  # fmt: skip
     for name, fn in modes.items():
         if getattr(args, name):
