@@ -109,7 +109,7 @@ def test_the_contract_alone_rebuilds_the_mpc(name, cards):
     # not vacuous: the forces spread and the QP is solved (more than once on some steps)
     assert np.std(expected) > 0.02 and rebuilt.counters["solves"] > 600
     np.testing.assert_array_equal(got, expected)
-    # a fresh reference: the MPC keeps its warm start and predicted strokes across a restart
+    # fresh laws again (a restart forgets all: tests/test_law_restart.py): the same actions
     via_helper = rebuild_base_law(json.loads(json.dumps(block)))
     again = drive([make_controller(LAW), via_helper], card["env_kwargs"])[0]
     np.testing.assert_array_equal(again[1], expected)

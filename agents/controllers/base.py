@@ -30,6 +30,17 @@ OBSERVATION_GROUPS = {
 }
 
 
+def restarted_vehicles(episode_start: Any, observation: Any) -> list[int]:
+    """The vehicles whose episode starts (SB3's ``episode_start``: one flag per row of
+    ``observation``); ``ValueError`` naming ``episode_start`` for another number of flags."""
+    start = np.asarray(episode_start).reshape(-1)
+    rows = np.atleast_2d(np.asarray(observation)).shape[0]
+    if start.shape != (rows,):
+        raise ValueError(f"episode_start must hold one flag per vehicle ({rows}), got shape "
+                         f"{np.shape(episode_start)}")  # fmt: skip
+    return np.flatnonzero(start.astype(bool)).tolist()
+
+
 class Controller:
     """Base class: a batched, stateless-by-default feedback law.
 

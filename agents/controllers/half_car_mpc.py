@@ -52,7 +52,7 @@ from capsule_env.agents.controllers.mpc_solver import (
     check_integer,
     check_real,
 )
-from capsule_env.agents.controllers.wheelbase import _GAP, _LOWER_VELOCITY, WheelbasePreviewLQ
+from capsule_env.agents.controllers.wheelbase import WheelbasePreviewLQ
 from scipy.linalg import solve_discrete_are
 
 from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
@@ -300,33 +300,13 @@ class HalfCarMPC(WheelbasePreviewLQ):
                 "planned_delay_s": self.delay_steps * self.dt_s,
                 "planned_coil_time_constant_s": self.coil_time_constant_s}  # fmt: skip
 
-    def predict(  # type: ignore[no-untyped-def]  # Controller.predict's signature
-        self, observation, state=None, episode_start=None, deterministic=True
-    ):
-        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set starts as
-        under a fresh law: its memories (the rise estimate's last sample, the window, the
-        requests in flight, the coil current, the plan) and its solver's warm start go."""
-        if episode_start is not None:
-            obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
-            start = np.asarray(episode_start).reshape(-1)
-            if start.shape != (obs.shape[0],):
-                raise ValueError(f"episode_start must hold one flag per vehicle "
-                                 f"({obs.shape[0]}), got shape {np.shape(episode_start)}")  # fmt: skip
-            plans = self._memory.get("plans")
-            if plans is not None and plans.shape[0] == obs.shape[0]:  # else all start afresh
-                self._restart(obs, np.flatnonzero(start.astype(bool)).tolist())
-        return super().predict(observation, state, episode_start, deterministic)
-
     def _restart(self, obs: np.ndarray, vehicles: list[int]) -> None:
-        """Forget ``vehicles``' memories and warm starts (their first observations ``obs``)."""
-        mem = self._memory
+        """``vehicles`` as under a fresh law (:meth:`WheelbasePreviewLQ.predict`): their
+        memories (the rise estimate's last sample, the window, the requests in flight, the
+        coil current, the plan) and their solvers' warm starts (set up afresh)."""
+        super()._restart(np.where(np.isfinite(obs), obs, 0.0), vehicles)  # as act() reads it
+        self._memory["plans"][vehicles] = np.nan
         for k in vehicles:
-            for key in ("window", "in_flight", "current", "commands", "strokes"):
-                mem[key][k] = 0.0
-            mem["plans"][k] = np.nan
-            for key, column in (("gap", _GAP), ("v_b", _LOWER_VELOCITY)):
-                value = obs[k, column]  # no rise read across the restart
-                mem[key][k] = value if np.isfinite(value) else 0.0
             self._solvers[k] = BandQP(self.qp, self.damper, self.max_force_n,
                                       self.solver_options)  # fmt: skip
 

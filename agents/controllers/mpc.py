@@ -49,6 +49,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from capsule_env.agents.controllers.base import restarted_vehicles
 from capsule_env.agents.controllers.mpc_qp import (
     CondensedQP,
     band_edges,
@@ -140,6 +141,10 @@ class MPCController(ForceLaw):
     q_stroke: np.ndarray  # the weights, set by _set_gains
     q_levitation: np.ndarray
     r_force: np.ndarray
+    _in_flight: np.ndarray  # the memories (n, ...), set by _build (see _memories)
+    _wk_state: np.ndarray
+    _ref_rate: np.ndarray
+    _ref_stroke: np.ndarray
     SIGNALS: tuple[str, ...] = ("stroke", "body_velocity", "gap", "bogie_velocity",
                                 "relative_velocity")  # fmt: skip
 
@@ -261,14 +266,30 @@ class MPCController(ForceLaw):
     def predict(  # type: ignore[no-untyped-def]  # Controller.predict's signature
         self, observation, state=None, episode_start=None, deterministic=True
     ):
-        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set forgets its
-        requests in flight and its previous plan."""
-        if episode_start is not None and self._qps:
-            start = np.asarray(episode_start, dtype=bool)
-            self._in_flight[start] = 0.0
-            self._wk_state[start] = 0.0
-            self._ref_rate[start] = np.nan
+        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set starts as
+        under a fresh law, the others untouched: its requests in flight, the Wk filter's
+        state, the previous plan's predicted rates and strokes (the next plan's sign pattern
+        and linearisation points) and its solver's warm start go (its QP is set up afresh)."""
+        if episode_start is not None:
+            vehicles = restarted_vehicles(episode_start, observation)
+            if vehicles and len(self._qps) == len(np.atleast_2d(np.asarray(observation))):
+                self._restart(vehicles)  # (another batch: the next step sets all up afresh)
         return super().predict(observation, state, episode_start, deterministic)
+
+    def _memories(self, n: int) -> dict[str, np.ndarray]:
+        """What a fresh law remembers of ``n`` vehicles: nothing (zeros; no previous plan)."""
+        wk_size = self.prediction.wk_states.stop - self.prediction.wk_states.start
+        return {"_in_flight": np.zeros((n, self.delay_steps)), "_wk_state": np.zeros((n, wk_size)),
+                "_ref_rate": np.full((n, self.horizon_steps), np.nan),
+                "_ref_stroke": np.zeros((n, self.horizon_steps))}  # fmt: skip
+
+    def _restart(self, vehicles: list[int]) -> None:
+        """``vehicles`` as under a fresh law: their memories and their QPs' warm starts."""
+        for name, fresh in self._memories(1).items():
+            getattr(self, name)[vehicles] = fresh
+        for k in vehicles:
+            self._qps[k] = BandQP(self._qps[k].qp, self.damper, self.max_force_n,
+                                  self.solver_options)  # fmt: skip
 
     def _build(self, n: int) -> None:
         """One QP per vehicle (one condensed problem per distinct weight set)."""
@@ -285,12 +306,8 @@ class MPCController(ForceLaw):
                                          self.move_blocks)  # fmt: skip
             self._qps.append(BandQP(cache[triple], self.damper, self.max_force_n,
                                     self.solver_options))  # fmt: skip
-        self._in_flight = np.zeros((n, self.delay_steps))
-        self._wk_state = np.zeros(
-            (n, self.prediction.wk_states.stop - self.prediction.wk_states.start)
-        )
-        self._ref_rate = np.full((n, self.horizon_steps), np.nan)
-        self._ref_stroke = np.zeros((n, self.horizon_steps))
+        for name, fresh in self._memories(n).items():
+            setattr(self, name, fresh)
 
     def state_and_rises(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The prediction model's state ``z`` (n, size) and the guideway rises read (n, R)."""

@@ -25,7 +25,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from capsule_env.agents.controllers.base import Controller
+from capsule_env.agents.controllers.base import Controller, restarted_vehicles
 from capsule_env.agents.controllers.declared_lqr import DeclaredClippedLQR
 from capsule_env.agents.controllers.lqr import state_weights
 from capsule_env.agents.controllers.preview_lq import preview_rises
@@ -174,6 +174,32 @@ class WheelbasePreviewLQ(Controller):
     def reset(self) -> None:
         self._memory = {}
 
+    def predict(  # type: ignore[no-untyped-def]  # Controller.predict's signature
+        self, observation, state=None, episode_start=None, deterministic=True
+    ):
+        """As :meth:`Controller.predict`; a vehicle whose ``episode_start`` is set starts as
+        under a fresh law (its memories: the rise estimate's last sample, the window, the
+        requests in flight), the others untouched."""
+        if episode_start is not None:
+            vehicles = restarted_vehicles(episode_start, observation)
+            obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
+            in_flight = self._memory.get("in_flight")
+            if vehicles and in_flight is not None and in_flight.shape[0] == obs.shape[0]:
+                self._restart(obs, vehicles)  # (another batch: the next step sets all afresh)
+        return super().predict(observation, state, episode_start, deterministic)
+
+    def _restart(self, obs: np.ndarray, vehicles: list[int]) -> None:
+        """``vehicles``' memories as a fresh law's after its first step's ``obs``: the rise
+        estimate's last sample that observation's (no rise read across the restart), the
+        rest zero."""
+        sampled = self._sampled_columns()
+        for key, memory in self._memory.items():
+            memory[vehicles] = obs[vehicles, sampled[key]] if key in sampled else 0.0
+
+    def _sampled_columns(self) -> dict[str, int]:
+        """The memories holding the last step's observation, and their columns."""
+        return {"gap": _GAP, "v_b": _LOWER_VELOCITY}
+
     def gains(self) -> dict[str, Any]:
         g = self.gains_
         return {"k_x": g.k_x.tolist(), "k_u": g.k_u.tolist(), "k_p": g.k_p.tolist()}
@@ -221,6 +247,9 @@ class WheelbaseExactPreviewLQ(WheelbasePreviewLQ):
         self.state_law = DeclaredClippedLQR(vehicle, None, q_stroke, q_levitation, r_force)
         self.env_kwargs = dict(self.env_kwargs, observation="full_state")
         self._front_column = int(self.state_law._zg_cols[0])
+
+    def _sampled_columns(self) -> dict[str, int]:
+        return {"z": self._front_column}
 
     def _estimate_rise(self, obs: np.ndarray) -> np.ndarray:
         z_front = obs[:, self._front_column]

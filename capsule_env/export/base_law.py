@@ -112,7 +112,9 @@ def _mpc_block(law: Any, names: tuple[str, ...], slots: list[str]) -> dict[str, 
         "inverse_model": inverse_model_record(damper),
         "reads": {"columns": read, "note": "the raw observation (not "
                   "normalised), in the contract's order and units"},  # fmt: skip
-        "state": "per vehicle, restarted at each episode's first step (episode_start): the "
+        "state": "per vehicle, restarted at each episode's first step (episode_start) as "
+                 "under a fresh law (the last step's sample from the episode's first "
+                 "observation, the rest zero, no plan, the solver set up afresh): the "
                  "front gap and lower velocity estimate of the last step (the rise estimate), "
                  "the wheelbase window of rises, its own requests in flight (what the damper "
                  "makes of the law's own request, not of the combined action), the coil "

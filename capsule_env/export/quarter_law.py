@@ -49,10 +49,11 @@ _STATE = {
                      "stroke rates and strokes (the next step's sign pattern and band-edge "
                      "linearisation points), DAQP's warm start (its previous solution) and, "
                      "with wk_cost, the Wk filter's state. At an episode's first step "
-                     "(episode_start) the requests in flight and the Wk state are zeroed and "
-                     "the predicted rates set to 0; the predicted strokes and the warm start "
-                     "are kept. The acting force is estimated each step from the "
-                     "coil_current_a column through the inverse model",
+                     "(episode_start) the vehicle starts as under a fresh law: the requests in "
+                     "flight and the Wk state zeroed, no previous plan (predicted rates and "
+                     "strokes 0) and no warm start (the solver set up afresh). The acting "
+                     "force is estimated each step from the coil_current_a column through the "
+                     "inverse model",
     "PreviewLQController": "per vehicle: its own requests in flight (delay_steps of them, "
                            "zeroed at each episode's first step)",
     "ScheduledLQRController": "none (the gain is looked up at the measured speed each step)",
