@@ -9,7 +9,8 @@ widest layer), no global state, re-entrant; the only library function is ``tanhf
 
 A residual policy's ``capsule_policy`` gives the residual (its network's action), 0 when an
 observation value is not finite (NaN, inf: the law alone, as
-:class:`~capsule_env.agents.learning.residual.ResidualPolicy` acts; C99's ``isfinite`` macro);
+:class:`~capsule_env.agents.learning.residual.ResidualPolicy` acts; tested on the value's bits,
+so that it holds under ``-ffast-math``, where a compiler may drop C99's ``isfinite``);
 the file adds ``float capsule_combine(float law_action, float residual)``, the env's action
 ``clip(law_action + scale * residual, -1, 1)``, and, when its law has a C form
 (:mod:`capsule_env.export.laws_c`), ``float capsule_law(const float *obs)`` (static) and
@@ -85,10 +86,25 @@ _HELPERS = {
 }
 
 
+#: A residual policy's test of an observation value: not NaN or inf when its exponent bits are
+#: not all ones (IEEE 754 binary32). An integer test, not C99's ``isfinite``, which a compiler
+#: may assume true under ``-ffast-math`` / ``-Ofast`` (GCC does: the rule would be dropped).
+_FINITE = """/* x is not NaN or inf: its exponent bits (IEEE 754 binary32) are not all ones; read as an
+   integer so that -ffast-math, under which isfinite may be assumed true, keeps the test */
+static int finite_value(float x)
+{
+    union {
+        float f;
+        uint32_t u;
+    } bits;
+    bits.f = x;
+    return (bits.u & 0x7f800000u) != 0x7f800000u;
+}
+"""
 #: A residual policy's first lines: a non-finite observation value gets the residual 0.
 _NONFINITE = [
     "for (i = 0; i < N_OBS; ++i) {",
-    "    if (!isfinite(obs[i])) { /* the network cannot read it: the law alone */",
+    "    if (!finite_value(obs[i])) { /* the network cannot read it: the law alone */",
     "        for (i = 0; i < N_ACTION; ++i) {",
     "            action[i] = 0.0f;",
     "        }",
@@ -233,18 +249,20 @@ def c_source(actor: DeterministicActor, name: str, banner: str, residual_scale: 
     out_consts, out_lines = _output_lines(actor, out)
     widest = max([actor.obs_size] + [layer.weight.shape[0] for layer in actor.layers
                                      if isinstance(layer, Dense)])  # fmt: skip
-    body = ["float a[WIDTH], b[WIDTH];", "int i;",
-            *(_NONFINITE if residual_scale is not None else []),
+    residual = residual_scale is not None
+    body = ["float a[WIDTH], b[WIDTH];", "int i;", *(_NONFINITE if residual else []),
             *norm_lines, *net_lines, *out_lines]  # fmt: skip
     parts = [
-        banner, f'#include "{name}.h"\n\n#include <math.h>\n',
+        banner, f'#include "{name}.h"\n\n#include <math.h>\n'
+        + ("#include <stdint.h>\n" if residual else ""),
         f"#define N_OBS {actor.obs_size}\n#define N_ACTION {actor.action_size}\n"
         f"#define WIDTH {widest}\n",
-        norm_consts + "".join(net_consts) + out_consts, _helpers(actor.layers),
+        norm_consts + "".join(net_consts) + out_consts,
+        _helpers(actor.layers) + (f"\n{_FINITE}" if residual else ""),
         "void capsule_policy(const float *obs, float *action)\n{\n"
         + "".join(f"    {line}\n" for line in body) + "}\n",
     ]  # fmt: skip
-    if residual_scale is not None:
+    if residual_scale is not None:  # the type checker narrows on this test
         parts.append(_residual_code(residual_scale, law_code))
     return "\n".join(parts)
 
