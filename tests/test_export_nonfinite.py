@@ -40,3 +40,62 @@ def test_the_c_residual_is_0_on_a_non_finite_row_under_fast_math(flag, tmp_path)
     assert np.all(got[bad] == 0.0), got[bad]
     np.testing.assert_allclose(got[~bad], expected, rtol=0, atol=1e-4)
 
+
+HALF_CAR = "residual-ppo-mpc-half-car"
+
+
+def _half_car_rows(steps: int = 12) -> np.ndarray:
+    """Observations of the half-car task's env (guideway bank 3, seed 40), passive damper."""
+    from capsule_env.envs.declared_vector import DeclaredVectorEnv
+
+    env = DeclaredVectorEnv(1, guideway_seed=3, episode_length_s=1.0, vehicle="half_car",
+                            setting="hils", observation="measured", action_mode="force")  # fmt: skip
+    obs, _ = env.reset(seed=[40])
+    rows = []
+    for _ in range(steps):
+        rows.append(obs.copy())
+        obs, *_ = env.step(np.zeros((1, 2), np.float32))
+    env.close()
+    return np.concatenate(rows)
+
+
+def test_a_half_car_contract_states_its_law_on_a_non_finite_observation(tmp_path):
+    """The half-car MPC's block says what the law does with a NaN or inf (the quarter-car's
+    says it too), and it is what the law rebuilt from the block does: 0 on both slots whatever
+    measured column holds it (an acceleration it does not feed its state included); the
+    per-bogie LQR's block says it has no rule: a NaN in a slot's state column makes that slot's
+    action NaN, a NaN elsewhere changes nothing."""
+    import json
+
+    from capsule_env.agents.controllers.mpc_solver import solver_available
+
+    from capsule_env.export.base_law import rebuild_base_law
+
+    from conftest import residual_copy
+
+    if not solver_available("daqp"):
+        pytest.skip("the half-car MPC's QP solver DAQP is not installed (the mpc extra)")
+    card = json.loads(export_policy(HALF_CAR, tmp_path / "mpc", "c")
+                      [f"{HALF_CAR}.contract.json"].read_text())  # fmt: skip
+    block = card["residual"]["base_law"]
+    assert "0 N on both slots" in block["nonfinite"]
+    law, rows = rebuild_base_law(block), _half_car_rows()
+    for k, column in enumerate((2, 0, 13), start=3):  # an acceleration, a stroke, a velocity
+        rows[k, column] = np.nan
+    rows[9, 4] = np.inf
+    actions = np.concatenate([law.predict(rows[t : t + 1], episode_start=np.array([t == 0]))[0]
+                              for t in range(rows.shape[0])])  # fmt: skip
+    bad = ~np.all(np.isfinite(rows), axis=1)
+    assert np.all(actions[bad] == 0.0)
+    assert np.all(np.abs(actions[~bad][1:]).max(axis=1) > 1e-3)  # (row 0: at rest)
+
+    lqr_zip = residual_copy(tmp_path, HALF_CAR, "lqr-clipped-biexp-meas", "res-lqr")
+    lqr_card = json.loads(export_policy(str(lqr_zip), tmp_path / "lqr", "c")
+                          ["res-lqr.contract.json"].read_text())  # fmt: skip
+    lqr_block = lqr_card["residual"]["base_law"]
+    assert "no special handling" in lqr_block["nonfinite"]
+    lqr, row = rebuild_base_law(lqr_block), _half_car_rows(2)[1:].copy()
+    row[0, lqr_block["state_columns"][0][0]["index"]] = np.nan  # slot 0's stroke
+    row[0, 10] = np.nan  # the rear's upper acceleration: in no slot's state
+    action = lqr.predict(row)[0][0]
+    assert np.isnan(action[0]) and np.isfinite(action[1])

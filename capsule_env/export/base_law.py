@@ -120,6 +120,10 @@ def _mpc_block(law: Any, names: tuple[str, ...], slots: list[str]) -> dict[str, 
                  "makes of the law's own request, not of the combined action), the coil "
                  "currents' estimate (from the last_current_command_a columns through the "
                  "coil lag), the previous plan (the QP's reference and warm start)",
+        "nonfinite": "a vehicle whose 16 measured columns hold a NaN or inf (any of them): the "
+                     "MPC requests 0 N on both slots that step and its next plan starts "
+                     "afresh; the non-finite values enter its memories (the rise window, the "
+                     "coil currents' estimate) as zeros",
         "rig_solves_qp": True,
         "rebuild": "Python: HalfCarMPC(**constructor) (its QP solver, DAQP: the mpc extra); "
                    "elsewhere: set up and solve, each control period, the QP that "
@@ -143,6 +147,9 @@ def _lqr_block(law: Any, names: tuple[str, ...]) -> dict[str, Any]:
         "reads": {"note": "the raw observation (not normalised), in the contract's order "
                           "and units"},
         "state": "none (a static law)",
+        "nonfinite": "no special handling: the formula computes with the values as given (a NaN "
+                     "or inf in a slot's state_columns gives that slot a non-finite "
+                     "law_action; the other columns are not read)",
         "rig_solves_qp": False,
         "rebuild": "Python: IndependentClippedLQR(**constructor); elsewhere: the formula",
     }  # fmt: skip
