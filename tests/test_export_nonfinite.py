@@ -99,3 +99,6 @@ def test_a_half_car_contract_states_its_law_on_a_non_finite_observation(tmp_path
     row[0, 10] = np.nan  # the rear's upper acceleration: in no slot's state
     action = lqr.predict(row)[0][0]
     assert np.isnan(action[0]) and np.isfinite(action[1])
+    assert "an inf one" in lqr_block["nonfinite"]
+    row[0, lqr_block["state_columns"][0][0]["index"]] = np.inf  # the clip saturates it
+    assert abs(lqr.predict(row)[0][0, 0]) == 1.0

@@ -148,8 +148,9 @@ def _lqr_block(law: Any, names: tuple[str, ...]) -> dict[str, Any]:
                           "and units"},
         "state": "none (a static law)",
         "nonfinite": "no special handling: the formula computes with the values as given (a NaN "
-                     "or inf in a slot's state_columns gives that slot a non-finite "
-                     "law_action; the other columns are not read)",
+                     "in a slot's state_columns gives that slot a NaN law_action, an inf one "
+                     "F_s = +-inf, clipped to -1 or 1, or NaN where infinities cancel; the "
+                     "other columns are not read)",
         "rig_solves_qp": False,
         "rebuild": "Python: IndependentClippedLQR(**constructor); elsewhere: the formula",
     }  # fmt: skip
