@@ -194,7 +194,12 @@ def _read_by_class(law: Any, block: dict[str, Any]) -> dict[str, tuple[Any, Any]
     out = {}
     for key, value in here.items():
         outer, _, inner = key.partition(".")
-        if outer in block and (not inner or inner in block[outer]):
+        if outer not in block:
+            continue
+        if inner and not isinstance(block[outer], dict):
+            raise ValueError(f"base_law.{outer} must be a JSON object (its {inner} is checked "
+                             f"against this installation's), got {block[outer]!r:.80}")  # fmt: skip
+        if not inner or inner in block[outer]:
             out[key] = (value(), block[outer][inner] if inner else block[outer])
     return out
 

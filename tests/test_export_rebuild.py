@@ -1,0 +1,37 @@
+"""``rebuild_base_law`` on a contract a rig has edited: one clear ``ValueError`` naming the
+entry, never another exception nor a check silently skipped."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import NO_SB3
+
+pytest.importorskip("stable_baselines3", reason=NO_SB3)
+
+from capsule_env.export import export_policy  # noqa: E402
+from capsule_env.export.base_law import rebuild_base_law  # noqa: E402
+
+NAME = "residual-ppo-mpc"
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory) -> dict:
+    files = export_policy(NAME, tmp_path_factory.mktemp("exported"), "c")
+    return json.loads(files[f"{NAME}.contract.json"].read_text())["residual"]["base_law"]
+
+
+@pytest.mark.parametrize("value", [3, "bi_exponential", [1], None])
+def test_an_inverse_model_that_is_not_an_object_is_refused(value, block):
+    """The installation's inverse model is checked against ``inverse_model.name`` and
+    ``.parameters``: an entry that is not a JSON object cannot hold them (3 raised a TypeError,
+    a string or a list skipped the check and rebuilt the law)."""
+    tampered = json.loads(json.dumps(block)) | {"inverse_model": value}
+    with pytest.raises(ValueError, match=r"base_law\.inverse_model must be a JSON object"):
+        rebuild_base_law(tampered)
+
+
+def test_the_untampered_block_rebuilds(block):
+    assert type(rebuild_base_law(json.loads(json.dumps(block)))).__name__ == "MPCController"
