@@ -68,18 +68,23 @@ def _zip_of(name_or_path: str) -> Path:
 
 
 def _residual(block: Any, path: Path, vehicle: str = "quarter_car") -> Residual | None:
-    from capsule_env.agents.controllers.classical import make_controller
+    from capsule_env.agents.controllers.classical import FACTORIES, make_controller
     from capsule_env.agents.learning.sb3_policy import DECLARED_LAWS
     from capsule_env.export.laws_c import c_law_reason, law_class
 
     if block is None:
         return None
-    law_name = block.get("law") if isinstance(block, dict) else None
-    scale = block.get("scale", 0.5) if isinstance(block, dict) else None
+    if not isinstance(block, dict):
+        raise ValueError(f'{path}: its metadata\'s residual must be an object {{"law": NAME, '
+                         f'"scale": S}}, got {block!r:.80}')  # fmt: skip
+    law_name, scale = block.get("law"), block.get("scale", 0.5)
     declared = vehicle != "quarter_car"  # a declared vehicle's law: one per damper slot
-    if not isinstance(law_name, str) or (law_name not in DECLARED_LAWS if declared
-                                         else law_class(law_name) is None):  # fmt: skip
-        raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller")
+    if declared and law_name not in DECLARED_LAWS:
+        raise ValueError(f"{path}: its residual law {law_name!r} is not one of the {vehicle}'s "
+                         f"residual laws ({', '.join(DECLARED_LAWS)})")  # fmt: skip
+    if not declared and (not isinstance(law_name, str) or law_class(law_name) is None):
+        raise ValueError(f"{path}: its residual law {law_name!r} is not a classical controller; "
+                         f"accepted: {', '.join(sorted(FACTORIES))}")  # fmt: skip
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < scale <= 2.0:
         raise ValueError(f"{path}: its residual scale must be a number in (0, 2], got {scale!r}")
     if declared:
