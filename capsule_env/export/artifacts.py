@@ -81,12 +81,16 @@ def export_policy(name_or_path: str, out_dir: str | Path, formats: str | Sequenc
                   name: str | None = None) -> dict[str, Path]:  # fmt: skip
     """Export the policy ``name_or_path`` (a shipped name or a ``.zip``) into ``out_dir``
     (module docstring); returns the written paths by file name. ``ValueError`` for bad
-    input, before anything is written."""
+    input (a file name in ``out_dir`` taken by a folder included), before anything is written."""
     chosen = parse_formats(formats)
     check_creatable_dir(out_dir, "--out")
     source = resolve_policy(name_or_path, name)
     files = build_artifacts(source, chosen)
     folder = check_writable_dir(out_dir, "--out")
+    taken = [n for n in files if (folder / n).exists() and not (folder / n).is_file()]
+    if taken:  # its rename would fail after the files before it had replaced theirs
+        raise ValueError(f"--out {str(folder)!r}: {', '.join(taken)} exists and is not a file; "
+                         "remove it or choose another --name or --out")  # fmt: skip
     with StagedFiles() as staged:
         for file_name, data in files.items():
             staged.write_bytes(folder / file_name, data)
