@@ -35,3 +35,16 @@ def test_an_inverse_model_that_is_not_an_object_is_refused(value, block):
 
 def test_the_untampered_block_rebuilds(block):
     assert type(rebuild_base_law(json.loads(json.dumps(block)))).__name__ == "MPCController"
+
+
+def test_a_law_in_the_c_file_is_not_rebuilt_but_named(tmp_path):
+    """A residual on a law with a C form has ``constructor`` null: the law is the C file's
+    ``capsule_law``. Rebuilding it says so (it said the block lacked a constructor object, as
+    for a broken contract)."""
+    from conftest import residual_copy
+
+    zip_path = residual_copy(tmp_path, NAME, "lqr-clipped-biexp-meas", "res-lqr")
+    files = export_policy(str(zip_path), tmp_path / "out", "c")
+    card = json.loads(files["res-lqr.contract.json"].read_text())
+    with pytest.raises(ValueError, match=r"in_c_file.*capsule_law"):
+        rebuild_base_law(card["residual"]["base_law"])

@@ -214,13 +214,18 @@ def _differences(here: Any, given: Any, key: str) -> list[str]:
 
 def rebuild_base_law(block: dict[str, Any]) -> Any:
     """The law a contract's ``residual.base_law`` ``block`` describes, built through its
-    class's constructor from ``constructor``. ``ValueError`` naming the entry when the block
-    names no class of ``capsule_env.agents.controllers``, has no ``constructor`` object or
+    class's constructor from ``constructor``. ``ValueError`` naming the entry when the law is
+    in the C file (``in_c_file``), the block names no class of
+    ``capsule_env.agents.controllers``, has no ``constructor`` object or
     ``vehicle`` name, or when what the class reads from this installation rather than takes
     (the vehicle's and the inverse model's parameters, the per-bogie LQR's gain) differs from
     the block's record of it; the constructor's own ``ValueError`` for a bad argument."""
     if not isinstance(block, dict):
         raise ValueError(f"base_law must be a JSON object, got {type(block).__name__}")
+    if block.get("in_c_file") is True:
+        raise ValueError(f"base_law.in_c_file is true: the law {block.get('name')} is the "
+                         "exported C file's capsule_law (capsule_control: the law and the "
+                         "residual combined); there is no constructor to rebuild it from")  # fmt: skip
     path = block.get("class")
     module, _, name = str(path).rpartition(".")
     cls = None
