@@ -48,3 +48,15 @@ def test_a_law_in_the_c_file_is_not_rebuilt_but_named(tmp_path):
     card = json.loads(files["res-lqr.contract.json"].read_text())
     with pytest.raises(ValueError, match=r"in_c_file.*capsule_law"):
         rebuild_base_law(card["residual"]["base_law"])
+
+
+def test_every_block_lists_the_columns_it_reads_as_index_and_name(block, tmp_path):
+    """``reads.columns`` has one form in every contract: the quarter-car MPC's ``{index,
+    name}`` (the half-car MPC's were bare names), each the observation's column at that index."""
+    half = export_policy("residual-ppo-mpc-half-car", tmp_path, "c")
+    half_card = json.loads(half["residual-ppo-mpc-half-car.contract.json"].read_text())
+    names = [c["name"] for c in half_card["observation"]["columns"]]
+    columns = half_card["residual"]["base_law"]["reads"]["columns"]
+    assert [c["index"] for c in columns] == list(range(16))
+    assert all(names[c["index"]] == c["name"] for c in columns)
+    assert all(set(c) == {"index", "name"} for c in block["reads"]["columns"])

@@ -99,7 +99,8 @@ def _mpc_block(law: Any, names: tuple[str, ...], slots: list[str]) -> dict[str, 
 
     vehicle = str(law.env_kwargs["vehicle"])
     damper = law.damper
-    read = [n for n in names if n.startswith(tuple(f"{s}_" for s in slots))]
+    read = [{"index": k, "name": n} for k, n in enumerate(names)
+            if n.startswith(tuple(f"{s}_" for s in slots))]  # fmt: skip
     return {
         "units": _MPC_UNITS,
         "weights_tuned": bool(getattr(law, "gains_tuned", False)),
