@@ -19,7 +19,8 @@ evaluation, the stroke's side ``tau``:
 
 Optionally (``node_bound(..., current_tie=True)``) the nine evaluations of a control step are
 tied to one current: :func:`current_tie_rows` (a per-step current fraction and McCormick's
-envelope of its product with the rate), their variables priced by their ranges.
+envelope of its product with the rate), their variables priced by their ranges; only for a
+coil without lag (a lagging coil's current moves within the step: refused).
 And a node may fix the class of the stroke rate's magnitude (``kappa``,
 :data:`RATE_BREAKS_M_S`), which bounds the rate and keeps the lower edge's yield by a chord
 (:func:`rate_class_rows`).
@@ -41,6 +42,7 @@ import scipy.sparse as sp
 from capsule_env.bounds.branch import CUT_SLACK_KN, TANGENT_RATES_M_S, BranchProblem
 from capsule_env.bounds.lifted import LiftedEpisode
 from capsule_env.bounds.relaxation import FORCE_SCALE_N, SLOPE_SLACK_REL, DamperEnvelope
+from capsule_env.dampers.base import COIL_TAU
 from capsule_env.dampers.registry import model_of_code
 
 __all__ = [
@@ -104,7 +106,9 @@ class SideCuts:
     ``tau`` (beyond the blend) fixed, forces in kN, indexed ``[jv, jx]`` (0 for ``+1``, 1 for
     ``-1``): with ``u = sigma v >= 0``, ``sigma F >= lo_slope u + lo_off`` and ``sigma F <=
     up_icpt[..., k] + up_slope[..., k] u`` for every ``k``; ``blend_m`` the blend's width,
-    ``corners`` :func:`branch_corners`'s."""
+    ``corners`` :func:`branch_corners`'s; ``coil_tau_s`` the coil's time constant (0: the
+    current is the step's clipped command; above 0 it moves within a step, so
+    :func:`current_tie_rows` refuses the damper)."""
 
     lo_slope: np.ndarray
     lo_off: np.ndarray
@@ -112,6 +116,7 @@ class SideCuts:
     up_slope: np.ndarray
     blend_m: float
     corners: np.ndarray
+    coil_tau_s: float
 
 
 def side_cuts(
@@ -150,7 +155,8 @@ def side_cuts(
             for k, m in enumerate(np.maximum(slopes.ravel(), b.max())):
                 up_slope[jv, jx, k] = m
                 up_icpt[jv, jx, k] = float(np.max(_sup_above_line(a, b, d, float(m)) + sc))
-    return SideCuts(lo_slope, lo_off, up_icpt + CUT_SLACK_KN, up_slope, blend, corners)
+    coil_tau = float(np.asarray(params, dtype=float)[COIL_TAU])
+    return SideCuts(lo_slope, lo_off, up_icpt + CUT_SLACK_KN, up_slope, blend, corners, coil_tau)
 
 
 def side_cut_values(
@@ -214,7 +220,18 @@ def current_tie_rows(
     :func:`_sup_above_line`), above ``b_j u + sigma c_j`` and, on ``[0, U]``, above its chord
     (concave), so ``(1 - theta) L_0 + theta L_1`` and the two lower combinations bound ``sigma
     F``, linear in ``(F, v, theta, w)``; the McCormick inequalities hold at ``w = theta u``.
-    Slack :data:`~.branch.CUT_SLACK_KN` on each force cut, as :func:`side_cuts`."""
+    Slack :data:`~.branch.CUT_SLACK_KN` on each force cut, as :func:`side_cuts`.
+
+    Only for a coil without lag (``cuts.coil_tau_s == 0``): a lagging coil's current moves
+    within the step (:func:`capsule_env.plant.rk4.rk4_substep` updates it at each half
+    substep), the step's evaluations do not share one ``theta`` and these rows could exclude
+    the plant's own trajectory; ValueError then."""
+    if not cuts.coil_tau_s == 0.0:
+        raise ValueError(
+            f"current_tie_rows: the damper's coil lags (coil_time_constant_s = "
+            f"{cuts.coil_tau_s!r} s, must be 0): its current changes within a control step, "
+            "so the step's evaluations share no one current; use current_tie=False"
+        )
     n, t_steps = sigma.size, int(step_of.max()) + 1
     rate_bound = np.maximum(rate_bound, 1e-9)  # a larger bound stays valid; no 0 chord
     sel = np.flatnonzero((np.abs(tau) == 1) & (sigma != 0))
