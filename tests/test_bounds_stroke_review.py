@@ -1,5 +1,6 @@
 """Review of capsule_env.bounds.stroke and the certificate (issue 43): the per-step current
-tie needs one current per control step, which a lagging coil does not give."""
+tie needs one current per control step, which a lagging coil does not give; the certificate
+takes any multipliers, subnormal ones included."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 from scipy.optimize import linprog
 
 from capsule_env import metrics
-from capsule_env.bounds.lifted import lift_episode
+from capsule_env.bounds.lifted import closed_loop, lift_episode
 from capsule_env.bounds.relaxation import FORCE_SCALE_N, damper_envelope, model_force_parts
 from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts, stroke_sides
 from capsule_env.dampers.base import COIL_TAU
@@ -73,3 +74,31 @@ def test_the_per_step_current_is_refused_when_the_coil_lags() -> None:
         problem.node_bound(sigma, tau, current_tie=True)
     bound, _ = problem.node_bound(sigma, tau)
     assert 0.0 < bound <= env_j
+
+
+def test_subnormal_multipliers_certify_a_bound_below_the_trajectory() -> None:
+    """``certify`` takes any multipliers: the solver's times 2^-1070 (subnormal: the scale
+    that brings them to about 1 is 2^1070, beyond a float) give a valid bound, below the
+    0 A trajectory's J, not an OverflowError; times 2^-500 or 2^500 the unscaled bound."""
+    ep = OracleEpisodes({"setting": "sim"}, [1000], 0.1)
+    p = ep.damper_params[0]
+    lifted = lift_episode(ep, 0)
+    cuts = side_cuts(ep.code, p)
+    problem = StrokeBranchProblem(lifted, damper_envelope(ep.code, p), cuts)
+
+    def law(x: float, v: float, step: int) -> float:
+        d, c = model_force_parts(ep.code, p, np.array([x]), np.array([v]), np.zeros(1))
+        return float(d[0] + c[0])
+
+    forces = closed_loop(lifted, law)
+    v, x = lifted.affine(lifted.v_rows, forces), lifted.affine(lifted.x_rows, forces)
+    node = (np.where(v >= 0.0, 1, -1).astype(np.int8), stroke_sides(x, cuts.blend_m))
+    gf, gv, h, extra = problem.node_rows(*node, current_tie=True)
+    y_w, z, _ = problem._sparse.solve(gf, gv, h)
+    ride = problem.ride(forces / FORCE_SCALE_N)
+    plain = problem.certify(gf, gv, h, y_w, z, extra)
+    assert 0.0 < plain <= ride
+    for scale in (2.0**-500, 2.0**500):  # exact scalings: the same bound
+        assert problem.certify(gf, gv, h, y_w * scale, z * scale, extra) == plain
+    tiny = problem.certify(gf, gv, h, y_w * 2.0**-1070, z * 2.0**-1070, extra)
+    assert 0.0 <= tiny <= ride

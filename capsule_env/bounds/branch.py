@@ -341,8 +341,8 @@ class BranchProblem:
         big = max(float(np.abs(y_w).max(initial=0.0)), float(z.max(initial=0.0)))
         if big == 0.0:
             return 0.0
-        scale = math.ldexp(1.0, -math.frexp(big)[1])
-        y_w, z = y_w * scale, z * scale
+        shift = -math.frexp(big)[1]  # up to 1074 for subnormal ones: 2^shift is no float
+        y_w, z = np.ldexp(y_w, shift), np.ldexp(z, shift)
         extra = np.zeros(0) if extra_abs is None else np.asarray(extra_abs, dtype=float)
         if extra.size != gf.shape[1] - self.n:
             raise ValueError("certify: extra_abs must have one entry per column beyond N")
