@@ -60,3 +60,21 @@ def test_every_block_lists_the_columns_it_reads_as_index_and_name(block, tmp_pat
     assert [c["index"] for c in columns] == list(range(16))
     assert all(names[c["index"]] == c["name"] for c in columns)
     assert all(set(c) == {"index", "name"} for c in block["reads"]["columns"])
+
+
+@pytest.mark.parametrize("force_n", [0.0, -8000.0])
+def test_a_contract_with_a_force_scale_out_of_range_is_refused(force_n, block, tmp_path):
+    """``max_force_n`` must be > 0 N: the quarter-car MPC rebuilt with 0 gave a NaN action and
+    with -8000 one of +1 (full force); the per-bogie LQR divided by it alike."""
+    from conftest import residual_copy
+
+    tampered = json.loads(json.dumps(block))
+    tampered["constructor"]["max_force_n"] = force_n
+    with pytest.raises(ValueError, match="max_force_n"):
+        rebuild_base_law(tampered)
+    zip_path = residual_copy(tmp_path, "residual-ppo-mpc-half-car", "lqr-clipped-biexp-meas", "r")
+    files = export_policy(str(zip_path), tmp_path / "out", "c")
+    lqr = json.loads(files["r.contract.json"].read_text())["residual"]["base_law"]
+    lqr["constructor"]["max_force_n"] = force_n
+    with pytest.raises(ValueError, match="max_force_n"):
+        rebuild_base_law(lqr)

@@ -155,12 +155,14 @@ class IndependentClippedLQR(Controller):
 
     def __init__(self, vehicle: str = "half_car", max_force_n: float = 8000.0) -> None:
         from capsule_env.agents.controllers.classical import make_controller
+        from capsule_env.agents.controllers.mpc_solver import check_real
 
         quarter: Any = make_controller("lqr-clipped-biexp-meas")
         self.gain = np.asarray(quarter.gain, dtype=float)
         self.model = model_named(vehicle)
         self.name = "lqr-clipped-biexp-meas"
-        self.max_force_n = float(max_force_n)
+        self.max_force_n = check_real("max_force_n", max_force_n, 0.0, 1e6, open_low=True,
+                                      unit=" N")  # fmt: skip
         #: The constructor's arguments as plain JSON values (the export's contract carries them).
         self.arguments: dict[str, Any] = {"vehicle": vehicle, "max_force_n": self.max_force_n}
         self.env_kwargs = {"vehicle": vehicle, "action_mode": "force", "observation": "measured",

@@ -171,6 +171,7 @@ class MPCController(ForceLaw):
         if inverse_model not in ("bi_exponential", "tanh"):
             raise ValueError(f"inverse_model must be 'bi_exponential' or 'tanh' (a stateless "
                              f"band), got {inverse_model!r}")  # fmt: skip
+        max_force_n = check_real("max_force_n", max_force_n, 0.0, 1e6, open_low=True, unit=" N")
         super().__init__("preview-mpc" if preview else "mpc", inverse_model, max_force_n,
                          observation)  # fmt: skip
         self.horizon_steps = check_integer("horizon_steps", horizon_steps, 1, 200)
