@@ -349,7 +349,9 @@ class MPCController(ForceLaw):
 
     def desired_force(self, obs: np.ndarray) -> np.ndarray:
         """The first planned force of each vehicle (N); 0 N (the damper's 0 A) for a vehicle
-        whose observation is not finite, kept out of the law's state (:meth:`nonfinite`)."""
+        whose observation is not finite (:meth:`nonfinite`): that sample does not enter the Wk
+        filter and the next plan starts afresh; with a delay, the record of requests in flight
+        holds what the damper makes of 0 N at the sample with its non-finite entries read as 0."""
         n = obs.shape[0]
         if len(self._qps) != n:
             self._build(n)

@@ -140,7 +140,9 @@ def _no_c_block(name: str, law: Any, names: tuple[str, ...]) -> dict[str, Any]:
         **_plant(law), "reads": _reads(law, names),
         "state": _STATE.get(type(law).__name__, "see the class's docstring"),
         "nonfinite": "a vehicle whose read columns hold a NaN or inf: the MPC requests 0 N that "
-                     "step and keeps the sample out of its state" if qp else
+                     "step; the sample does not enter its Wk filter and the next plan starts afresh; with a "
+                     "delay, the record of requests in flight holds what the damper makes of 0 N "
+                     "at the sample with its non-finite entries read as 0" if qp else
                      "no special handling: the law computes with the values as given",
         "rig_solves_qp": qp,
         "rebuild": f"Python: {type(law).__name__}(**constructor)"
