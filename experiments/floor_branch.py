@@ -16,7 +16,9 @@ Leaf diagnostics instead (each prints one JSON line per window and seed): ``--na
 from the plant; with ``--stroke`` the leaves that also fix the stroke's side of the blend,
 capsule_env.bounds.stroke), ``--current-tie`` (the oracle's (rate, stroke) leaf with the
 per-step current's cuts and with its rate classes, and 0 A's leaf with both), ``--partial``
-(nodes fixing the oracle's labels at only a fraction of the evaluations).
+(nodes fixing the oracle's labels at only a fraction of the evaluations), ``--search`` (the
+best-first search over rate sign, stroke side and rate class, capsule_env.bounds.search: its
+global floor after 1, 10, 100, ``--nodes`` node QPs, at most ``--max-seconds`` per run).
 """
 
 from __future__ import annotations
@@ -271,6 +273,41 @@ def partial(seed: int, length_s: float) -> dict[str, Any]:
     return out
 
 
+def search_floor(seeds: list[int], length_s: float, nodes: int, max_seconds: float,
+                 tighten: bool = True) -> list[dict[str, Any]]:  # fmt: skip
+    """The global floor of :func:`capsule_env.bounds.search.label_search` (split where the
+    relaxed force leaves the model's band; ``tighten``: magnitude bounds per node) against
+    the oracle; also how many evaluations the least open node labels fully, how many open
+    nodes have bound 0 and how many a bound above the oracle's J (they cannot hold the
+    optimum)."""
+    from capsule_env.bounds.search import label_search, model_band
+    from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts
+
+    ep = OracleEpisodes(evaluation_kwargs({"setting": "sim"}), seeds, length_s)
+    _, oracle_wk = _oracle_currents(seeds, length_s)
+    rows = []
+    for k, seed in enumerate(seeds):
+        lifted, p = lift_episode(ep, k), ep.damper_params[k]
+        env = damper_envelope(ep.code, p)
+        problem = StrokeBranchProblem(lifted, env, side_cuts(ep.code, p))
+        res = label_search(problem, env, nodes, outside=model_band(ep.code, p, ep.i_max),
+                           tighten=tighten, max_seconds=max_seconds)  # fmt: skip
+        floor = {str(b): math.sqrt(max(res.floor_j_at(b), 0.0))
+                 for b in (1, 10, 100, nodes) if b <= res.nodes}  # fmt: skip
+        rows.append({"length_s": length_s, "seed": seed, "forces": problem.n,
+                     "oracle_wk": float(oracle_wk[k]), "floor_wk_at_nodes": floor,
+                     "floor_wk": res.floor_wk_m_s2, "floor_to_oracle": res.floor_wk_m_s2
+                     / float(oracle_wk[k]), "nodes": res.nodes, "open_nodes": res.open_nodes,
+                     "complete": res.complete, "runtime_s": res.runtime_s,
+                     "s_per_node": res.runtime_s / res.nodes,
+                     "least_open_labelled": int(np.sum(~res.least.open_at())) if res.least else 0,
+                     "open_zero": int(np.sum(res.open_bounds_j <= 0.0)),
+                     "open_above_oracle": int(np.sum(res.open_bounds_j > oracle_wk[k] ** 2)),
+                     "pruned": res.pruned})  # fmt: skip
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
@@ -301,6 +338,22 @@ def main(argv: list[str] | None = None) -> int:
         help="print only how the leaves at the oracle's and 0 A's signs depart "
         "from the plant (band excess, per-step current spread, causal realisation)",
     )
+    p.add_argument(
+        "--search",
+        action="store_true",
+        help="the search over (rate sign, stroke side, rate class): global floor",
+    )
+    p.add_argument(
+        "--max-seconds",
+        type=float,
+        default=600.0,
+        help="with --search: stop a run after about this many seconds",
+    )
+    p.add_argument(
+        "--no-tighten",
+        action="store_true",
+        help="with --search: the a-priori magnitude bounds at every node",
+    )
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
@@ -313,7 +366,14 @@ def main(argv: list[str] | None = None) -> int:
                     print(json.dumps({"length_s": length, "seed": seed, **fn(seed, length)}),
                           flush=True)  # fmt: skip
             return 0
-    rows = [r for length in args.lengths for r in run(args.seeds, length, args.nodes)]
+    if args.search and not args.max_seconds > 0:
+        sys.exit("floor_branch.py: error: --max-seconds must be > 0")
+
+    def searched(seeds: list[int], length: float, nodes: int) -> list[dict[str, Any]]:
+        return search_floor(seeds, length, nodes, args.max_seconds, not args.no_tighten)
+
+    runner = searched if args.search else run
+    rows = [r for length in args.lengths for r in runner(args.seeds, length, args.nodes)]
     if args.json is not None:
         tmp = args.json.with_suffix(".tmp")
         tmp.write_text(json.dumps(rows, indent=1))
