@@ -274,12 +274,12 @@ def partial(seed: int, length_s: float) -> dict[str, Any]:
 
 
 def search_floor(seeds: list[int], length_s: float, nodes: int, max_seconds: float,
-                 tighten: bool = True) -> list[dict[str, Any]]:  # fmt: skip
+                 tighten: bool = True, outputs_first: bool = False) -> list[dict[str, Any]]:  # fmt: skip
     """The global floor of :func:`capsule_env.bounds.search.label_search` (split where the
     relaxed force leaves the model's band; ``tighten``: magnitude bounds per node) against
     the oracle; also how many evaluations the least open node labels fully, how many open
     nodes have bound 0 and how many a bound above the oracle's J (they cannot hold the
-    optimum)."""
+    optimum). ``outputs_first``: split the sampled outputs' evaluations before the others."""
     from capsule_env.bounds.search import label_search, model_band
     from capsule_env.bounds.stroke import StrokeBranchProblem, side_cuts
 
@@ -291,7 +291,8 @@ def search_floor(seeds: list[int], length_s: float, nodes: int, max_seconds: flo
         env = damper_envelope(ep.code, p)
         problem = StrokeBranchProblem(lifted, env, side_cuts(ep.code, p))
         res = label_search(problem, env, nodes, outside=model_band(ep.code, p, ep.i_max),
-                           tighten=tighten, max_seconds=max_seconds)  # fmt: skip
+                           tighten=tighten, max_seconds=max_seconds,
+                           first=lifted.is_output if outputs_first else None)  # fmt: skip
         floor = {str(b): math.sqrt(max(res.floor_j_at(b), 0.0))
                  for b in (1, 10, 100, nodes) if b <= res.nodes}  # fmt: skip
         rows.append({"length_s": length_s, "seed": seed, "forces": problem.n,
@@ -354,6 +355,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="with --search: the a-priori magnitude bounds at every node",
     )
+    p.add_argument(
+        "--outputs-first",
+        action="store_true",
+        help="with --search: split the sampled outputs' evaluations before the others",
+    )
     args = p.parse_args(argv)
     if args.nodes < 1 or any(s < 0 for s in args.seeds) or any(x <= 0 for x in args.lengths):
         sys.exit("floor_branch.py: error: --nodes >= 1, --seeds >= 0 and --lengths > 0 s")
@@ -370,7 +376,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.exit("floor_branch.py: error: --max-seconds must be > 0")
 
     def searched(seeds: list[int], length: float, nodes: int) -> list[dict[str, Any]]:
-        return search_floor(seeds, length, nodes, args.max_seconds, not args.no_tighten)
+        return search_floor(
+            seeds, length, nodes, args.max_seconds, not args.no_tighten, args.outputs_first
+        )
 
     runner = searched if args.search else run
     rows = [r for length in args.lengths for r in runner(args.seeds, length, args.nodes)]

@@ -166,3 +166,17 @@ def test_bad_budget_is_refused(short: OracleEpisodes) -> None:
     for bad in (0, True, 2.5):
         with pytest.raises(ValueError, match="max_nodes must be an integer >= 1"):
             label_search(problem, env, bad)  # type: ignore[arg-type]
+
+
+def test_outputs_first_splits_only_the_outputs_while_they_have_labels_left(
+    short: OracleEpisodes,
+) -> None:
+    lifted, _, _, _, problem, env, _ = next(_trajectories(short))
+    res = label_search(problem, env, 40, first=lifted.is_output)
+    assert res.least is not None
+    fixed = ~res.least.open_at() | (res.least.sigma != 0) | (res.least.tau != 0)
+    assert fixed[lifted.is_output].any()
+    assert not fixed[~lifted.is_output].any()
+    for bad in (lifted.is_output[:-1], lifted.is_output.astype(int)):
+        with pytest.raises(ValueError, match="first must be a bool array of shape"):
+            label_search(problem, env, 5, first=bad)

@@ -16,7 +16,8 @@ earliest (causal order: later states depend on earlier forces) with a label left
 force lies outside the model's band ``[F(0 A), F(i_max)]`` at its own relaxed stroke and rate
 (by more than :data:`BAND_TOL_KN`); if none is, the earliest with a label left. A node with
 every label fixed is final: it is never split, and when it holds the least bound the search is
-complete (the floor is then the least leaf bound).
+complete (the floor is then the least leaf bound). ``first`` (e.g. the sampled outputs'
+evaluations) are split before the others.
 
 Bound tightening (``tighten=True``). The certificate prices the dual's residual with bounds on
 ``|F_s|``, ``|v_s|``, ``|x_s|``, and the cuts at evaluations with ``sigma_s = 0`` (the hull
@@ -201,11 +202,14 @@ class NodeBounder:
 
 
 def _split_at(problem: StrokeBranchProblem, node: Node, forces_kn: np.ndarray,
-              outside: OutsideBand | None) -> int:  # fmt: skip
-    """The evaluation to split (module doc); -1 when every label is fixed."""
+              outside: OutsideBand | None, first: np.ndarray | None = None) -> int:  # fmt: skip
+    """The evaluation to split (module doc), among ``first`` (bool, N) while any of those has a
+    label left; -1 when every label is fixed."""
     left = node.open_at()
     if not left.any():
         return -1
+    if first is not None and (left & first).any():
+        left = left & first
     if outside is not None:
         vx = problem.a_aug[:, :-1] @ forces_kn + problem.a_aug[:, -1]
         bad = left & outside(forces_kn, vx[: problem.n], vx[problem.n :])
@@ -248,18 +252,27 @@ def label_search(
     outside: OutsideBand | None = None,
     tighten: bool = True,
     max_seconds: float = math.inf,
+    first: np.ndarray | None = None,
 ) -> SearchResult:
     """Best-first branch and bound over ``(sigma, tau, kappa)`` from ``start`` (default the
     root, nothing fixed): at most ``max_nodes`` node QPs and about ``max_seconds``. The floor
     is the least bound over the open nodes (each at least its parent's); a family cut short by
-    the budget keeps its parent's bound for its unsolved children."""
+    the budget keeps its parent's bound for its unsolved children. ``first`` (N, bool): split
+    these evaluations before the others (e.g. the sampled outputs, ``lifted.is_output``)."""
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, int) or max_nodes < 1:
         raise ValueError(f"label_search: max_nodes must be an integer >= 1, got {max_nodes!r}")
+    if first is not None:
+        first = np.asarray(first)
+        if first.dtype != bool or first.shape != (problem.n,):
+            raise ValueError(
+                f"label_search: first must be a bool array of shape ({problem.n},), got "
+                f"dtype {first.dtype} shape {first.shape}"
+            )
     t0 = time.perf_counter()
     bounder = NodeBounder(problem, env, tighten)
     node = Node.root(problem.n) if start is None else start
     root, forces = bounder(node)
-    heap = [(root, 0, _split_at(problem, node, forces, outside), node)]
+    heap = [(root, 0, _split_at(problem, node, forces, outside, first), node)]
     history, counter = [(1, root)], 1
     while heap and bounder.calls < max_nodes and time.perf_counter() - t0 < max_seconds:
         bound, _, s, node = heap[0]
@@ -272,7 +285,7 @@ def label_search(
                 own, forces = bounder(child)
                 if own == math.inf:
                     continue
-                bound_c, k = max(bound, own), _split_at(problem, child, forces, outside)
+                bound_c, k = max(bound, own), _split_at(problem, child, forces, outside, first)
             else:
                 bound_c = bound
             heapq.heappush(heap, (bound_c, counter, k, child))
