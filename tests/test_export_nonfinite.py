@@ -3,10 +3,16 @@
 A residual policy's C ``capsule_policy`` gives the residual 0 on a row holding a NaN or inf
 (:mod:`capsule_env.export.c_export`). Rigs often build with ``-ffast-math`` (``-Ofast``), under
 which the compiler may assume every float finite and drop C99's ``isfinite``: the rule must hold
-there too.
+there too. GCC links such a library with ``crtfastmath.o``, whose constructor turns on
+flush-to-zero and denormals-are-zero for the whole process that loads it: the library is loaded
+in a child process, so the rest of the test session keeps IEEE arithmetic (loading it here made
+two later tests of ``glibc_tanh`` on subnormals fail).
 """
 
 from __future__ import annotations
+
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -18,7 +24,7 @@ pytest.importorskip("stable_baselines3", reason=NO_SB3)
 from capsule_env.agents.learning.sb3_policy import PRETRAINED_DIR, SB3Policy  # noqa: E402
 
 from capsule_env.export import export_policy  # noqa: E402
-from capsule_env.export.c_build import C_FLAGS, CPolicy, build_shared, c_compiler  # noqa: E402
+from capsule_env.export.c_build import C_FLAGS, build_shared, c_compiler  # noqa: E402
 
 NAME = "residual-ppo-mpc"
 
@@ -28,7 +34,7 @@ def test_the_c_residual_is_0_on_a_non_finite_row_under_fast_math(flag, tmp_path)
     if c_compiler() is None:
         pytest.skip("no C compiler on this machine (cc, gcc, clang or $CC)")
     files = export_policy(NAME, tmp_path / "out", "c")
-    lib = CPolicy(build_shared(files[f"{NAME}.c"], tmp_path, (*C_FLAGS, flag)), 9)
+    library = build_shared(files[f"{NAME}.c"], tmp_path, (*C_FLAGS, flag))
     obs = np.zeros((5, 9), np.float32)
     obs[:, 2] = np.linspace(-0.01, 0.01, 5)  # strokes: the network's residual is not 0 there
     obs[1, 2], obs[2, 0], obs[3, 8] = np.nan, np.inf, -np.inf
@@ -36,9 +42,31 @@ def test_the_c_residual_is_0_on_a_non_finite_row_under_fast_math(flag, tmp_path)
     network = SB3Policy.load(PRETRAINED_DIR / f"{NAME}.zip")
     expected, _ = network.predict(obs[~bad], deterministic=True)
     assert np.all(np.abs(expected) > 1e-3)  # a dropped rule would not give 0 by chance
-    got = lib.policy(obs)
+    got = _policy_in_a_child(library, obs, tmp_path)
     assert np.all(got[bad] == 0.0), got[bad]
     np.testing.assert_allclose(got[~bad], expected, rtol=0, atol=1e-4)
+
+
+def _policy_in_a_child(library, obs: np.ndarray, folder) -> np.ndarray:
+    """``CPolicy(library).policy(obs)`` run in a fresh Python process (module docstring: a
+    fast-math library changes the loading process's floating-point mode)."""
+    np.save(folder / "obs.npy", obs)
+    code = ("import sys, numpy as np; from capsule_env.export.c_build import CPolicy; "
+            "obs = np.load(sys.argv[2]); "
+            "np.save(sys.argv[3], CPolicy(sys.argv[1], obs.shape[1]).policy(obs))")  # fmt: skip
+    out = folder / "got.npy"
+    subprocess.run([sys.executable, "-c", code, str(library), str(folder / "obs.npy"), str(out)],
+                   check=True, timeout=120)  # fmt: skip
+    return np.load(out)
+
+
+def test_a_fast_math_library_is_loaded_out_of_this_process(tmp_path):
+    """The arithmetic of this process after the fast-math test: 5e-324 * 1 is still the
+    subnormal (with denormals-are-zero it would be 0), and the smallest normal halved is not
+    flushed."""
+    tiny = np.finfo(np.float64).tiny
+    assert np.float64(5e-324) * np.float64(1.0) > 0.0
+    assert np.float64(tiny) / np.float64(2.0) > 0.0
 
 
 HALF_CAR = "residual-ppo-mpc-half-car"
