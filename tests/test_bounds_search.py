@@ -180,3 +180,61 @@ def test_outputs_first_splits_only_the_outputs_while_they_have_labels_left(
     for bad in (lifted.is_output[:-1], lifted.is_output.astype(int)):
         with pytest.raises(ValueError, match="first must be a bool array of shape"):
             label_search(problem, env, 5, first=bad)
+
+
+def test_partial_nodes_along_rollouts_beyond_the_blend_hold_them(longer: OracleEpisodes) -> None:
+    """0.05 s (strokes beyond the blend, so ``tau = +-1`` is exercised): nodes fixing each
+    rollout's labels at random subsets of the evaluations (all, 97 %, 90 %, 50 %; the rest
+    free), and its leaf with ``v_0 = 0`` given the sign ``-1`` (``v = 0`` lies in both): the
+    tightened magnitudes hold on the rollout's forces, rates and strokes, the node is not
+    pruned, and its certified bound is at most the rollout's simulated ``J``; the fully
+    labelled nodes certify a positive bound (the check is not vacuous)."""
+    rng = np.random.default_rng(47)
+    for _, forces, v, x, problem, env, j in _trajectories(longer):
+        blend, n = problem.side.blend_m, problem.n
+        leaf = trajectory_labels(v, x, blend)
+        assert (np.abs(leaf.tau) == 1).any() and v[0] == 0.0
+        flipped = Node(leaf.sigma.copy(), leaf.tau.copy(), leaf.kappa.copy())
+        flipped.sigma[0] = -1
+        nodes = [leaf, flipped]
+        for frac in (0.97, 0.9, 0.5):
+            nodes.append(_free(leaf, list(np.flatnonzero(rng.random(n) >= frac))))
+        bounder = NodeBounder(problem, env, tighten=True)
+        bounds = []
+        for node in nodes:
+            assert _holds(node, v, x, blend).all()
+            f_abs, vx = node_magnitudes(problem, env, node)
+            assert np.all(np.abs(forces) / FORCE_SCALE_N <= f_abs)
+            assert np.all(np.abs(np.r_[v, x]) <= vx)
+            bounds.append(bounder(node)[0])
+        assert bounder.pruned == 0
+        assert all(0.0 <= b <= j for b in bounds)
+        assert bounds[0] > 0.0 and bounds[1] > 0.0
+
+
+def test_every_rate_and_stroke_lies_in_a_leaf_of_one_evaluation() -> None:
+    """Coverage checked on points, not only on rollouts (which stay below 60 mm/s and reach
+    few classes): splitting one evaluation down to its leaves (2 x 3 x 4 = 24), every rate
+    (both signs, 0, each class break and either side of it, far beyond the last break) and
+    every stroke (each side of the blend, its edges, 0) lies in some leaf by the labels'
+    meaning, and in the leaf that trajectory_labels names."""
+    blend = 1e-4
+    leaves, stack = [], [Node.root(1)]
+    while stack:
+        node = stack.pop()
+        if node.open_at()[0]:
+            stack.extend(children(node, 0))
+        else:
+            leaves.append(node)
+    assert len(leaves) == 24
+    breaks = [b for b in RATE_BREAKS_M_S if math.isfinite(b)]
+    speeds = [0.0, 1e-12, 0.5, 10.0] + [b * f for b in breaks for f in (1 - 1e-9, 1, 1 + 1e-9)]
+    rates = np.array([sg * u for u in speeds for sg in (1.0, -1.0)])
+    strokes = np.array([0.0, 0.5, 1.0, 1.0 + 1e-9, 1 - 1e-9, 50.0]) * blend
+    for v1, x1 in itertools.product(rates, np.r_[strokes, -strokes]):
+        v, x = np.array([v1]), np.array([x1])
+        assert any(_holds(leaf, v, x, blend).all() for leaf in leaves), (v1, x1)
+        own = trajectory_labels(v, x, blend)
+        assert _holds(own, v, x, blend).all(), (v1, x1)
+        assert any(all((getattr(leaf, a) == getattr(own, a)).all()
+                       for a in ("sigma", "tau", "kappa")) for leaf in leaves)  # fmt: skip
