@@ -18,6 +18,7 @@ from gymnasium.vector.utils import batch_space
 from capsule_env.engine.batch import CapsuleBatch, vehicle_streams
 from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed, observation_bounds
 from capsule_env.engine.layout import SIGNAL_NAMES
+from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs.render import render_vehicle
 from capsule_env.envs.spec import LengthSpec
@@ -309,7 +310,8 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
         """One control step: ``(observation, reward, terminated, truncated, info)``.
 
         ``action`` has shape ``(1,)`` (or is a number) and is clipped to [-1, 1]; a wrong
-        shape, NaN or infinity raises ``ValueError``, a non-numeric action ``TypeError``.
+        shape, NaN or infinity raises ``ValueError``, complex numbers, strings or other
+        non-numbers ``TypeError``.
         Before :meth:`reset`, or after the episode ended, raises
         ``gymnasium.error.ResetNeeded``.
         """
@@ -348,12 +350,7 @@ def _single_action(action: Any) -> float:
         return float(action[0])  # the common case, first
     if isinstance(action, (float, int, np.floating, np.integer)) and not isinstance(action, bool):
         return float(action)
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(
-            f"action must be a number or an array of shape (1,), got {type(action).__name__}"
-        ) from None
+    a = real_actions(action, "action")  # not complex numbers, strings or objects
     if a.shape not in ((1,), ()):
         raise ValueError(f"action must have shape (1,), got shape {a.shape}")
     return float(a.reshape(-1)[0])
@@ -503,7 +500,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
                 "reset(options={'reset_mask': mask}) before step()"
             )
         batch = self._batch
-        a = np.asarray(actions)
+        a = real_actions(actions)
         if a.shape not in ((self.num_envs, 1), (self.num_envs,)):
             raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
         batch.step(a.reshape(self.num_envs))

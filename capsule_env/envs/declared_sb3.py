@@ -6,9 +6,9 @@ for the quarter-car: an episode resets in the step that ends it, its last observ
 from the bump stop. ``seed(s)`` gives the vehicles ``SeedSequence(s).spawn(num_envs)``: vehicle
 ``n`` runs the episodes of the single env seeded from that stream, whatever the batch.
 ``step_async`` before the first ``reset`` raises ``gymnasium.error.ResetNeeded``; actions of
-another shape, NaN or infinity raise ``ValueError``, complex ones ``TypeError`` (the others
-are clipped to [-1, 1]). ``set_options`` refuses any option by name (``reset`` takes none), as
-the quarter-car's does (:func:`capsule_env.envs.sb3.check_vec_options`).
+another shape, NaN or infinity raise ``ValueError``, complex ones or strings ``TypeError``
+(the others are clipped to [-1, 1]). ``set_options`` refuses any option by name (``reset``
+takes none), as the quarter-car's does (:func:`capsule_env.envs.sb3.check_vec_options`).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from capsule_env.engine.config import check_num_envs, check_seed
+from capsule_env.envs._actions import real_actions
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces
 from capsule_env.envs.sb3 import check_vec_options
 
@@ -66,9 +67,7 @@ class DeclaredSB3VecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         if self._needs_reset:
             raise ResetNeeded("call reset() before step()")
-        if np.iscomplexobj(actions):  # numpy would drop the imaginary part with a warning
-            raise TypeError("actions must be real numbers, got complex ones")
-        a = np.asarray(actions, dtype=np.float64)
+        a = np.asarray(real_actions(actions), dtype=np.float64)  # not complex, strings
         if a.shape != self._actions.shape:
             raise ValueError(f"actions must have shape {self._actions.shape}, got {a.shape}")
         if not np.all(np.isfinite(a)):

@@ -21,6 +21,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces, runs_compiled_kwargs
 
@@ -30,15 +31,20 @@ __all__ = ["DeclaredVectorEnv", "make_suspension_vector_env"]
 class DeclaredVectorEnv(VectorEnv):
     """``num_envs`` vehicles of a declared vehicle (module doc)."""
 
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": [], "render_fps": 200, "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(
         self,
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         autoreset_mode: Any = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:
+        if render_mode is not None:  # make_vec passes it on: refused as the single env does
+            raise ValueError(
+                f"render_mode must be None for a declared vehicle, got {render_mode!r}"
+            )
         if check_autoreset_mode(autoreset_mode) is not AutoresetMode.NEXT_STEP:
             raise ValueError(f"autoreset_mode must be NEXT_STEP for a declared vehicle (the "
                              f"others are not built for it yet), got {autoreset_mode!r}")  # fmt: skip
@@ -55,6 +61,8 @@ class DeclaredVectorEnv(VectorEnv):
                 )
             batch.max_steps = min(batch.max_steps, int(max_episode_steps))
         self.config = batch.config
+        self.render_mode = None
+        self.metadata = {**type(self).metadata, "render_fps": self.config.control_rate_hz}
         self.single_action_space, self.single_observation_space = declared_spaces(batch)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -88,13 +96,7 @@ class DeclaredVectorEnv(VectorEnv):
             raise ResetNeeded("call reset() before step()")
         batch = self._batch
         shape = (self.num_envs, batch.n_slots)
-        if np.iscomplexobj(actions):  # numpy would drop the imaginary part with a warning
-            raise TypeError(f"actions must be real numbers of shape {shape}, got complex ones")
-        try:
-            a = np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise TypeError(f"actions must be numbers of shape {shape}, "
-                            f"got {type(actions).__name__}") from None  # fmt: skip
+        a = np.asarray(real_actions(actions), dtype=np.float64)  # not complex, strings
         if a.shape != shape and not (batch.n_slots == 1 and a.shape == shape[:1]):
             raise ValueError(f"actions must have shape {shape}, got {a.shape}")
         a = a.reshape(shape)

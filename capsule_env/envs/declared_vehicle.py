@@ -56,6 +56,7 @@ from capsule_env.engine.declared_batch import (
     DeclaredBatch,
     inverse_is_algebraic,
 )
+from capsule_env.envs._actions import real_actions
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv
 from capsule_env.envs.declared_levitation import eds_at_speed
 from capsule_env.envs.spec import LengthSpec
@@ -155,7 +156,7 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
         """One control step: ``(observation, reward, terminated, truncated, info)``; ``action``
         has the action space's shape (one number per damper slot; a bare number for one slot),
         is clipped to [-1, 1]; another shape, NaN or infinity raises ``ValueError``, complex
-        numbers ``TypeError``. ``info``:
+        numbers or strings ``TypeError``. ``info``:
         the physical signals (arrays per slot, point or contact) and the reward's terms."""
         if self._needs_reset:
             raise ResetNeeded(
@@ -199,15 +200,10 @@ def _params(model: Any, overrides: dict[str, Any]) -> Any:
 def _checked_action(action: Any, n: int) -> np.ndarray:
     """The action of shape ``(n,)`` (a number too where ``n`` is 1), finite, clipped to [-1, 1];
     any other shape is refused, not reshaped (a batch of one is a mistake here)."""
-    if np.iscomplexobj(action):  # numpy would drop the imaginary part with a warning
-        raise TypeError(f"action must be {n} real numbers, got complex ones")
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"action must be {n} numbers, got {type(action).__name__}") from None
+    a = real_actions(action, "action")  # not complex numbers, strings or objects
     if a.shape != (n,) and not (n == 1 and a.shape == ()):
         raise ValueError(f"action must have shape ({n},), got {a.shape}")
-    a = a.reshape(n)
+    a = a.reshape(n).astype(np.float64)
     if not np.all(np.isfinite(a)):
         raise ValueError("action must be finite")
     return np.clip(a, -1.0, 1.0)

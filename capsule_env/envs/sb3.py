@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from capsule_env.engine.batch import CapsuleBatch
 from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed
 from capsule_env.engine.layout import SIGNAL_NAMES
+from capsule_env.envs._actions import real_actions
 from capsule_env.envs.capsule_suspension import _check_options, env_spaces, render_fps
 from capsule_env.envs.render import render_vehicle
 
@@ -105,7 +106,7 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         if self._needs_reset:
             raise ResetNeeded("call reset() before step()")
-        a = np.asarray(actions, dtype=np.float64)
+        a = np.asarray(real_actions(actions), dtype=np.float64)
         if a.shape not in ((self.num_envs, 1), (self.num_envs,)):
             raise ValueError(f"actions must have shape ({self.num_envs}, 1), got {a.shape}")
         self._actions = a.reshape(self.num_envs)

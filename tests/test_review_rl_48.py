@@ -1,0 +1,76 @@
+"""An RL user's review of every registered task (session 16, helper 48): inputs the envs took
+silently, and options the batched envs refused under the wrong name."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import capsule_env  # noqa: F401  (registers the tasks)
+from capsule_env.envs.declared_sb3 import DeclaredSB3VecEnv
+from capsule_env.envs.declared_vector import DeclaredVectorEnv
+from capsule_env.envs.sb3 import CapsuleSuspensionSB3VecEnv
+from capsule_env.tasks import DECLARED_TASKS, task_named
+
+SHORT = {"episode_length_s": 0.05}
+RIDE = {**task_named("CapsuleRide-v0").kwargs, **SHORT}
+HALF = {**DECLARED_TASKS[0].kwargs, **SHORT}
+
+
+def _not_actions(slots: int) -> list[object]:
+    """Actions of the right shape that are not real numbers: numpy used to drop the imaginary
+    part (with a ComplexWarning) and parse the strings ("0.5" stepped as 0.5)."""
+    return [np.full(slots, 0.5 + 0.5j), np.full(slots, "0.5"), [None] * slots]
+
+
+@pytest.mark.parametrize("env_id", ["CapsuleRide-v0", "CapsuleHalfRide-v0"])
+def test_single_env_refuses_actions_that_are_not_real_numbers(env_id):
+    env = gym.make(env_id, **SHORT)
+    slots = env.action_space.shape[0]
+    fresh = gym.make(env_id, **SHORT)
+    env.reset(seed=3)
+    fresh.reset(seed=3)
+    for bad in _not_actions(slots):
+        with pytest.raises(TypeError, match="action must be real numbers"):
+            env.step(bad)
+    # nothing was stepped: the env goes on as one that never saw them
+    zero = np.zeros(slots, dtype=np.float32)
+    assert np.array_equal(env.step(zero)[0], fresh.step(zero)[0])
+    assert env.step(np.ones(slots, dtype=bool))[0].shape == env.observation_space.shape
+
+
+def test_quarter_car_batched_envs_refuse_actions_that_are_not_real_numbers():
+    vec = gym.make_vec("CapsuleRide-v0", 2, vectorization_mode="vector_entry_point", **SHORT)
+    vec.reset(seed=0)
+    sb3 = CapsuleSuspensionSB3VecEnv(2, **RIDE)
+    sb3.reset()
+    for bad in _not_actions(2):
+        with pytest.raises(TypeError, match="actions must be real numbers"):
+            vec.step(np.asarray(bad).reshape(2, 1))
+        with pytest.raises(TypeError, match="actions must be real numbers"):
+            sb3.step_async(np.asarray(bad).reshape(2, 1))
+
+
+def test_declared_batched_envs_refuse_string_actions():
+    vec = DeclaredVectorEnv(2, **HALF)
+    vec.reset(seed=0)
+    sb3 = DeclaredSB3VecEnv(2, **HALF)
+    sb3.reset()
+    strings = np.full((2, 2), "0.5")
+    with pytest.raises(TypeError, match="actions must be real numbers"):
+        vec.step(strings)
+    with pytest.raises(TypeError, match="actions must be real numbers"):
+        sb3.step_async(strings)
+
+
+def test_declared_vector_env_names_render_mode_for_what_it_is():
+    # make_vec passes render_mode on; it used to be refused as an unknown argument
+    with pytest.raises(ValueError, match="render_mode must be None for a declared vehicle"):
+        gym.make_vec(
+            "CapsuleHalfRide-v0", 2, vectorization_mode="vector_entry_point",
+            render_mode="rgb_array", **SHORT,
+        )  # fmt: skip
+    venv = DeclaredVectorEnv(2, render_mode=None, **HALF)
+    assert venv.render_mode is None
+    assert venv.metadata["render_fps"] == 200  # one frame per control step, as the single env
