@@ -31,10 +31,13 @@ Every element coefficient and every mass names a field of the vehicle's paramete
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from capsule_env.common.validation import check_real
 
 __all__ = [
     "Coordinate",
@@ -64,6 +67,9 @@ class Coordinate:
     inertia: str
     rate_name: str
 
+    def __post_init__(self) -> None:
+        _need_strings(self, "name", "unit", "inertia", "rate_name")
+
 
 @dataclass(frozen=True)
 class Point:
@@ -74,6 +80,22 @@ class Point:
     name: str
     terms: tuple[tuple[str, float | str], ...]
 
+    def __post_init__(self) -> None:
+        _need_strings(self, "name")
+        terms = self.terms
+        if isinstance(terms, (tuple, list)) and all(
+            isinstance(t, (tuple, list)) and len(t) == 2 for t in terms
+        ):
+            object.__setattr__(self, "terms", tuple(tuple(t) for t in terms))
+        else:
+            raise TypeError(f"point {self.name!r} terms must be (coordinate, coefficient) pairs, "
+                            f"e.g. (('car_body_displacement_m', 1.0),), got {terms!r}")  # fmt: skip
+        for coordinate, coefficient in self.terms:
+            if not isinstance(coordinate, str):
+                raise TypeError(f"point {self.name!r} names coordinates by their names "
+                                f"(strings), got {coordinate!r}")  # fmt: skip
+            _geometry_number(coefficient, f"point {self.name!r} coefficient of {coordinate!r}")
+
 
 @dataclass(frozen=True)
 class Contact:
@@ -83,6 +105,10 @@ class Contact:
 
     name: str
     offset_m: float | str = 0.0
+
+    def __post_init__(self) -> None:
+        _need_strings(self, "name")
+        _geometry_number(self.offset_m, f"contact {self.name!r} offset_m")
 
 
 @dataclass(frozen=True)
@@ -98,6 +124,9 @@ class Element:
     lower: str
     coefficient: str | None = None
     passive: str | None = None
+
+    def __post_init__(self) -> None:
+        _need_strings(self, "kind", "name", "upper", "lower")
 
 
 @dataclass(frozen=True)
@@ -119,7 +148,10 @@ class VehicleModel:
     description: str = ""
 
     def __post_init__(self) -> None:
+        _check_parts(self)
         _check_declaration(self)
+        _check_runnable(self)
+        _check_defaults(self)
 
     # ---- names --------------------------------------------------------------------------
     @property
@@ -142,7 +174,11 @@ class VehicleModel:
 
     def values(self, params: Any = None, **overrides: float) -> dict[str, float]:
         """``{parameter name: value}`` of ``params`` (default: the defaults), with
-        ``overrides`` (e.g. a levitation stiffness scheduled with speed) taking precedence."""
+        ``overrides`` (e.g. a levitation stiffness scheduled with speed) taking precedence.
+        Every number the vehicle reads must be a finite real number, each inertia > 0, and the
+        springs must hold every coordinate (the stiffness matrix with the guideway fixed
+        positive definite: the vehicle rests on them); one ``ValueError`` or ``TypeError``
+        naming the parameter otherwise."""
         params = self.params() if params is None else params
         if not isinstance(params, self.params):
             raise TypeError(
@@ -153,15 +189,23 @@ class VehicleModel:
         if unknown:
             raise ValueError(f"vehicle {self.name!r}: unknown parameter(s) {unknown}; accepted: "
                              f"{', '.join(sorted(out))}")  # fmt: skip
-        out.update({k: float(v) for k, v in overrides.items() if v is not None})
-        for c in self.coordinates:  # what the equations divide by, and the numbers they read
-            if not (np.isfinite(out[c.inertia]) and out[c.inertia] > 0.0):
+        out.update({k: v for k, v in overrides.items() if v is not None})
+        for name in dict.fromkeys(self._read_names()):  # the numbers the equations read
+            out[name] = check_real(f"vehicle {self.name!r}: {name}", out[name])
+            if not math.isfinite(out[name]):
+                raise ValueError(f"vehicle {self.name!r}: {name} must be finite, got {out[name]!r}")
+        for c in self.coordinates:  # what the equations divide by
+            if not out[c.inertia] > 0.0:
                 raise ValueError(f"vehicle {self.name!r}: {c.inertia} must be a finite number "
                                  f"> 0, got {out[c.inertia]!r}")  # fmt: skip
-        for name in self.packed_param_names + self._lever_arms():
-            if not np.isfinite(float(out[name])):
-                raise ValueError(f"vehicle {self.name!r}: {name} must be finite, got {out[name]!r}")
+        _check_held(self, out)
         return out
+
+    def _read_names(self) -> tuple[str, ...]:
+        """Every parameter the vehicle reads: inertias, coefficients (the passive dampers'
+        too) and the geometry's lever arms and offsets."""
+        passive = tuple(e.passive for e in self.elements if e.passive is not None)
+        return self.packed_param_names + passive + self._lever_arms()
 
     def _lever_arms(self) -> tuple[str, ...]:
         """The parameters the geometry reads (lever arms, contact offsets)."""
@@ -288,3 +332,97 @@ def _check_element(model: VehicleModel, e: Element, points: list, contacts: list
                          "names its coefficient, a damper slot does not")  # fmt: skip
     need(e.coefficient, f"element {e.name!r}")
     need(e.passive, f"element {e.name!r}")
+
+
+def _need_strings(part: Any, *fields: str) -> None:
+    """Each of ``fields`` of a declared part is a non-empty string (``TypeError`` otherwise)."""
+    for field_name in fields:
+        value = getattr(part, field_name)
+        if not isinstance(value, str) or not value:
+            raise TypeError(f"{type(part).__name__} {field_name} must be a non-empty string, "
+                            f"got {value!r}")  # fmt: skip
+
+
+def _geometry_number(value: Any, what: str) -> None:
+    """A lever arm or an offset: the name of a length parameter, or a finite real number."""
+    if isinstance(value, str):
+        return
+    if not math.isfinite(check_real(what, value)):
+        raise ValueError(f"{what} must be a finite number or a parameter's name, got {value!r}")
+
+
+#: What each sequence of a :class:`VehicleModel` holds.
+_PARTS = (("coordinates", Coordinate), ("points", Point), ("contacts", Contact),
+          ("elements", Element), ("comfort_points", str), ("relative_positions", str))  # fmt: skip
+
+
+def _check_parts(model: VehicleModel) -> None:
+    """The name, the parameter class and each sequence's entries are of the declared types (a
+    list is taken as the tuple it means, so that the model stays hashable)."""
+    if not isinstance(model.name, str) or not model.name:
+        raise ValueError(f"a vehicle model needs a non-empty name (a string), got {model.name!r}")
+    if not (isinstance(model.params, type) and dataclasses.is_dataclass(model.params)):
+        raise TypeError(f"vehicle {model.name!r}: params must be a dataclass type (the class, "
+                        f"not an instance), got {model.params!r}")  # fmt: skip
+    for field_name, kind in _PARTS:
+        value = getattr(model, field_name)
+        if not isinstance(value, (tuple, list)):
+            raise TypeError(f"vehicle {model.name!r}: {field_name} must be a tuple of "
+                            f"{kind.__name__}, got {value!r}")  # fmt: skip
+        object.__setattr__(model, field_name, tuple(value))
+        bad = [v for v in value if not isinstance(v, kind)]
+        if bad:
+            raise TypeError(f"vehicle {model.name!r}: {field_name} must hold {kind.__name__} "
+                            f"entries, got {bad[0]!r}")  # fmt: skip
+
+
+def _check_runnable(model: VehicleModel) -> None:
+    """What the plant, the env and the controllers need: a damper slot (one action each), a
+    contact, a comfort point, and ``relative_positions`` empty or naming each spring once, one
+    per coordinate (:func:`capsule_env.vehicles.linear.relative_model`)."""
+    for what, present in (("damper slot", model.dampers), ("guideway contact", model.contacts),
+                          ("comfort point", model.comfort_points)):  # fmt: skip
+        if not present:
+            raise ValueError(f"vehicle {model.name!r}: declare at least one {what}")
+    springs = [e.name for e in model.elements if e.kind == SPRING]
+    rel = model.relative_positions
+    if rel and (sorted(rel) != sorted(springs) or len(springs) != len(model.coordinates)):
+        raise ValueError(f"vehicle {model.name!r}: relative_positions must name each of its "
+                         f"{len(springs)} springs once, one per coordinate "
+                         f"({len(model.coordinates)}), or be empty (then no relative form: no "
+                         f"clipped LQR); got {rel}")  # fmt: skip
+
+
+def _check_defaults(model: VehicleModel) -> None:
+    """The parameter class's defaults are the vehicle's documented values: each must exist and
+    pass :meth:`VehicleModel.values`."""
+    try:
+        defaults = model.params()
+    except TypeError as exc:
+        raise TypeError(f"vehicle {model.name!r}: params {model.params.__name__} must give every "
+                        f"field a default (the documented value): {exc}") from None  # fmt: skip
+    model.values(defaults)
+
+
+def _check_held(model: VehicleModel, values: dict[str, float]) -> None:
+    """``ValueError`` unless the springs' stiffness matrix (guideway fixed) is positive
+    definite: a coordinate no spring holds, or a negative stiffness that tips the vehicle over,
+    has no rest position (the env starts each episode there)."""
+    n = len(model.coordinates)
+    k = np.zeros((n, n))
+    springs = [e for e in model.elements if e.kind == SPRING]
+    rows = [model.element_rows(e, values)[0] for e in springs]
+    for e, j in zip(springs, rows, strict=True):
+        k += values[e.coefficient] * np.outer(j, j)  # type: ignore[index]
+    eig, vec = np.linalg.eigh(k)
+    if n and eig[0] > 1e-13 * np.abs(eig).max():
+        return
+    loose = np.abs(vec[:, 0]) > 1e-6 * np.abs(vec[:, 0]).max()
+    names = ", ".join(c.name for c, free in zip(model.coordinates, loose, strict=True) if free)
+    involved = [f"{e.coefficient} = {values[e.coefficient]!r}"  # type: ignore[index]
+                for e, j in zip(springs, rows, strict=True) if np.any(j[loose])]  # fmt: skip
+    raise ValueError(
+        f"vehicle {model.name!r}: the springs do not hold {names} (the stiffness matrix with the "
+        "guideway fixed must be positive definite, so that the vehicle rests on its springs); "
+        f"the springs on them: {', '.join(involved) or 'none'}; stiffnesses must be > 0 N/m"
+    )

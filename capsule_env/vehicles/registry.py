@@ -34,7 +34,9 @@ BUILT_IN: tuple[str, ...] = ()
 
 
 def register(model: VehicleModel) -> VehicleModel:
-    """Add a vehicle model (its name must be new); returns it."""
+    """Add a vehicle model (its name must be new, and its parameter class read by no
+    registered vehicle declared differently: the readers given only parameters find the
+    model by that class); returns it."""
     if not isinstance(model, VehicleModel):
         raise TypeError(f"model must be a VehicleModel, got {type(model).__name__}")
     same = MODELS.get(model.name)
@@ -42,6 +44,16 @@ def register(model: VehicleModel) -> VehicleModel:
         return model
     if same is not None:
         raise ValueError(f"vehicle model name {model.name!r} is taken; choose a new one")
+    unnamed = dataclasses.replace(model, name="_")
+    for other in MODELS.values():
+        if other.params is model.params and dataclasses.replace(other, name="_") != unnamed:
+            raise ValueError(
+                f"vehicle {model.name!r}: {model.params.__name__} is read by {other.name!r}, "
+                "declared differently; the readers given only parameters (the clipped LQR's "
+                "gain, the modal functions) find a vehicle by its parameter class: give "
+                f"{model.name!r} its own (e.g. a subclass: class MyParams({model.params.__name__}): "
+                "pass, decorated with @dataclass(frozen=True))"
+            )
     MODELS[model.name] = model
     return model
 
