@@ -258,3 +258,15 @@ def test_an_override_of_the_user_vehicle_moves_its_modes_as_its_equations_say():
     default = k.copy()
     default[:2, :2] += (2.0e5 - ks_seat) * np.array([[1.0, -1.0], [-1.0, 1.0]])
     assert _misfit(x, _frequencies_hz(np.array([500.0, mc, mb]), default)) > 0.1  # 0.28
+
+
+def test_a_damper_slot_whose_ends_move_alike_is_refused_when_declared():
+    """Before: the env ran it, the slot's action doing nothing, and its clipped LQR's gain was
+    all zeros: a slot joined to a second point on the body it starts from (the bogie
+    forgotten)."""
+    copy = Point("car_body_copy", (("car_body_displacement_m", 1.0),))
+    elements = tuple(e if e.kind != DAMPER else dataclasses.replace(e, lower="car_body_copy")
+                     for e in _ELEMENTS)  # fmt: skip
+    with pytest.raises(ValueError, match="damper slot 'secondary_damper' joins 'car_body' and "
+                       "'car_body_copy', which move alike"):  # fmt: skip
+        _declare(points=(*MODEL.points, copy), elements=elements)

@@ -175,10 +175,11 @@ class VehicleModel:
     def values(self, params: Any = None, **overrides: float) -> dict[str, float]:
         """``{parameter name: value}`` of ``params`` (default: the defaults), with
         ``overrides`` (e.g. a levitation stiffness scheduled with speed) taking precedence.
-        Every number the vehicle reads must be a finite real number, each inertia > 0, and the
+        Every number the vehicle reads must be a finite real number, each inertia > 0, the
         springs must hold every coordinate (the stiffness matrix with the guideway fixed
-        positive definite: the vehicle rests on them); one ``ValueError`` or ``TypeError``
-        naming the parameter otherwise."""
+        positive definite: the vehicle rests on them) and each damper slot's ends must move
+        apart in some motion; one ``ValueError`` or ``TypeError`` naming the parameter
+        otherwise."""
         params = self.params() if params is None else params
         if not isinstance(params, self.params):
             raise TypeError(
@@ -199,6 +200,11 @@ class VehicleModel:
                 raise ValueError(f"vehicle {self.name!r}: {c.inertia} must be a finite number "
                                  f"> 0, got {out[c.inertia]!r}")  # fmt: skip
         _check_held(self, out)
+        for e in self.dampers:  # a slot that cannot move: its action would do nothing
+            if not np.any(self.element_rows(e, out)[0]):
+                raise ValueError(f"vehicle {self.name!r}: damper slot {e.name!r} joins {e.upper!r} "
+                                 f"and {e.lower!r}, which move alike: its stroke is 0 in any "
+                                 "motion")  # fmt: skip
         return out
 
     def _read_names(self) -> tuple[str, ...]:
