@@ -74,3 +74,32 @@ def test_declared_vector_env_names_render_mode_for_what_it_is():
     venv = DeclaredVectorEnv(2, render_mode=None, **HALF)
     assert venv.render_mode is None
     assert venv.metadata["render_fps"] == 200  # one frame per control step, as the single env
+
+
+@pytest.mark.parametrize("env_id", ["CapsuleRidePreview-v0", "CapsuleHalfRidePreview-v0"])
+def test_vector_entry_point_takes_none_in_a_seed_list_as_sync_does(env_id):
+    # Gymnasium's VectorEnv.reset takes seed: list[int | None]; a None sub-env goes on with
+    # its own stream. The native vector envs refused None with a TypeError. The preview
+    # columns read the guideway window each reset draws, so equal observations mean equal
+    # draws.
+    native = gym.make_vec(env_id, 3, vectorization_mode="vector_entry_point", **SHORT)
+    sync = gym.make_vec(env_id, 3, vectorization_mode="sync", **SHORT)
+    for seeds in ([1, 2, 3], [4, None, 6], [None, None, 9], [None, None, None]):
+        obs_native, _ = native.reset(seed=seeds)
+        obs_sync, _ = sync.reset(seed=seeds)
+        assert np.array_equal(obs_native, obs_sync), seeds
+    with pytest.raises(TypeError, match=r"seed\[1\]"):
+        native.reset(seed=[1, 2.5, None])
+
+
+def test_reset_mask_with_none_seeds_as_sync_does():
+    native = gym.make_vec("CapsuleRidePreview-v0", 3, vectorization_mode="vector_entry_point",
+                          autoreset_mode="Disabled", **SHORT)  # fmt: skip
+    sync = gym.make_vec("CapsuleRidePreview-v0", 3, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": "Disabled"}, **SHORT)  # fmt: skip
+    native.reset(seed=[1, 2, 3])
+    sync.reset(seed=[1, 2, 3])
+    mask = np.array([True, True, False])
+    obs_native, _ = native.reset(seed=[None, 7, None], options={"reset_mask": mask})
+    obs_sync, _ = sync.reset(seed=[None, 7, None], options={"reset_mask": mask})
+    assert np.array_equal(obs_native, obs_sync)

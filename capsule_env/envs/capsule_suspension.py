@@ -15,11 +15,12 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from capsule_env.engine.batch import CapsuleBatch, vehicle_streams
+from capsule_env.engine.batch import CapsuleBatch
 from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed, observation_bounds
 from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
+from capsule_env.envs._seeds import reseed
 from capsule_env.envs.render import render_vehicle
 from capsule_env.envs.spec import LengthSpec
 
@@ -365,7 +366,8 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
     gives the vehicles the independent streams ``numpy.random.SeedSequence(s).spawn(num_envs)``
     (vehicle 0 is the single env seeded ``s``; two different seeds share no stream);
     ``reset(seed=[s_0, ..., s_{N-1}])`` gives vehicle ``n`` the stream of the single env seeded
-    ``s_n``. ``info`` is a dict of arrays (one entry per vehicle, fresh arrays every step) with
+    ``s_n``, and an ``s_n`` of None leaves vehicle ``n``'s stream as it is (Gymnasium's
+    ``list[int | None]``, as ``SyncVectorEnv``). ``info`` is a dict of arrays (one entry per vehicle, fresh arrays every step) with
     Gymnasium's ``_key`` masks. Actions: shape ``(num_envs, 1)`` (the action space) or
     ``(num_envs,)``. Batches of 64 or more are split across threads (:mod:`capsule_env.engine.kernels`).
 
@@ -459,8 +461,8 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         mask = None if options is None else options.get("reset_mask")
         if mask is not None:
             return self._reset_masked(_check_reset_mask(mask, self.num_envs), seed)
-        if seed is not None:
-            self._batch.seed(seed)  # validates an int or a list of num_envs ints
+        # an int or a list of num_envs ints, None keeping a vehicle's stream (Gymnasium's)
+        reseed(self._batch, seed, self.num_envs)
         super().reset(seed=int(seed) if isinstance(seed, (int, np.integer)) else None)
         self._batch.reset()
         self._autoreset[:] = False
@@ -478,9 +480,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
             )
         batch = self._batch
         if seed is not None:
-            streams = vehicle_streams(seed, self.num_envs)  # validates the seed(s)
-            for n in np.flatnonzero(mask):
-                batch.rngs[n] = streams[n]
+            reseed(batch, seed, self.num_envs, mask)  # validates the seed(s)
             super().reset(seed=int(seed) if isinstance(seed, (int, np.integer)) else None)
         batch.detach_signals()  # the last step's info arrays keep their values
         batch.reset(mask)

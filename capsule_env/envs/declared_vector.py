@@ -8,7 +8,8 @@ Gymnasium's ``NEXT_STEP`` mode (the step after an episode ends resets that vehic
 its first observation, reward 0, ``terminated = truncated = False``; its action is ignored).
 ``reset(seed=s)`` gives the vehicles the streams ``SeedSequence(s).spawn(num_envs)`` (vehicle 0
 is the single env seeded ``s``); ``reset(seed=[s_0, ...])`` gives vehicle ``n`` the single
-env's stream of ``s_n``. ``info``: a dict of arrays, one row per vehicle. ``step`` before the
+env's stream of ``s_n`` (None: vehicle ``n``'s stream goes on, as in ``SyncVectorEnv``).
+``info``: a dict of arrays, one row per vehicle. ``step`` before the
 first ``reset`` raises ``gymnasium.error.ResetNeeded``.
 """
 
@@ -23,6 +24,7 @@ from gymnasium.vector.utils import batch_space
 
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
+from capsule_env.envs._seeds import reseed
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces, runs_compiled_kwargs
 
 __all__ = ["DeclaredVectorEnv", "make_suspension_vector_env"]
@@ -81,8 +83,7 @@ class DeclaredVectorEnv(VectorEnv):
         """Start every vehicle's episode: ``(observations, info)`` (module doc: the seeds)."""
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
-        if seed is not None:
-            self._batch.seed(seed)
+        reseed(self._batch, seed, self.num_envs)  # None in a list: that vehicle's stream on
         self._batch.reset()
         self._autoreset[:] = False
         self._started = True
