@@ -49,8 +49,9 @@ def register(model: VehicleModel) -> VehicleModel:
         if other.params is model.params and dataclasses.replace(other, name="_") != unnamed:
             raise ValueError(
                 f"vehicle {model.name!r}: {model.params.__name__} is read by {other.name!r}, "
-                "declared differently; the readers given only parameters (the clipped LQR's "
-                "gain, the modal functions) find a vehicle by its parameter class: give "
+                "declared differently; the readers given only parameters (lqr_gain, the "
+                "preview LQ, the MPC, the reference solver) find a vehicle by its parameter "
+                "class: give "
                 f"{model.name!r} its own (e.g. a subclass: class MyParams({model.params.__name__}): "
                 "pass, decorated with @dataclass(frozen=True))"
             )
