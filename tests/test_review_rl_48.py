@@ -103,3 +103,18 @@ def test_reset_mask_with_none_seeds_as_sync_does():
     obs_native, _ = native.reset(seed=[None, 7, None], options={"reset_mask": mask})
     obs_sync, _ = sync.reset(seed=[None, 7, None], options={"reset_mask": mask})
     assert np.array_equal(obs_native, obs_sync)
+
+
+@pytest.mark.parametrize("make", [lambda: CapsuleSuspensionSB3VecEnv(2, **RIDE),
+                                  lambda: DeclaredSB3VecEnv(2, **HALF)])  # fmt: skip
+def test_sb3_set_attr_refuses_an_env_option_it_cannot_change(make):
+    # get_attr reads the options from the (frozen) config; set_attr used to set a stray
+    # attribute on the VecEnv instead: the change did nothing, and get_attr still read the old
+    # value (a curriculum through set_attr would have trained on the old reward, silently).
+    venv = make()
+    before = venv.get_attr("reward_stroke_weight")
+    with pytest.raises(ValueError, match="reward_stroke_weight"):
+        venv.set_attr("reward_stroke_weight", 5.0)
+    assert venv.get_attr("reward_stroke_weight") == before == [0.1, 0.1]
+    venv.set_attr("my_counter", 3)  # an attribute of the user's own still round-trips
+    assert venv.get_attr("my_counter", indices=[1]) == [3]

@@ -23,7 +23,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from capsule_env.engine.config import check_num_envs, check_seed
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces
-from capsule_env.envs.sb3 import check_vec_options
+from capsule_env.envs.sb3 import check_settable, check_vec_options
 
 __all__ = ["DeclaredSB3VecEnv"]
 
@@ -98,6 +98,7 @@ class DeclaredSB3VecEnv(VecEnv):
         return [getattr(target, attr_name)] * len(list(self._indices(indices)))
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        check_settable(self.config, attr_name)  # an env option: ValueError, not ignored
         setattr(self, attr_name, value)
 
     def env_method(

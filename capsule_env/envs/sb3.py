@@ -26,7 +26,12 @@ from capsule_env.envs._actions import real_actions
 from capsule_env.envs.capsule_suspension import _check_options, env_spaces, render_fps
 from capsule_env.envs.render import render_vehicle
 
-__all__ = ["CapsuleSuspensionSB3VecEnv", "check_vec_options", "make_sb3_vec_env"]
+__all__ = [
+    "CapsuleSuspensionSB3VecEnv",
+    "check_settable",
+    "check_vec_options",
+    "make_sb3_vec_env",
+]
 
 
 def check_vec_options(options: Any, num_envs: int) -> None:
@@ -45,6 +50,17 @@ def check_vec_options(options: Any, num_envs: int) -> None:
         )
     for env_options in options:
         _check_options(env_options)
+
+
+def check_settable(config: Any, attr_name: str) -> None:
+    """``VecEnv.set_attr(attr_name, ...)`` of a VecEnv whose ``get_attr`` reads its options
+    from ``config``: an option (frozen when the env is made) raises ``ValueError`` naming it,
+    rather than setting an attribute nothing reads while ``get_attr`` keeps the old value."""
+    if hasattr(config, attr_name):
+        raise ValueError(
+            f"{attr_name} is an option of the env, fixed when it is made: set_attr cannot "
+            f"change it; make a new VecEnv with {attr_name}=..."
+        )
 
 
 class CapsuleSuspensionSB3VecEnv(VecEnv):
@@ -143,6 +159,9 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         return [getattr(target, attr_name)] * self._count(indices)
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute of this one object (every index); an env option raises
+        ``ValueError`` (:func:`check_settable`)."""
+        check_settable(self.config, attr_name)
         setattr(self, attr_name, value)
 
     def env_method(
