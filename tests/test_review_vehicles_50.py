@@ -270,3 +270,19 @@ def test_a_damper_slot_whose_ends_move_alike_is_refused_when_declared():
     with pytest.raises(ValueError, match="damper slot 'secondary_damper' joins 'car_body' and "
                        "'car_body_copy', which move alike"):  # fmt: skip
         _declare(points=(*MODEL.points, copy), elements=elements)
+
+
+def test_the_env_passive_baseline_reads_damper_params_not_the_slot_passive_fields():
+    """What the docstrings now say (before, they called ``*_passive_damping_n_s_per_m`` the
+    passive baseline's damper; the env never read it): the slots' passive fields leave the
+    env's ``damper="passive"`` as it was, ``damper_params`` changes it."""
+
+    def rewards(**options) -> list[float]:
+        env = gym.make("CapsuleSuspension-v0", vehicle="half_car", damper="passive",
+                       episode_length_s=0.25, **options)  # fmt: skip
+        env.reset(seed=0)
+        return [env.step(np.zeros(2))[1] for _ in range(50)]
+
+    fields = {"front_passive_damping_n_s_per_m": 3e4, "rear_passive_damping_n_s_per_m": 3e4}
+    assert rewards(vehicle_params=fields) == rewards()
+    assert rewards(damper_params={"damping_n_s_per_m": 3e4}) != rewards()

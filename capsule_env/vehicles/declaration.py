@@ -115,8 +115,11 @@ class Contact:
 class Element:
     """A spring, a dashpot or a damper slot between ``upper`` (a point) and ``lower`` (a point
     or a contact). ``coefficient``: the parameter of its stiffness (N/m) or damping (N s/m);
-    ``None`` for a damper slot. ``passive``: for a damper slot, the parameter of the linear
-    damper that replaces it in the passive baseline (N s/m), if any."""
+    ``None`` for a damper slot. ``passive``: for a damper slot, the parameter naming the
+    linear damper of its passive baseline (N s/m), if any: a record for the linear analyses,
+    which take it as their ``slot_damping`` argument when given it; nothing reads it on its
+    own. The env's ``damper="passive"`` is the ``LinearDamper`` of ``damper_params`` in every
+    slot (docs/model.md, section 2), whatever this parameter's value."""
 
     kind: str
     name: str

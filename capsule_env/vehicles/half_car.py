@@ -97,8 +97,10 @@ class HalfCarParams:
         810 km/h (N/m), default 2.25e6. The speed-dependent option sets it (and the damping
         below) per speed, one coil model per bogie (:meth:`quarter_params` gives each bogie's
         1/4-car for :func:`capsule_env.envelope.levitation.eds_coil`).
-    front_passive_damping_n_s_per_m, rear_... : c_s, the passive damper of the passive
-        baseline in each slot (N s/m), default 1.5e4; not part of the MR-damped plant.
+    front_passive_damping_n_s_per_m, rear_... : c_s, the passive damper in each slot for
+        the linear passive plant (N s/m; pass it as ``slot_damping`` to ``absolute_model``),
+        default 1.5e4; not part of the MR-damped plant. The env's ``damper="passive"`` reads
+        ``damper_params`` (the same 1.5e4 by default), not these: change both.
     front_levitation_damping_n_s_per_m, rear_... : c_p (N s/m), default 0 (the paper's
         undamped levitation); -2e4 to 2e4, as for the 1/4-car.
 

@@ -61,8 +61,10 @@ class VehicleParams:
     secondary_stiffness_n_per_m : k_s, secondary (air) spring (N/m), default 4.95e5.
     levitation_stiffness_n_per_m : k_p, EDS levitation stiffness at 810 km/h (N/m), default
         2.25e6; the paper models the primary suspension as this spring with no damping.
-    passive_damping_n_s_per_m : c_s, the passive secondary damper of the passive baseline
-        (N s/m), default 1.5e4. It is *not* part of the MR-damped plant.
+    passive_damping_n_s_per_m : c_s, the passive secondary damper of the linear passive
+        plant (N s/m; ``state_space``, ``frequency_response``), default 1.5e4. It is *not*
+        part of the MR-damped plant; the env's ``damper="passive"`` reads ``damper_params``
+        (the same 1.5e4 by default), not this: change both.
     levitation_damping_n_s_per_m : c_p, the levitation's damping on the bogie's velocity
         relative to the guideway (N s/m), default 0 (the paper's undamped primary suspension).
         An EDS levitation's electromagnetic damping is small and negative at high speed
