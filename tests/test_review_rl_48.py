@@ -118,3 +118,21 @@ def test_sb3_set_attr_refuses_an_env_option_it_cannot_change(make):
     assert venv.get_attr("reward_stroke_weight") == before == [0.1, 0.1]
     venv.set_attr("my_counter", 3)  # an attribute of the user's own still round-trips
     assert venv.get_attr("my_counter", indices=[1]) == [3]
+
+
+@pytest.mark.parametrize("mode", ["human", "rgb", "ansi"])
+def test_sb3_vecenv_refuses_a_render_mode_it_does_not_draw(mode):
+    # "human" went to SB3's env_method("render"), which drew frames and showed none; "rgb"
+    # was taken as given. The frames are "rgb_array"; SB3's render(mode="human") shows them.
+    with pytest.raises(ValueError, match="render_mode must be None or 'rgb_array'"):
+        CapsuleSuspensionSB3VecEnv(2, render_mode=mode, **RIDE)
+    with pytest.raises(ValueError, match="render_mode must be None for a declared vehicle"):
+        DeclaredSB3VecEnv(2, render_mode=mode, **HALF)
+
+
+def test_sb3_vecenvs_take_the_render_modes_they_draw():
+    venv = CapsuleSuspensionSB3VecEnv(2, render_mode="rgb_array", **RIDE)
+    venv.reset()
+    frame = venv.render()  # SB3 tiles the vehicles' frames
+    assert frame.ndim == 3 and frame.dtype == np.uint8
+    assert DeclaredSB3VecEnv(2, render_mode=None, **HALF).render_mode is None

@@ -21,7 +21,7 @@ from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs._seeds import reseed
-from capsule_env.envs.render import render_vehicle
+from capsule_env.envs.render import check_render_mode, render_vehicle
 from capsule_env.envs.spec import LengthSpec
 
 __all__ = [
@@ -271,8 +271,7 @@ class CapsuleSuspensionEnv(Env[np.ndarray, np.ndarray]):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 200}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        check_render_mode(render_mode)
         self.config = EnvConfig.from_kwargs(
             "CapsuleSuspensionEnv.__init__", ("render_mode",), **kwargs
         )
@@ -416,8 +415,7 @@ class CapsuleSuspensionVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **kwargs: Any,
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        check_render_mode(render_mode)
         self.config = EnvConfig.from_kwargs(
             "CapsuleSuspensionVectorEnv.__init__",
             ("num_envs", "render_mode", "max_episode_steps", "autoreset_mode"),

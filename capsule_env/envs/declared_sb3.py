@@ -23,6 +23,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from capsule_env.engine.config import check_num_envs, check_seed
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces
+from capsule_env.envs.render import check_render_mode
 from capsule_env.envs.sb3 import check_settable, check_vec_options
 
 __all__ = ["DeclaredSB3VecEnv"]
@@ -32,12 +33,13 @@ class DeclaredSB3VecEnv(VecEnv):
     """``num_envs`` vehicles of a declared vehicle as an SB3 ``VecEnv`` (``kwargs``: the env's
     options, e.g. ``CapsuleHalfRide-v0``'s)."""
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+    def __init__(self, num_envs: int = 1, render_mode: str | None = None, **kwargs: Any) -> None:
+        check_render_mode(render_mode, drawn=False)  # no picture of a declared vehicle
         num_envs = check_num_envs(num_envs)
         self.batch = declared_setup("DeclaredSB3VecEnv.__init__", kwargs, num_envs)
         self.config = self.batch.config
         action_space, observation_space = declared_spaces(self.batch)
-        self.render_mode = None  # no rendering of a declared vehicle
+        self.render_mode = None
         super().__init__(num_envs, observation_space, action_space)
         self._actions = np.zeros((num_envs, self.batch.n_slots))
         self._seed: int | None = None

@@ -26,6 +26,7 @@ from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs._seeds import reseed
 from capsule_env.envs.declared_vehicle import declared_setup, declared_spaces, runs_compiled_kwargs
+from capsule_env.envs.render import check_render_mode
 
 __all__ = ["DeclaredVectorEnv", "make_suspension_vector_env"]
 
@@ -43,10 +44,7 @@ class DeclaredVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:
-        if render_mode is not None:  # make_vec passes it on: refused as the single env does
-            raise ValueError(
-                f"render_mode must be None for a declared vehicle, got {render_mode!r}"
-            )
+        check_render_mode(render_mode, drawn=False)  # make_vec passes it on
         if check_autoreset_mode(autoreset_mode) is not AutoresetMode.NEXT_STEP:
             raise ValueError(f"autoreset_mode must be NEXT_STEP for a declared vehicle (the "
                              f"others are not built for it yet), got {autoreset_mode!r}")  # fmt: skip

@@ -59,6 +59,7 @@ from capsule_env.engine.declared_batch import (
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs.capsule_suspension import CapsuleSuspensionEnv
 from capsule_env.envs.declared_levitation import eds_at_speed
+from capsule_env.envs.render import check_render_mode
 from capsule_env.envs.spec import LengthSpec
 from capsule_env.vehicles import model_named, names
 from capsule_env.vehicles.compiled import runs_compiled
@@ -117,10 +118,7 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
     metadata = {"render_modes": [], "render_fps": 200}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode is not None:
-            raise ValueError(
-                f"render_mode must be None for a declared vehicle, got {render_mode!r}"
-            )
+        check_render_mode(render_mode, drawn=False)
         self._batch = batch = declared_setup("DeclaredVehicleEnv.__init__", kwargs)
         self.config, self.vehicle_model = batch.config, batch.model
         self.vehicle_parameters = batch.params

@@ -17,6 +17,18 @@ _SPRING = (40, 150, 90)
 _TRACK = (60, 60, 60)
 
 
+def check_render_mode(render_mode: Any, drawn: bool = True) -> None:
+    """``ValueError`` naming ``render_mode`` unless it is one an env draws: None or
+    ``"rgb_array"`` (this side view), only None where the env draws nothing (``drawn=False``:
+    a declared vehicle's)."""
+    if render_mode is None:
+        return
+    if not drawn:
+        raise ValueError(f"render_mode must be None for a declared vehicle, got {render_mode!r}")
+    if render_mode != "rgb_array":
+        raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+
+
 def _rect(img: np.ndarray, x0: float, x1: float, y0: float, y1: float, color: tuple) -> None:
     h, w = img.shape[:2]
     xa, xb = sorted((int(round(x0)), int(round(x1))))

@@ -24,7 +24,7 @@ from capsule_env.engine.config import EnvConfig, check_num_envs, check_seed
 from capsule_env.engine.layout import SIGNAL_NAMES
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs.capsule_suspension import _check_options, env_spaces, render_fps
-from capsule_env.envs.render import render_vehicle
+from capsule_env.envs.render import check_render_mode, render_vehicle
 
 __all__ = [
     "CapsuleSuspensionSB3VecEnv",
@@ -71,7 +71,8 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
     num_envs : number of vehicles.
     info_signals : add the physical signals and reward terms (``SIGNAL_NAMES``) to every
         step's info dicts (costs time for large batches; off by default).
-    render_mode : None or ``"rgb_array"``.
+    render_mode : None or ``"rgb_array"`` (SB3's ``render(mode="human")`` shows its frames);
+        another raises ``ValueError``.
     **kwargs : any ``CapsuleSuspension-v0`` argument (:class:`capsule_env.engine.config.EnvConfig`).
     """
 
@@ -87,6 +88,9 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
             **kwargs,
         )  # fmt: skip
         num_envs = check_num_envs(num_envs)
+        # not "human": SB3 would call env_method("render"), which shows nothing; its
+        # render(mode="human") shows the "rgb_array" frames
+        check_render_mode(render_mode)
         self.batch = CapsuleBatch(self.config, num_envs)
         action_space, observation_space = env_spaces(self.config)
         self.render_mode = render_mode
