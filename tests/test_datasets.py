@@ -112,7 +112,7 @@ def test_the_recovered_env_is_the_task_with_its_spaces(mpc_root):
         registered = gym.spec(TASK).kwargs
         assert {k: got.spec.kwargs[k] for k in registered} == registered
     assert env.spec.kwargs["episode_length_s"] == LENGTH_S
-    assert "guideway_seed" not in env.spec.kwargs  # the env's default: the training bank
+    assert env.spec.kwargs["guideway_seed"] == 0  # named: the training bank
     assert eval_env.spec.kwargs["guideway_seed"] == 2026  # evaluate.py's bank
     meta = dataset.storage.metadata["capsule_env"]
     assert meta["controller"]["name"] == "mpc-biexp-meas" and meta["seeds"] == [7, 8, 9]

@@ -58,7 +58,8 @@ def minari_module() -> Any:
 
 def check_out(root: str | Path) -> Path:
     """The root folder ``root`` checked: new (its nearest existing ancestor writable) or an
-    empty folder. ``ValueError`` naming ``--out`` otherwise; makes nothing."""
+    empty folder, where a folder can be made (a probe, removed again). ``ValueError`` naming
+    ``--out`` otherwise; leaves nothing."""
     path = Path(root)
     if str(root) == "":
         raise ValueError("--out is empty: give a folder for the dataset")
@@ -67,7 +68,24 @@ def check_out(root: str | Path) -> Path:
     if path.is_dir() and any(path.iterdir()):
         raise ValueError(f"--out {str(path)!r} is not empty: give a new or an empty folder (a "
                          "dataset root holds one dataset here)")  # fmt: skip
-    return check_creatable_dir(path, "--out")
+    path = check_creatable_dir(path, "--out")
+    _probe_staging(path)
+    return path
+
+
+def _probe_staging(root: Path) -> None:
+    """Make and remove a folder where :func:`write_dataset` stages (beside ``root``, or in
+    its nearest existing ancestor): a place the permission bits allow but the file system
+    refuses (``/proc``, a read-only mount seen by root) is refused before the run, naming
+    ``--out``."""
+    parent = root.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".capsule-datasets.", suffix=".probe", dir=parent))
+    except OSError as exc:
+        raise ValueError(f"--out {str(root)!r}: cannot make a folder in {str(parent)!r} "
+                         f"({exc.strerror or exc})") from None  # fmt: skip
 
 
 @contextmanager

@@ -3,8 +3,9 @@ networks like every other row.
 
 :class:`Evaluation` (the options ``--dataset-root``, ``--seeds``, ``--eval-*``, ``--json``)
 names the dataset and how the trained networks are judged: each drives the dataset's env on
-the evaluation bank (``recover_environment(eval_env=True)``'s options: ``guideway_seed=2026``),
-episodes ``eval_seed .. eval_seed + eval_episodes - 1`` of ``eval_episode_length_s`` (as
+the evaluation bank (``recover_environment(eval_env=True)``'s options with
+``guideway_seed=2026``, whatever bank that env names; a dataset recorded on a bank held out
+from training, the evaluation, validation or selection bank, is refused), episodes ``eval_seed .. eval_seed + eval_episodes - 1`` of ``eval_episode_length_s`` (as
 ``evaluate.py``: 1000..1009, 10 s), through :func:`~capsule_env.evaluation.episodes.run_episodes`;
 the row's figure is the Wk-weighted RMS car-body acceleration of
 :func:`~capsule_env.evaluation.episodes.episode_metrics`. The passive damper and the dataset's
@@ -16,7 +17,6 @@ the IQM over the seeds), and with the seeds alone resampled.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -30,8 +30,15 @@ import numpy as np
 from capsule_env import metrics
 from capsule_env.common.cli import ArgumentParser, add_dataclass_options, dataclass_values
 
-__all__ = ["Evaluation", "Transitions", "check_ranges", "NetworkPolicy", "transitions", "load", "evaluate",
-           "run_offline", "offline_main"]  # fmt: skip
+__all__ = ["Evaluation", "Transitions", "check_ranges", "NetworkPolicy", "transitions", "load",
+           "evaluation_env_kwargs", "evaluate", "run_offline", "offline_main"]  # fmt: skip
+
+
+_MAX_SEED = 2**63
+#: The guideway banks held out from training (evaluation.episodes): a dataset recorded on one
+#: of them is refused.
+_HELD_OUT_BANKS = {"EVALUATION_GUIDEWAY_SEED": "evaluation", "VALIDATION_GUIDEWAY_SEED":
+                   "validation", "SELECTION_GUIDEWAY_SEED": "selection"}  # fmt: skip
 
 
 @dataclass
@@ -61,8 +68,11 @@ def check_evaluation(ev: Evaluation) -> None:
     if ev.seeds < 2 or ev.eval_episodes < 2:
         raise ValueError(f"--seeds and --eval-episodes must be >= 2 (the interval resamples "
                          f"both), got {ev.seeds} and {ev.eval_episodes}")  # fmt: skip
-    if ev.first_seed < 0 or ev.eval_seed < 0:
-        raise ValueError("--first-seed and --eval-seed must be >= 0")
+    for option, first, count in (("--first-seed", ev.first_seed, ev.seeds),
+                                 ("--eval-seed", ev.eval_seed, ev.eval_episodes)):  # fmt: skip
+        if not 0 <= first <= _MAX_SEED - count:
+            raise ValueError(f"{option} must be in 0..{_MAX_SEED - count} (2**63 minus the "
+                             f"count: seeds are {option} + k, 64-bit), got {first}")  # fmt: skip
     if not (np.isfinite(ev.eval_episode_length_s) and ev.eval_episode_length_s > 0):
         raise ValueError(f"--eval-episode-length-s must be positive, got "
                          f"{ev.eval_episode_length_s}")  # fmt: skip
@@ -164,6 +174,36 @@ def evaluate(policy: Any, env_kwargs: dict[str, Any], ev: Evaluation) -> tuple[n
     return wk, summary
 
 
+def evaluation_env_kwargs(dataset: Any, ident: str, ev: Evaluation) -> dict[str, Any]:
+    """The options of the env the networks are judged in: the dataset's evaluation env's
+    (``recover_environment(eval_env=True)``) on the evaluation bank, whatever bank that env
+    names (Minari's evaluation env is the recording env when the dataset names none).
+    ``ValueError`` when the dataset is not of this package's env, was recorded on a bank held
+    out from training, or ``--eval-episode-length-s`` is refused there."""
+    from capsule_env.engine.config import EnvConfig
+    from capsule_env.evaluation import episodes
+
+    recorded = dataset.spec.env_spec
+    if recorded is None or not str(recorded.entry_point).startswith("capsule_env."):
+        raise ValueError(f"dataset {ident!r} was not recorded in a capsule_env env "
+                         f"({getattr(recorded, 'id', None)!r})")  # fmt: skip
+    bank = recorded.kwargs.get("guideway_seed", EnvConfig().guideway_seed)
+    held_out = {getattr(episodes, k): v for k, v in _HELD_OUT_BANKS.items()}
+    if bank in held_out:
+        raise ValueError(f"dataset {ident!r} was recorded on the {held_out[bank]} guideway "
+                         f"bank (guideway_seed={bank}), held out from training: record it "
+                         f"on the training bank")  # fmt: skip
+    eval_env = dataset.recover_environment(eval_env=True)
+    kwargs = {k: v for k, v in eval_env.spec.kwargs.items() if k != "episode_length_s"}
+    eval_env.close()
+    kwargs["guideway_seed"] = episodes.EVALUATION_GUIDEWAY_SEED
+    try:
+        EnvConfig.from_kwargs(**kwargs, episode_length_s=ev.eval_episode_length_s)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"--eval-episode-length-s / the dataset's env: {exc}") from None
+    return kwargs
+
+
 def _references(dataset: Any, env_kwargs: dict[str, Any], ev: Evaluation) -> dict[str, np.ndarray]:
     """Per-episode Wk of the passive damper and of the dataset's demonstrator (when its
     metadata names a classical law) on the evaluation episodes."""
@@ -191,9 +231,7 @@ def run_offline(method: str, train: Trainer, ev: Evaluation, options: Any) -> di
     check_evaluation(ev)
     dataset, ident = load(ev)
     data = transitions(dataset)
-    eval_env = dataset.recover_environment(eval_env=True)
-    env_kwargs = {k: v for k, v in eval_env.spec.kwargs.items() if k != "episode_length_s"}
-    eval_env.close()
+    env_kwargs = evaluation_env_kwargs(dataset, ident, ev)
     runs, t0 = [], time.perf_counter()
     for seed in range(ev.first_seed, ev.first_seed + ev.seeds):
         net, losses = train(data, seed)
@@ -223,8 +261,8 @@ def offline_main(prog: str, doc: str, options_cls: type, method: str,
                  make_trainer: Callable[[Any], Trainer], argv: list[str] | None) -> int:  # fmt: skip
     """A baseline's command line: :class:`Evaluation`'s options and ``options_cls``'s, then
     :func:`run_offline`; bad input is one line on stderr and exit status 1 (2 for syntax)."""
-    parser = ArgumentParser(prog=prog, description=doc.split("\n\n")[0],
-                            formatter_class=argparse.ArgumentDefaultsHelpFormatter)  # fmt: skip
+    # each option's help already ends with its default (add_dataclass_options)
+    parser = ArgumentParser(prog=prog, description=doc.split("\n\n")[0])
     add_dataclass_options(parser, Evaluation)
     add_dataclass_options(parser, options_cls)
     given = parser.parse_args(argv)

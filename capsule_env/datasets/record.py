@@ -6,7 +6,7 @@ and seeds, the episode length, the output folder), then runs the episodes
 :mod:`~capsule_env.datasets.oracle_replay`) and only then writes
 (:mod:`~capsule_env.datasets.minari_store`). Episode ``k`` is the task's env seeded
 ``seed + k`` on the env's own guideway bank (the training bank, ``guideway_seed=0``, unless
-the task names another); the dataset's ``recover_environment(eval_env=True)`` gives the same
+the task names another), named in the dataset's env spec; the dataset's ``recover_environment(eval_env=True)`` gives the same
 env on the evaluation bank (:data:`~capsule_env.evaluation.episodes.EVALUATION_GUIDEWAY_SEED`).
 
 The recording env is the task's with the controller's own options over it (how it reads and
@@ -98,7 +98,10 @@ def plan_dataset(task: str, controller: str, episodes: int, seed: int,
     if isinstance(length, bool) or not isinstance(length, (int, float)):
         raise ValueError(f"--episode-length must be a number of seconds, got {length!r}")
     own = {k: v for k, v in demonstrator.env_kwargs.items() if k != "setting"}
-    spec_kwargs = {**own, "episode_length_s": float(length)}
+    # the guideway bank named in the spec: recover_environment() rebuilds the recorded bank
+    # whatever the package's default, and the metadata says which bank the data is on
+    bank = task_kwargs.get("guideway_seed", EnvConfig().guideway_seed)
+    spec_kwargs = {"guideway_seed": bank, **own, "episode_length_s": float(length)}
     try:
         EnvConfig.from_kwargs(**{**task_kwargs, **spec_kwargs})
     except (ValueError, TypeError) as exc:

@@ -14,7 +14,8 @@ error term): ``alpha`` large is TD3, ``alpha`` 0 is behaviour cloning. Target po
 (``policy_noise``, ``noise_clip``), delayed actor updates (``policy_delay``) and Polyak targets
 (``tau``) as TD3. The observation is standardised with the dataset's mean and spread in both
 networks. Reward is the env's (docs/env.md), not the Wk figure the row is judged by. Needs the
-``rl`` extra (torch, rliable), TorchRL (the ``datasets`` extra) and minari.
+``rl`` extra (torch, rliable), TorchRL (in the ``dev`` extra) and minari (the ``datasets``
+extra).
 """
 
 from __future__ import annotations
@@ -144,7 +145,10 @@ def _trainer(args: Args) -> Trainer:
     try:
         import torchrl  # noqa: F401
     except ImportError:
-        raise ImportError("TD3+BC needs TorchRL: pip install 'capsule-env[datasets]'") from None
+        raise ImportError(
+            "TD3+BC needs TorchRL, in the dev extra: pip install 'torchrl>=0.14' "
+            "(or 'capsule-env[dev]')"
+        ) from None
     return lambda data, seed: train_td3bc(data, args, seed)
 
 

@@ -1,0 +1,156 @@
+"""Review of the offline-RL path (helper 49): the recording's guideway bank named in the
+dataset, the offline baselines judged on the evaluation bank whatever the dataset's evaluation
+env names (and never trained on a held-out bank), their options checked before any training,
+their help, and ``--out`` refused before the run where no folder can be made.
+
+The independent facts: the guideway a recorded episode rode is the one ``gym.make`` gives with
+the training bank named; the passive reference of an offline run is what
+:func:`~capsule_env.evaluation.episodes.run_episodes` gives on the evaluation bank.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from conftest import NO_SB3
+
+minari = pytest.importorskip("minari", reason="minari is not installed (the datasets extra)")
+pytest.importorskip("h5py", reason="h5py is not installed (the datasets extra)")
+
+from capsule_env.agents.controllers.classical import make_controller  # noqa: E402
+from test_datasets import _no_home_minari, _only_line  # noqa: E402, F401  (HOME's .minari empty)
+
+from capsule_env.datasets import load_dataset, minari_store, record_dataset  # noqa: E402
+from capsule_env.datasets.rollouts import record_episodes  # noqa: E402
+
+TASK = "CapsuleRide-v0"
+LENGTH_S = 0.5
+SHORT = ["--seeds", "2", "--eval-episodes", "2", "--eval-episode-length-s", str(LENGTH_S),
+         "--gradient-steps", "1"]  # fmt: skip
+
+
+def _foreign(root: Path, **env_kwargs) -> str:
+    """A dataset written with Minari's own writer, no evaluation env named (Minari then uses
+    the recording env): two passive episodes in ``gym.make(TASK, **env_kwargs)``."""
+    env = gym.make(TASK, episode_length_s=LENGTH_S, **env_kwargs)
+    options = {k: v for k, v in env.spec.kwargs.items() if k != "episode_length_s"}
+    episodes = record_episodes(make_controller("passive"), options, [3, 4], LENGTH_S)
+    ident = "mine/ride-v0"
+    with minari_store.datasets_root(root), warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # Minari asks for an author, an eval env
+        minari.create_dataset_from_buffers(ident, minari_store._buffers(episodes), env=env,
+                                           algorithm_name="passive")  # fmt: skip
+    return ident
+
+
+def test_the_recording_bank_is_named_and_is_the_one_ridden(tmp_path):
+    folder, ident = record_dataset(TASK, "passive", 1, 5, tmp_path / "out",
+                                   episode_length_s=LENGTH_S)  # fmt: skip
+    dataset = load_dataset(tmp_path / "out", ident)
+    spec = dataset.recover_environment().spec
+    assert spec.kwargs["guideway_seed"] == 0
+    assert dataset.storage.metadata["capsule_env"]["env_kwargs"]["guideway_seed"] == 0
+    ridden = next(iter(dataset.iterate_episodes())).infos["guideway_elevation_m"][0]
+    for bank, same in ((0, True), (2026, False)):
+        _, info = gym.make(TASK, guideway_seed=bank, episode_length_s=LENGTH_S).reset(seed=5)
+        assert bool(info["guideway_elevation_m"] == ridden) is same
+
+
+@pytest.mark.rl
+def test_an_offline_run_is_judged_on_the_evaluation_bank_without_an_eval_env(tmp_path):
+    """Minari's evaluation env is then the recording env, on the training bank it names."""
+    pytest.importorskip("torch", reason=NO_SB3)
+    pytest.importorskip("rliable", reason=NO_SB3)
+    from capsule_env.datasets.bc import main as bc_main
+    from capsule_env.evaluation.episodes import run_episodes
+
+    _foreign(tmp_path / "root", guideway_seed=0)  # the training bank named, as recorded here
+    out = tmp_path / "bc.json"
+    assert bc_main(["--dataset-root", str(tmp_path / "root"), *SHORT, "--json", str(out)]) == 0
+    results = json.loads(out.read_text())
+    passive = make_controller("passive")
+    roll = run_episodes(passive, {"setting": "hils", "observation": "measured",
+                                  "guideway_seed": 2026, **passive.env_kwargs}, 2, 1000,
+                        LENGTH_S)  # fmt: skip
+    from capsule_env import metrics
+
+    wk = metrics.wk_weighted_rms(roll.signals["car_body_acceleration_m_s2"], roll.dt_s)
+    assert np.allclose(results["references_wk_per_episode_m_s2"]["passive"], wk, rtol=0, atol=0)
+    assert results["eval_env_kwargs"]["guideway_seed"] == 2026
+
+
+@pytest.mark.parametrize("bank, name", [(2026, "evaluation"), (7, "validation"),
+                                        (11, "selection")])  # fmt: skip
+def test_a_dataset_recorded_on_a_held_out_bank_is_refused(tmp_path, capsys, monkeypatch, bank,
+                                                          name):  # fmt: skip
+    from capsule_env.datasets import bc
+
+    monkeypatch.setattr(bc, "train_bc", _no_training)
+    _foreign(tmp_path / "root", guideway_seed=bank)
+    out = tmp_path / "bc.json"
+    assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, "--json", str(out)]) == 1
+    line = _only_line(capsys.readouterr().err)
+    assert f"{name} guideway bank (guideway_seed={bank})" in line
+    assert not out.exists()
+
+
+def _no_training(*args, **kwargs):
+    raise AssertionError("trained before the options were checked")
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--eval-seed", str(2**63 - 1)], "--eval-seed must be in 0.."),
+        (["--first-seed", str(2**63)], "--first-seed must be in 0.."),
+        (["--eval-episode-length-s", "0.001"], "--eval-episode-length-s"),
+    ],
+)
+def test_the_evaluation_options_are_checked_before_training(tmp_path, capsys, monkeypatch, args,
+                                                            needle):  # fmt: skip
+    from capsule_env.datasets import bc
+
+    monkeypatch.setattr(bc, "train_bc", _no_training)
+    _foreign(tmp_path / "root")
+    assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, *args]) == 1
+    assert needle in _only_line(capsys.readouterr().err)
+
+
+def test_the_help_gives_each_default_once(capsys):
+    from capsule_env.datasets.bc import main as bc_main
+
+    with pytest.raises(SystemExit) as stop:
+        bc_main(["--help"])
+    assert stop.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "resamples them) (default: 5)" in text
+    assert "(default: 5) (default: 5)" not in text
+
+
+def test_td3bc_without_torchrl_names_what_installs_it(monkeypatch, capsys):
+    from capsule_env.datasets.td3bc import main as td3bc_main
+
+    monkeypatch.setitem(sys.modules, "torchrl", None)  # import torchrl raises ImportError
+    assert td3bc_main(["--dataset-root", "anything"]) == 1
+    line = _only_line(capsys.readouterr().err)
+    assert "torchrl>=0.14" in line and "capsule-env[datasets]" not in line
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_an_out_where_no_folder_can_be_made_is_refused_before_the_run(capsys, monkeypatch):
+    """``/proc`` takes no new folder, even for root, whose permission bits allow it."""
+    from capsule_env.datasets import record
+    from capsule_env.datasets.__main__ import main
+
+    monkeypatch.setattr(record, "record_episodes", _no_training)
+    out = "/proc/capsule-env-review-49/root"
+    assert main(["--task", TASK, "--controller", "passive", "--out", out]) == 1
+    assert "--out '/proc/capsule-env-review-49/root'" in _only_line(capsys.readouterr().err)
+    assert not Path(out).parent.exists()
