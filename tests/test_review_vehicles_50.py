@@ -286,3 +286,11 @@ def test_the_env_passive_baseline_reads_damper_params_not_the_slot_passive_field
     fields = {"front_passive_damping_n_s_per_m": 3e4, "rear_passive_damping_n_s_per_m": 3e4}
     assert rewards(vehicle_params=fields) == rewards()
     assert rewards(damper_params={"damping_n_s_per_m": 3e4}) != rewards()
+
+
+def test_a_comfort_point_named_twice_is_refused_when_declared():
+    """Before: accepted; the env's observation named ``seat_acceleration_m_s2`` twice and the
+    reward weighed the seat twice in its mean over the comfort points."""
+    with pytest.raises(ValueError, match=r"comfort_points must name each point once, got \('seat', "
+                       r"'car_body', 'seat'\)"):  # fmt: skip
+        _declare(comfort_points=("seat", "car_body", "seat"))

@@ -393,6 +393,9 @@ def _check_runnable(model: VehicleModel) -> None:
                           ("comfort point", model.comfort_points)):  # fmt: skip
         if not present:
             raise ValueError(f"vehicle {model.name!r}: declare at least one {what}")
+    if len(set(model.comfort_points)) != len(model.comfort_points):
+        raise ValueError(f"vehicle {model.name!r}: comfort_points must name each point once, "
+                         f"got {model.comfort_points}")  # fmt: skip
     springs = [e.name for e in model.elements if e.kind == SPRING]
     rel = model.relative_positions
     if rel and (sorted(rel) != sorted(springs) or len(springs) != len(model.coordinates)):
