@@ -154,3 +154,59 @@ def test_an_out_where_no_folder_can_be_made_is_refused_before_the_run(capsys, mo
     assert main(["--task", TASK, "--controller", "passive", "--out", out]) == 1
     assert "--out '/proc/capsule-env-review-49/root'" in _only_line(capsys.readouterr().err)
     assert not Path(out).parent.exists()
+
+
+def test_ctrl_c_is_one_line_and_leaves_nothing(tmp_path, capsys, monkeypatch):
+    from capsule_env.datasets import record
+    from capsule_env.datasets.__main__ import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(record, "record_episodes", interrupted)
+    out = tmp_path / "out"
+    assert main(["--task", TASK, "--controller", "passive", "--out", str(out)]) == 130
+    assert "interrupted" in _only_line(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["home"]
+
+
+STOPPED_IN_THE_WRITE = """
+import os, signal, sys
+from pathlib import Path
+from capsule_env.datasets import minari_store
+from capsule_env.datasets.__main__ import main
+
+def stopped(*args, **kwargs):  # a job scheduler's SIGTERM while Minari writes
+    (Path(os.environ["MINARI_DATASETS_PATH"]) / "partial.hdf5").write_bytes(b"half")
+    os.kill(os.getpid(), signal.SIGTERM)
+
+minari_store._create = stopped
+sys.exit(main(["--task", "CapsuleRide-v0", "--controller", "passive", "--episodes", "1",
+               "--episode-length", "0.5", "--out", sys.argv[1]]))
+"""
+
+
+def test_sigterm_in_the_write_leaves_no_staging_folder(tmp_path):
+    import subprocess
+
+    work = tmp_path / "work"
+    work.mkdir()
+    run = subprocess.run([sys.executable, "-c", STOPPED_IN_THE_WRITE, str(work / "out")],
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert run.returncode == 130, run.stderr
+    assert "interrupted" in _only_line(run.stderr)
+    assert list(work.iterdir()) == []
+
+
+def test_ctrl_c_in_an_offline_run_is_one_line(tmp_path, capsys, monkeypatch):
+    from capsule_env.datasets import bc
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bc, "train_bc", interrupted)
+    _foreign(tmp_path / "root")
+    out = tmp_path / "bc.json"
+    assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, "--json", str(out)]) == 130
+    assert "interrupted" in _only_line(capsys.readouterr().err)
+    assert not out.exists()

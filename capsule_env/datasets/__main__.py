@@ -7,13 +7,18 @@ Minari dataset ``capsule_env/T/NAME-v0`` under the new (or empty) folder ``ROOT`
 dataset's folder and id. Read it with ``MINARI_DATASETS_PATH=ROOT`` and
 ``minari.load_dataset(ID)``. Bad input (an unknown task or controller, ``N < 1``, a seed out of
 range, a ``ROOT`` that is a file or not empty, a missing extra): one line on stderr, exit
-status 1 (2 for the command line's syntax), nothing written.
+status 1 (2 for the command line's syntax), nothing written. Ctrl-C or SIGTERM: one line,
+exit status 130, no dataset and no staging folder left.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
 
 from capsule_env.common.cli import ArgumentParser, integer
 
@@ -55,17 +60,41 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM (a job scheduler's stop) raised as ``KeyboardInterrupt`` inside, as Ctrl-C is,
+    so that the write's clean-up runs; the previous handler restored on exit."""
+    try:
+        before = signal.signal(signal.SIGTERM, _interrupt)
+    except ValueError:  # not the main thread: leave the handler alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from capsule_env.datasets.record import record_dataset
 
     try:
-        folder, ident = record_dataset(args.task, args.controller, args.episodes, args.seed,
-                                       args.out, args.episode_length, args.name)  # fmt: skip
+        with _sigterm_interrupts():
+            folder, ident = record_dataset(args.task, args.controller, args.episodes,
+                                           args.seed, args.out, args.episode_length,
+                                           args.name)  # fmt: skip
     except (ValueError, TypeError, ImportError, OSError) as exc:
         message = " ".join(str(exc).split()) or type(exc).__name__
         print(f"{PROG}: error: {message}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted: no dataset written to {args.out}", file=sys.stderr)
+        return 130
     print(folder)
     print(ident)
     return 0

@@ -260,7 +260,8 @@ def run_offline(method: str, train: Trainer, ev: Evaluation, options: Any) -> di
 def offline_main(prog: str, doc: str, options_cls: type, method: str,
                  make_trainer: Callable[[Any], Trainer], argv: list[str] | None) -> int:  # fmt: skip
     """A baseline's command line: :class:`Evaluation`'s options and ``options_cls``'s, then
-    :func:`run_offline`; bad input is one line on stderr and exit status 1 (2 for syntax)."""
+    :func:`run_offline`; bad input is one line on stderr and exit status 1 (2 for syntax),
+    Ctrl-C one line and exit status 130."""
     # each option's help already ends with its default (add_dataclass_options)
     parser = ArgumentParser(prog=prog, description=doc.split("\n\n")[0])
     add_dataclass_options(parser, Evaluation)
@@ -277,6 +278,10 @@ def offline_main(prog: str, doc: str, options_cls: type, method: str,
     except (ValueError, ImportError, OSError) as exc:
         print(f"{prog}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted: nothing written (the results are written at the end)",
+              file=sys.stderr)  # fmt: skip
+        return 130
     text = json.dumps(results, indent=2)
     if ev.json:
         from capsule_env.common.safe_io import atomic_write_text
