@@ -136,3 +136,38 @@ def test_sb3_vecenvs_take_the_render_modes_they_draw():
     frame = venv.render()  # SB3 tiles the vehicles' frames
     assert frame.ndim == 3 and frame.dtype == np.uint8
     assert DeclaredSB3VecEnv(2, render_mode=None, **HALF).render_mode is None
+
+
+def _same_infos(a: dict, b: dict) -> bool:
+    return set(a) == set(b) and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_declared_vector_env_info_as_sync_gives_it():
+    # Gymnasium's vector info: every key with its "_key" mask (SyncVectorEnv's, and the
+    # quarter-car's native vector env's); the half-car's native one gave the values only.
+    native = gym.make_vec("CapsuleHalfRide-v0", 2, vectorization_mode="vector_entry_point",
+                          **SHORT)  # fmt: skip
+    sync = gym.make_vec("CapsuleHalfRide-v0", 2, vectorization_mode="sync", **SHORT)
+    assert _same_infos(native.reset(seed=[5, 6])[1], sync.reset(seed=[5, 6])[1])
+    actions = np.full((2, 2), 0.3, dtype=np.float32)
+    for _ in range(12):  # past the end of the 10-step episodes: the autoreset step too
+        assert _same_infos(native.step(actions)[4], sync.step(actions)[4])
+
+
+def test_declared_vector_env_info_when_some_vehicles_restart():
+    # a bump stop 2 mm away ends the episodes at different steps: at an autoreset step the
+    # restarted vehicles hold their reset info (reward terms 0), as in SyncVectorEnv
+    kw = {**SHORT, "stroke_limit_m": 0.002, "episode_length_s": 0.3}
+    native = gym.make_vec("CapsuleHalfRide-v0", 3, vectorization_mode="vector_entry_point", **kw)
+    sync = gym.make_vec("CapsuleHalfRide-v0", 3, vectorization_mode="sync", **kw)
+    native.reset(seed=[1, 2, 3])
+    sync.reset(seed=[1, 2, 3])
+    rng = np.random.default_rng(0)
+    partial, ended = 0, np.zeros(3, dtype=bool)
+    for _ in range(60):
+        actions = rng.uniform(-1, 1, (3, 2)).astype(np.float32)
+        partial += 0 < ended.sum() < 3  # some vehicles restart at this step, not all
+        _, _, terminated, truncated, info = native.step(actions)
+        assert _same_infos(info, sync.step(actions)[4])
+        ended = terminated | truncated
+    assert partial > 0  # the case this test is for happened

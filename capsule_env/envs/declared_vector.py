@@ -9,7 +9,9 @@ its first observation, reward 0, ``terminated = truncated = False``; its action 
 ``reset(seed=s)`` gives the vehicles the streams ``SeedSequence(s).spawn(num_envs)`` (vehicle 0
 is the single env seeded ``s``); ``reset(seed=[s_0, ...])`` gives vehicle ``n`` the single
 env's stream of ``s_n`` (None: vehicle ``n``'s stream goes on, as in ``SyncVectorEnv``).
-``info``: a dict of arrays, one row per vehicle. ``step`` before the
+``info``: a dict of arrays, one row per vehicle, each with its ``_key`` mask, as
+``SyncVectorEnv`` over the single env gives it (the reward terms are 0 at a reset, and at an
+autoreset step for the vehicles that restart: their info is the reset's). ``step`` before the
 first ``reset`` raises ``gymnasium.error.ResetNeeded``.
 """
 
@@ -22,6 +24,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from capsule_env.engine.declared_batch import COST_NAMES
 from capsule_env.envs._actions import real_actions
 from capsule_env.envs._compat import AutoresetMode, check_autoreset_mode
 from capsule_env.envs._seeds import reseed
@@ -86,7 +89,7 @@ class DeclaredVectorEnv(VectorEnv):
         self._autoreset[:] = False
         self._started = True
         sig = self._batch.signals()
-        return self._batch.observe(sig), dict(sig)
+        return self._batch.observe(sig), _masked(sig)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """One control step of every vehicle, ``actions`` of shape ``(num_envs, slots)``:
@@ -110,7 +113,27 @@ class DeclaredVectorEnv(VectorEnv):
             reward[restart], terminated[restart], truncated[restart] = 0.0, False, False
             obs = batch.observe(sig)
         self._autoreset = terminated | truncated
-        return obs, reward, terminated, truncated, {**sig, **costs}
+        return obs, reward, terminated, truncated, _masked(sig, costs, restart)
+
+
+def _masked(
+    signals: dict[str, np.ndarray],
+    costs: dict[str, np.ndarray] | None = None,
+    restarted: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """The info dict as Gymnasium's ``SyncVectorEnv`` builds it over the single env: each key
+    with its ``_key`` mask (all True); the reward terms 0 at a reset (``costs`` None) and for
+    the vehicles ``restarted`` at this step (NEXT_STEP: their info is the reset's)."""
+    n = len(next(iter(signals.values())))
+    every = np.ones(n, dtype=bool)
+    if costs is None:
+        costs = {name: np.zeros(n) for name in COST_NAMES}
+    elif restarted is not None and restarted.any():
+        costs = {name: np.where(restarted, 0.0, values) for name, values in costs.items()}
+    info: dict[str, Any] = {}
+    for key, values in {**signals, **costs}.items():
+        info[key], info["_" + key] = values, every
+    return info
 
 
 def make_suspension_vector_env(num_envs: int = 1, **kwargs: Any) -> VectorEnv:

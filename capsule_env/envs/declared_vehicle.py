@@ -52,6 +52,7 @@ from gymnasium.error import ResetNeeded
 
 from capsule_env.engine.config import EnvConfig, check_seed
 from capsule_env.engine.declared_batch import (
+    COST_NAMES,
     DECLARED_OBSERVATIONS,
     DeclaredBatch,
     inverse_is_algebraic,
@@ -148,7 +149,8 @@ class DeclaredVehicleEnv(LengthSpec, Env[np.ndarray, np.ndarray]):
         self._batch.reset()
         self._needs_reset = False
         sig = self._batch.signals()
-        return self._batch.observe(sig)[0], _row(sig, 0)
+        # the step's info keys, the reward terms 0 (as the quarter-car env's reset info)
+        return self._batch.observe(sig)[0], {**_row(sig, 0), **dict.fromkeys(COST_NAMES, 0.0)}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One control step: ``(observation, reward, terminated, truncated, info)``; ``action``
