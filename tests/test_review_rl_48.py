@@ -171,3 +171,28 @@ def test_declared_vector_env_info_when_some_vehicles_restart():
         assert _same_infos(info, sync.step(actions)[4])
         ended = terminated | truncated
     assert partial > 0  # the case this test is for happened
+
+
+def test_declared_vector_env_seeds_its_own_generator_as_the_quarter_cars():
+    # VectorEnv.reset(seed=s) seeds the vector env's np_random (the quarter-car's does); the
+    # half-car's left it on fresh entropy, so np_random differed run to run for one seed
+    draws = []
+    for _ in range(2):
+        venv = gym.make_vec("CapsuleHalfRide-v0", 2, vectorization_mode="vector_entry_point",
+                            **SHORT)  # fmt: skip
+        venv.reset(seed=5)
+        assert venv.np_random_seed == 5
+        draws.append(venv.np_random.integers(2**62))
+    assert draws[0] == draws[1]
+
+
+@pytest.mark.parametrize("env_id", ["CapsuleRide-v0", "CapsuleHalfRide-v0"])
+def test_a_longer_time_limit_is_reported_by_the_wrapper_not_the_env(env_id):
+    # docs/env.md: the env's own 0.05 s (10 steps) ends the episode; the TimeLimit of 50 steps
+    # is what Gymnasium's wrapper reports as env.spec, the env's own is the unwrapped spec's
+    env = gym.make(env_id, max_episode_steps=50, **SHORT)
+    assert env.spec.max_episode_steps == 50
+    assert env.unwrapped.spec.max_episode_steps == 10
+    env.reset(seed=0)
+    steps = [env.step(np.zeros(env.action_space.shape, np.float32)) for _ in range(10)]
+    assert steps[-1][3] and not any(s[3] for s in steps[:-1])

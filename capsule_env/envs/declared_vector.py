@@ -85,6 +85,7 @@ class DeclaredVectorEnv(VectorEnv):
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; accepted: none")
         reseed(self._batch, seed, self.num_envs)  # None in a list: that vehicle's stream on
+        super().reset(seed=int(seed) if isinstance(seed, (int, np.integer)) else None)
         self._batch.reset()
         self._autoreset[:] = False
         self._started = True
