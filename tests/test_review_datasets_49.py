@@ -92,7 +92,7 @@ def test_a_dataset_recorded_on_a_held_out_bank_is_refused(tmp_path, capsys, monk
                                                           name):  # fmt: skip
     from capsule_env.datasets import bc
 
-    monkeypatch.setattr(bc, "train_bc", _no_training)
+    monkeypatch.setattr(bc, "train_bc", _not_reached)
     _foreign(tmp_path / "root", guideway_seed=bank)
     out = tmp_path / "bc.json"
     assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, "--json", str(out)]) == 1
@@ -101,8 +101,8 @@ def test_a_dataset_recorded_on_a_held_out_bank_is_refused(tmp_path, capsys, monk
     assert not out.exists()
 
 
-def _no_training(*args, **kwargs):
-    raise AssertionError("trained before the options were checked")
+def _not_reached(*args, **kwargs):
+    raise AssertionError("ran before the input was checked")
 
 
 @pytest.mark.parametrize(
@@ -117,7 +117,7 @@ def test_the_evaluation_options_are_checked_before_training(tmp_path, capsys, mo
                                                             needle):  # fmt: skip
     from capsule_env.datasets import bc
 
-    monkeypatch.setattr(bc, "train_bc", _no_training)
+    monkeypatch.setattr(bc, "train_bc", _not_reached)
     _foreign(tmp_path / "root")
     assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, *args]) == 1
     assert needle in _only_line(capsys.readouterr().err)
@@ -149,7 +149,7 @@ def test_an_out_where_no_folder_can_be_made_is_refused_before_the_run(capsys, mo
     from capsule_env.datasets import record
     from capsule_env.datasets.__main__ import main
 
-    monkeypatch.setattr(record, "record_episodes", _no_training)
+    monkeypatch.setattr(record, "record_episodes", _not_reached)
     out = "/proc/capsule-env-review-49/root"
     assert main(["--task", TASK, "--controller", "passive", "--out", out]) == 1
     assert "--out '/proc/capsule-env-review-49/root'" in _only_line(capsys.readouterr().err)
@@ -209,4 +209,21 @@ def test_ctrl_c_in_an_offline_run_is_one_line(tmp_path, capsys, monkeypatch):
     out = tmp_path / "bc.json"
     assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT, "--json", str(out)]) == 130
     assert "interrupted" in _only_line(capsys.readouterr().err)
+    assert not out.exists()
+
+
+def test_a_recording_larger_than_the_memory_is_refused_before_the_run(tmp_path, capsys,
+                                                                      monkeypatch):  # fmt: skip
+    """2000 episodes of 10 s hold about 1.5 GiB until the write (0.8 MB each, measured in
+    docs/howto-datasets.md): refused where 1 GiB is available, before any episode runs."""
+    from capsule_env.datasets import record
+    from capsule_env.datasets.__main__ import main
+
+    monkeypatch.setattr(record, "record_episodes", _not_reached)
+    monkeypatch.setattr(record, "available_memory_bytes", lambda: 2**30, raising=False)
+    out = tmp_path / "out"
+    args = ["--task", TASK, "--controller", "passive", "--out", str(out), "--episodes"]
+    assert main([*args, "2000"]) == 1
+    line = _only_line(capsys.readouterr().err)
+    assert "--episodes 2000 of 10 s would hold about 1.5 GiB" in line
     assert not out.exists()

@@ -24,15 +24,19 @@ from pathlib import Path
 from typing import Any
 
 import capsule_env
+from capsule_env.common.validation import available_memory_bytes, format_bytes
 from capsule_env.datasets.demonstrators import Demonstrator, resolve_demonstrator
 from capsule_env.datasets.minari_store import check_out, dataset_id, write_dataset
 from capsule_env.datasets.rollouts import Episode, record_episodes
 from capsule_env.engine.config import EnvConfig
 from capsule_env.evaluation.episodes import EVALUATION_GUIDEWAY_SEED, RECORDED
 
-__all__ = ["Plan", "plan_dataset", "record_dataset", "action_meaning"]
+__all__ = ["Plan", "plan_dataset", "record_dataset", "recording_bytes", "action_meaning"]
 
 _MAX_SEED = 2**63
+#: Copies of each recorded step held at once (measured: about 400 bytes a step of
+#: CapsuleRide-v0, 130 bytes a copy; docs/howto-datasets.md).
+_COPIES = 3
 #: A dataset's name: Minari's dataset-name characters.
 _NAME = re.compile(r"[-\w]+", re.ASCII)
 
@@ -84,6 +88,26 @@ def _default(key: str) -> Any:
     return getattr(EnvConfig(), key, None)
 
 
+def recording_bytes(config: EnvConfig, episodes: int) -> int:
+    """About the memory (bytes) ``episodes`` episodes of the env ``config`` hold until the
+    write: every step's observation (float32), action, reward, ends and the recorded signals
+    (float64), :data:`_COPIES` times (the vector env's rows, the episodes cut from them,
+    Minari's buffers)."""
+    row = 4 * len(config.observation_names) + 4 + 8 + 2 + 8 * len(RECORDED)
+    return _COPIES * episodes * (config.max_episode_steps + 1) * row
+
+
+def _check_memory(config: EnvConfig, episodes: int) -> None:
+    """``ValueError`` naming ``--episodes`` when the recording would hold more than 80 % of
+    the memory available now (it is all in memory until the write)."""
+    need, free = recording_bytes(config, episodes), available_memory_bytes()
+    if need > 0.8 * free:
+        raise ValueError(f"--episodes {episodes} of {config.episode_length_s:g} s would hold "
+                         f"about {format_bytes(need)} in memory until the write, more than 80 % "
+                         f"of the {format_bytes(free)} available: record fewer episodes per "
+                         f"dataset (each its own --out) or shorter ones")  # fmt: skip
+
+
 def plan_dataset(task: str, controller: str, episodes: int, seed: int,
                  episode_length_s: float | None = None, name: str | None = None) -> Plan:  # fmt: skip
     """Every input checked, the controller loaded; ``ValueError`` (or ``ImportError`` for a
@@ -103,9 +127,10 @@ def plan_dataset(task: str, controller: str, episodes: int, seed: int,
     bank = task_kwargs.get("guideway_seed", EnvConfig().guideway_seed)
     spec_kwargs = {"guideway_seed": bank, **own, "episode_length_s": float(length)}
     try:
-        EnvConfig.from_kwargs(**{**task_kwargs, **spec_kwargs})
+        config = EnvConfig.from_kwargs(**{**task_kwargs, **spec_kwargs})
     except (ValueError, TypeError) as exc:
         raise ValueError(f"--episode-length / --controller on {task}: {exc}") from None
+    _check_memory(config, len(seeds))
     over = _own_options(task, task_kwargs, own, float(length))
     label = name if name is not None else demonstrator.name
     if not isinstance(label, str) or not _NAME.fullmatch(label):
