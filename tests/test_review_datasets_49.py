@@ -227,3 +227,24 @@ def test_a_recording_larger_than_the_memory_is_refused_before_the_run(tmp_path, 
     line = _only_line(capsys.readouterr().err)
     assert "--episodes 2000 of 10 s would hold about 1.5 GiB" in line
     assert not out.exists()
+
+
+def test_a_huge_episode_count_is_refused_without_listing_its_seeds(tmp_path, capsys):
+    """10**7 episodes of 10 s would hold terabytes: refused, and the check itself allocates
+    no list of 10**7 seeds (which would take some 400 MB; 10**9 were the kernel's to kill)."""
+    import tracemalloc
+
+    from capsule_env.datasets.__main__ import main
+
+    out = tmp_path / "out"
+    tracemalloc.start()
+    try:
+        code = main(["--task", TASK, "--controller", "passive", "--out", str(out),
+                     "--episodes", str(10**7)])  # fmt: skip
+        peak_b = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert code == 1 and "--episodes 10000000 of 10 s would hold" in _only_line(
+        capsys.readouterr().err
+    )
+    assert peak_b < 50 * 2**20 and not out.exists()

@@ -61,14 +61,14 @@ class Plan:
         return {**task_env_kwargs(self.task), **self.spec_kwargs}
 
 
-def _check_count(episodes: Any, seed: Any) -> tuple[int, ...]:
+def _check_count(episodes: Any, seed: Any) -> range:
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"--episodes must be an integer >= 1, got {episodes!r}")
     last = _MAX_SEED - episodes
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= last:
         raise ValueError(f"--seed must be an integer in 0..{last} (2**63 - --episodes: episode "
                          f"k uses seed + k, a 64-bit seed), got {seed!r}")  # fmt: skip
-    return tuple(seed + k for k in range(episodes))
+    return range(seed, seed + episodes)  # lazy: checked against the memory first
 
 
 def _own_options(task: str, task_kwargs: dict[str, Any], own: dict[str, Any],
@@ -136,7 +136,13 @@ def plan_dataset(task: str, controller: str, episodes: int, seed: int,
     if not isinstance(label, str) or not _NAME.fullmatch(label):
         raise ValueError(f"--name must be letters, digits, '-' and '_', got {label!r}")
     return Plan(
-        task, demonstrator, spec_kwargs, seeds, float(length), dataset_id(task, label), over
+        task,
+        demonstrator,
+        spec_kwargs,
+        tuple(seeds),
+        float(length),
+        dataset_id(task, label),
+        over,
     )
 
 
