@@ -248,3 +248,25 @@ def test_a_huge_episode_count_is_refused_without_listing_its_seeds(tmp_path, cap
         capsys.readouterr().err
     )
     assert peak_b < 50 * 2**20 and not out.exists()
+
+
+def test_a_dataset_of_another_env_is_one_line(tmp_path, capsys, monkeypatch):
+    from minari.data_collector import EpisodeBuffer
+
+    from capsule_env.datasets import bc
+
+    monkeypatch.setattr(bc, "train_bc", _not_reached)
+    steps = 5
+    buffer = EpisodeBuffer(id=0, seed=0, observations=np.zeros((steps + 1, 4), np.float32),
+                           actions=np.zeros(steps, np.int64), rewards=np.ones(steps),
+                           terminations=np.zeros(steps, bool),
+                           truncations=np.eye(1, steps, steps - 1, dtype=bool)[0],
+                           infos={})  # fmt: skip
+    with minari_store.datasets_root(tmp_path / "root"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        minari.create_dataset_from_buffers("other/cartpole-v0", [buffer],
+                                           env=gym.spec("CartPole-v1"), algorithm_name="zero")  # fmt: skip
+    assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT]) == 1
+    assert "was not recorded in a capsule_env env ('CartPole-v1')" in _only_line(
+        capsys.readouterr().err
+    )
