@@ -3,6 +3,8 @@ silently, and options the batched envs refused under the wrong name."""
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -196,3 +198,43 @@ def test_a_longer_time_limit_is_reported_by_the_wrapper_not_the_env(env_id):
     env.reset(seed=0)
     steps = [env.step(np.zeros(env.action_space.shape, np.float32)) for _ in range(10)]
     assert steps[-1][3] and not any(s[3] for s in steps[:-1])
+
+
+@pytest.mark.filterwarnings("ignore:.*precision lowered")  # RescaleObservation's own Box
+@pytest.mark.parametrize("task", DECLARED_TASKS, ids=lambda t: t.env_id)
+def test_half_car_tasks_pass_the_checkers_without_a_warning(task):
+    # Their observation space was unbounded but for the preview: Gymnasium's and SB3's
+    # check_env warned ("A Box observation space minimum value is -infinity") and Gymnasium's
+    # RescaleObservation refused the env. Now bounded as the quarter-car's columns are.
+    from gymnasium.utils.env_checker import check_env as gym_check
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = gym.make(task.env_id, **SHORT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gym_check(env.unwrapped)
+        sb3_check(env.unwrapped)
+    space = env.observation_space
+    assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
+    rescaled = gym.wrappers.RescaleObservation(env, -1.0, 1.0)
+    assert rescaled.observation_space.contains(rescaled.reset(seed=0)[0])
+
+
+def test_half_car_observations_saturate_at_the_quarter_cars_bounds():
+    quarter = gym.make("CapsuleRide-v0").observation_space
+    half = gym.make("CapsuleHalfRide-v0", guideway_params={"peak_m": 0.5}, stroke_limit_m=1.0,
+                    **SHORT)  # fmt: skip
+    names = half.unwrapped.observation_names
+    space = half.observation_space
+    # per quantity the quarter-car's bound (stroke: twice the task's bump stop, 1 m here)
+    acc = names.index("front_secondary_damper_upper_acceleration_m_s2")
+    assert space.high[acc] == quarter.high[0] == 100.0
+    assert space.high[names.index("front_secondary_damper_stroke_m")] == 2.0
+    assert space.high[names.index("rear_secondary_damper_last_current_command_a")] == 1.5
+    half.reset(seed=0)
+    saturated = False
+    for _ in range(10):  # a 0.5 m guideway: accelerations past 100 m/s^2
+        obs = half.step(np.ones(2, dtype=np.float32))[0]
+        assert space.contains(obs)
+        saturated |= bool(np.any(np.abs(obs) == space.high))
+    assert saturated

@@ -46,7 +46,7 @@ from capsule_env.engine.declared_sensing import (
     signal_arrays,
 )
 from capsule_env.engine.kernels import PARALLEL_THRESHOLD
-from capsule_env.engine.observations import NOISE_CHANNELS
+from capsule_env.engine.observations import NOISE_CHANNELS, declared_bounds
 from capsule_env.guideway import make_profile, random_profile
 from capsule_env.plant.declared_build import (
     declared_output_names,
@@ -143,6 +143,7 @@ class DeclaredBatch:
                         DeclaredPreview(config, self.profiles, tuple(c.name for c in model.contacts), n))  # fmt: skip
         self._geometry()
         self._width = len(self.observation_names())
+        self._obs_low, self._obs_high = (b.astype(np.float32) for b in self.observation_bounds())
 
     def _geometry(self) -> None:
         """The rows the observations and the reward read, and the static equilibrium."""
@@ -302,13 +303,13 @@ class DeclaredBatch:
         return (*self._set_names(), *preview)
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(low, high)`` of each column: unbounded but the preview's (+-1 m, saturating)."""
-        dim = len(self.observation_names())
-        low, high = np.full(dim, -np.inf), np.full(dim, np.inf)
+        """``(low, high)`` of each column, where the sensors saturate (observations are clipped
+        to them): the quarter-car's column of the same quantity's bounds
+        (:func:`capsule_env.engine.observations.declared_bounds`), the preview's +-1 m."""
+        low, high = declared_bounds(self._set_names(), self.config.stroke_limit_m, self.i_max)
         if self.preview is not None:
-            low[dim - self.preview.low.size :] = self.preview.low
-            high[dim - self.preview.high.size :] = self.preview.high
-        return low, high
+            low, high = [*low, *self.preview.low], [*high, *self.preview.high]
+        return np.array(low, dtype=float), np.array(high, dtype=float)
 
     def _set_names(self) -> tuple[str, ...]:
         m = self.model
@@ -333,12 +334,13 @@ class DeclaredBatch:
         return self._with_preview(obs)
 
     def _with_preview(self, obs: np.ndarray) -> np.ndarray:
-        """``obs`` with the preview's columns (if any) in its last ones."""
+        """``obs`` with the preview's columns (if any) in its last ones, clipped to the
+        observation bounds (:meth:`observation_bounds`: the sensors saturate)."""
         if self.preview is not None:
             cols = self.preview.columns(self.profiles, self.route, self.state[:, -1],
                                         self.plant.contact_offsets_m)  # fmt: skip
             obs[:, obs.shape[1] - cols.shape[1] :] = cols
-        return obs
+        return np.clip(obs, self._obs_low, self._obs_high, out=obs)
 
 
 def _gap_rows(model: VehicleModel, values: dict, n_slots: int, n_coords: int):

@@ -34,6 +34,7 @@ meaning. No numba, no Gym import.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -247,6 +248,35 @@ def bounds(observation: str, stroke_limit_m: float, i_max_a: float) -> tuple[lis
     rows = observables(observation)
     low = [row.low.value(stroke_limit_m, i_max_a) for row in rows]
     high = [row.high.value(stroke_limit_m, i_max_a) for row in rows]
+    return low, high
+
+
+#: A declared vehicle's column (:mod:`capsule_env.engine.declared_batch`) takes the bounds of
+#: the quarter-car's column named here, by the first suffix its name ends with (its quantity
+#: and unit); a pitch (rad, rad/s) those of a displacement and a rate. Another is unbounded.
+DECLARED_BOUNDS_BY_SUFFIX = (
+    ("_stroke_m", "stroke_m"),
+    ("_acceleration_m_s2", "car_body_acceleration_m_s2"),
+    ("_current_command_a", "last_current_command_a"),
+    ("_m_s", "stroke_rate_m_s"),
+    ("_rad_s", "stroke_rate_m_s"),
+    ("_m", "car_body_displacement_m"),
+    ("_rad", "car_body_displacement_m"),
+)
+
+
+def declared_bounds(
+    names: tuple[str, ...], stroke_limit_m: float, i_max_a: float
+) -> tuple[list, list]:
+    """``(low, high)`` of a declared vehicle's columns ``names`` (float64 lists): the quarter-
+    car's sensors saturate there too (:data:`DECLARED_BOUNDS_BY_SUFFIX`)."""
+    rows = {row.name: row for row in OBSERVABLES if row.name != "coil_current_a"}
+    low, high = [], []
+    for name in names:
+        source = next((q for suffix, q in DECLARED_BOUNDS_BY_SUFFIX if name.endswith(suffix)), None)
+        row = rows.get(source) if source is not None else None
+        low.append(row.low.value(stroke_limit_m, i_max_a) if row else -math.inf)
+        high.append(row.high.value(stroke_limit_m, i_max_a) if row else math.inf)
     return low, high
 
 

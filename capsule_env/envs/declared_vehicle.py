@@ -25,8 +25,12 @@ asks) and its last current command. Names with units: :attr:`DeclaredVehicleEnv.
 ``preview_points=P`` appends, for each guideway contact (the half-car's front then rear bogie),
 ``P`` columns ``<contact>_preview_ahead_<k>``: the surveyed guideway ``k * preview_horizon_s /
 P`` seconds ahead of that contact relative to under it now, the 1/4-car env's survey map and
-position error (:mod:`capsule_env.engine.declared_preview`); bounds +-1 m (saturating), the
-other columns unbounded.
+position error (:mod:`capsule_env.engine.declared_preview`); bounds +-1 m. Every column
+saturates (is clipped) at the bounds of the quarter-car's column of its quantity
+(:func:`capsule_env.engine.observations.declared_bounds`): accelerations at +-100 m/s^2,
+strokes at +-2 x ``stroke_limit_m``, rates and velocities at +-10 m/s, displacements, gaps and
+elevations at +-1 m, the pitch at +-1 rad and its rate at +-10 rad/s, the last current command
+in [0, i_max].
 
 ## Reward
 :mod:`capsule_env.engine.declared_batch`: the quarter-car's terms, averaged over the comfort
