@@ -96,6 +96,7 @@ def check_args(args: Any) -> None:
                          f"{args.eval_episodes} seeds from it, each below 2**63), got "
                          f"{args.eval_seed}")  # fmt: skip
     check_residual_args(args)
+    check_device(args.device)
     if not (math.isfinite(args.checkpoint_minutes) and args.checkpoint_minutes >= 0):
         raise ValueError(f"--checkpoint-minutes must be >= 0, got {args.checkpoint_minutes}")
     if args.env_kwargs.get("guideway_seed", None) in (
@@ -120,6 +121,24 @@ def check_residual_args(args: Any) -> None:
     scale = getattr(args, "residual_scale", 0.5)
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and 0.0 < scale <= 2.0):
         raise ValueError(f"--residual-scale must be in (0, 2], got {scale}")
+    given = getattr(args, "explicit", None) or ()
+    if "residual_scale" in given and law is None and not getattr(args, "resume", None):
+        raise ValueError("--residual-scale scales a residual policy's correction: give "
+                         "--residual LAW with it")  # fmt: skip
+
+
+def check_device(device: str) -> None:
+    """``--device`` is ``auto`` or a torch device (``cpu``, ``cuda``, ``cuda:1``, ``mps``);
+    ``ValueError`` otherwise (torch's own error is a multi-line ``RuntimeError``)."""
+    if device == "auto":
+        return
+    import torch
+
+    try:
+        torch.device(device)
+    except (RuntimeError, TypeError):
+        raise ValueError(f"--device must be auto or a torch device (cpu, cuda, cuda:0, mps), "
+                         f"got {device!r}") from None  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- --resume

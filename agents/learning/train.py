@@ -166,8 +166,11 @@ def _train(plan: Any, lock: RunFolderLock, extra_callbacks: list | None) -> dict
     # a seed derived from the seed and the timesteps done, so it does not replay the start.
     run_seed = run_seed_for(args.seed, plan.start_timesteps)
     set_random_seed(run_seed)
-    env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs, plan.statistics,
-                   residual_of(args))  # fmt: skip
+    try:  # a configuration too large for this machine's memory: refused in one line
+        env = make_env(plan.num_envs, run_seed, plan.env_kwargs, plan.norm_kwargs,
+                       plan.statistics, residual_of(args))  # fmt: skip
+    except ValueError as exc:
+        raise SystemExit(f"train.py: error: {exc}") from None
     try:
         model = _model(args, plan, env, run_seed)
         _make_folders(plan, lock)  # only now: a run refused before training leaves nothing

@@ -6,25 +6,25 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
 from capsule_env.bounds import DEFAULT_OPTIONS, MAX_FORCES, certified_floor
+from capsule_env.common.cli import ArgumentParser, integer
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m capsule_env.bounds", description=__doc__)
+    p = ArgumentParser(prog="python -m capsule_env.bounds", description=__doc__)
     p.add_argument("--setting", default="sim", help="env setting (sim; hils is refused)")
-    p.add_argument("--seed", type=int, default=1000, help="first episode seed (>= 0)")
-    p.add_argument("--episodes", type=int, default=10, help="episodes (>= 1)")
+    p.add_argument("--seed", type=integer, default=1000, help="first episode seed (>= 0)")
+    p.add_argument("--episodes", type=integer, default=10, help="episodes (>= 1)")
     p.add_argument("--episode-length", type=float, default=1.0,
                    help=f"s (default 1): at most {MAX_FORCES} force evaluations per episode, "
                         "about 2.2 s of the sim setting")  # fmt: skip
     iterations = DEFAULT_OPTIONS["max_iterations"]
-    p.add_argument("--max-iterations", type=int, default=iterations,
+    p.add_argument("--max-iterations", type=integer, default=iterations,
                    help=f"L-BFGS-B iterations per episode (default {iterations})")  # fmt: skip
-    p.add_argument("--branch-nodes", type=int, default=0,
+    p.add_argument("--branch-nodes", type=integer, default=0,
                    help="also branch on the stroke rate's sign, at most this many node QPs "
                         "per episode (default 0: off)")  # fmt: skip
     args = p.parse_args(argv)

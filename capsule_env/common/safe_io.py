@@ -250,9 +250,11 @@ def check_creatable_dir(path: str | Path, what: str) -> Path:
         ancestor = ancestor.parent
     if not ancestor.is_dir():
         raise ValueError(f"{what} {str(path)!r} is not a writable folder ({ancestor} is a file)")
-    if not os.access(ancestor, os.W_OK | os.X_OK):
+    try:  # a file made and removed again, not os.access: root passes os.access on /proc
+        _new_temp(ancestor / "write-test").unlink()
+    except OSError as exc:
         raise ValueError(f"{what} {str(path)!r} is not a writable folder ({ancestor} is not "
-                         "writable)")  # fmt: skip
+                         f"writable: {_reason(exc)})") from None  # fmt: skip
     return path
 
 

@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.safe_io import check_writable_file
 from capsule_env.engine.config import check_seed
 from capsule_env.envs.declared_vector import DeclaredVectorEnv
 from capsule_env.metrics import we_weighted_rms, wk_weighted_rms
@@ -380,26 +382,46 @@ def run_cli(argv: list[str] | None, module: str, description: str, results: Any,
     """A half-car task's evaluation on the command line (``python -m
     capsule_env.evaluation.<module>``): ``results`` (:func:`evaluation_results`'s signature)
     as a table, into ``--out`` as JSON. Bad input: one line on stderr, exit status 2."""
-    p = argparse.ArgumentParser(description=description)
+    prog = f"python -m capsule_env.evaluation.{module}"
+    p = ArgumentParser(prog=prog, description=description)  # usage errors: one line, exit 2
     p.add_argument("--out", default="", help="JSON file to write (atomically)")
     p.add_argument("--episodes", type=int, default=10, help="evaluation episodes (>= 2)")
     p.add_argument("--tune", action="store_true", help=tune_help)
     p.add_argument("--oracle-iterations", type=int, default=0, help="L-BFGS-B iterations (0: none)")
     p.add_argument("--no-shipped-policy", action="store_true", help="no shipped policy's row")
     args = p.parse_args(argv)
-    if args.episodes < 2 or args.oracle_iterations < 0:
-        print("error: --episodes must be >= 2 and --oracle-iterations >= 0", file=sys.stderr)
+    problem = _args_problem(args)
+    if problem:
+        print(f"{prog}: error: {problem}", file=sys.stderr)
         return 2
-    if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
-        print(f"error: --out's folder must exist, got {args.out!r}", file=sys.stderr)
-        return 2
-    command = f"python -m capsule_env.evaluation.{module} " + " ".join(argv or sys.argv[1:])
+    command = f"{prog} " + " ".join(argv or sys.argv[1:])
     result = results(list(range(1000, 1000 + args.episodes)), args.oracle_iterations,
                      not args.no_shipped_policy, command, args.tune)  # fmt: skip
+    print(format_rows(result))  # first: a failed write below still shows the results
     if args.out:
-        write_json(args.out, json.dumps(result, indent=1))
-    print(format_rows(result))
+        try:
+            write_json(args.out, json.dumps(result, indent=1))
+        except OSError as exc:
+            print(f"{prog}: error: cannot write --out {args.out} ({exc.strerror or exc})",
+                  file=sys.stderr)  # fmt: skip
+            return 1
     return 0
+
+
+def _args_problem(args: argparse.Namespace) -> str | None:
+    """Why ``run_cli``'s arguments cannot run (one line), checked before the minutes of the
+    evaluation: the counts' ranges, and ``--out`` a writable file in an existing folder."""
+    if args.episodes < 2 or args.oracle_iterations < 0:
+        return (f"--episodes must be >= 2 and --oracle-iterations >= 0, got {args.episodes} "
+                f"and {args.oracle_iterations}")  # fmt: skip
+    if args.out and not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
+        return f"--out's folder must exist, got {args.out!r}"
+    if args.out:
+        try:
+            check_writable_file(args.out, "--out")
+        except ValueError as exc:
+            return str(exc)
+    return None
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.safe_io import check_creatable_dir
 from capsule_env.sweep import __doc__ as DOC
 from capsule_env.sweep.runner import (
     EXPERIMENT,
@@ -63,6 +64,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def _check_out(out: Path) -> None:
+    """``--out`` is a writable folder or can be made (nothing made here); ``StudyError``
+    naming it otherwise, before any trial runs."""
+    try:
+        check_creatable_dir(out, "--out")
+    except ValueError as exc:
+        raise StudyError(str(exc)) from None
+
+
 def only_blocks(study: Study, names: list[str] | None) -> Study:
     """The study with the trials of the blocks ``names`` only (all for None); StudyError
     naming an unknown block and the study's blocks."""
@@ -103,6 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_ray and importlib.util.find_spec("ray") is None:
             raise StudyError("Ray is not installed (pip install 'capsule-env[scale]'); --no-ray "
                              "runs the trials one after another without it")  # fmt: skip
+        _check_out(out)
         check_same_study(study, out)
     except StudyError as exc:
         print(f"sweep: error: {exc}", file=sys.stderr)

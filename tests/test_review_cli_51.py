@@ -1,0 +1,166 @@
+"""Review 51: the command lines given bad input (one line on stderr, a non-zero exit, no
+traceback, nothing on disk) and the paths they write."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from capsule_env.common.safe_io import check_creatable_dir
+
+#: A folder that cannot be made on Linux whoever runs (root passes ``os.access`` on /proc).
+UNMAKEABLE = Path("/proc/review-51-no-such-folder/run")
+linux_only = pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
+
+
+def _one_line(text: str) -> str:
+    lines = [line for line in text.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in text, text
+    return lines[0]
+
+
+# ----------------------------------------------------------------------------- safe_io
+@linux_only
+def test_check_creatable_dir_refuses_a_folder_that_cannot_be_made() -> None:
+    with pytest.raises(ValueError, match="--out '/proc/review-51.*' is not a writable folder"):
+        check_creatable_dir(UNMAKEABLE, "--out")
+    assert not UNMAKEABLE.parent.exists()
+
+
+def test_check_creatable_dir_makes_nothing_for_a_folder_that_can_be_made(tmp_path: Path) -> None:
+    target = tmp_path / "a" / "b"
+    assert check_creatable_dir(target, "--out") == target
+    assert list(tmp_path.iterdir()) == []  # the probe file is gone again, no folder made
+
+
+# ----------------------------------------------------------------------------- train.py
+def _train_args(argv: list[str]) -> object:
+    from capsule_env.agents.learning.train import parse_args
+
+    return parse_args(argv)
+
+
+def test_train_refuses_an_unknown_device_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        _train_args(["--device", "nope"])
+    assert exc.value.code == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--device" in line and "'nope'" in line and "cpu" in line
+
+
+def test_train_accepts_the_devices_sb3_accepts() -> None:
+    for device in ("cpu", "auto", "cuda:1"):
+        assert _train_args(["--device", device]).device == device
+
+
+def test_train_refuses_residual_scale_without_a_residual(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        _train_args(["--residual-scale", "0.3"])
+    assert exc.value.code == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--residual-scale" in line and "--residual LAW" in line
+    given = _train_args(["--residual", "lqr-clipped-biexp-meas", "--residual-scale", "0.3"])
+    assert given.residual_scale == 0.3
+    resumed = _train_args(["--resume", "auto", "--residual-scale", "0.3"])  # checked on resume
+    assert resumed.residual_scale == 0.3
+
+
+def _train_refused(args: object, capsys: pytest.CaptureFixture[str]) -> str:
+    from capsule_env.agents.learning.train import train
+
+    with pytest.raises(SystemExit) as exc:
+        train(args)  # type: ignore[arg-type]
+    message = str(exc.value.code)
+    assert "\n" not in message and message.startswith("train.py: error:"), message
+    return message
+
+
+def test_train_refuses_too_many_vehicles_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = _train_args(["--num-envs", str(10**10), "--output-dir", str(tmp_path / "run")])
+    message = _train_refused(args, capsys)
+    assert "memory" in message and "num_envs" in message
+    assert not (tmp_path / "run").exists()
+
+
+@linux_only
+def test_train_refuses_an_unmakeable_tensorboard_folder_leaving_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    argv = ["--output-dir", str(run), "--tensorboard", str(UNMAKEABLE), "--num-envs", "1",
+            "--total-timesteps", "64"]  # fmt: skip
+    message = _train_refused(_train_args(argv), capsys)
+    assert "--tensorboard" in message
+    assert not run.exists()  # the run folder used to be made before the refusal
+
+
+# ----------------------------------------------------------------------------- sweep
+STUDY = """name: review51
+trials:
+  - kind: gains
+    params: {controller: passive, episodes: 1, episode_length_s: 0.5}
+"""
+
+
+@pytest.mark.parametrize("out", ["a-file", "unmakeable"])
+def test_sweep_refuses_an_out_that_is_not_a_folder(
+    out: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from capsule_env.sweep.__main__ import main
+
+    if out == "unmakeable" and not Path("/proc/self").is_dir():
+        pytest.skip("needs Linux /proc")
+    study = tmp_path / "study.yml"
+    study.write_text(STUDY)
+    target = tmp_path / "a-file" if out == "a-file" else UNMAKEABLE
+    if out == "a-file":
+        target.write_text("not a folder")
+    before = sorted(tmp_path.rglob("*"))
+    assert main([str(study), "--out", str(target), "--no-ray"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("sweep: error: --out") and "folder" in line
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+# ----------------------------------------------------------------------------- half-car
+def test_half_car_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    from capsule_env.evaluation import half_car
+
+    with pytest.raises(SystemExit) as exc:
+        half_car.main(["--episodes", "abc"])
+    assert exc.value.code == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--episodes" in line and "'abc'" in line
+
+
+def test_half_car_checks_out_before_the_evaluation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out`` naming a folder used to fail in the final write, a minute of evaluation
+    lost, with a traceback."""
+    from capsule_env.evaluation import half_car
+
+    def must_not_run(*args: object, **kwargs: object) -> None:
+        raise AssertionError("ran before checking --out")
+
+    monkeypatch.setattr(half_car, "evaluate", must_not_run)
+    assert half_car.main(["--out", str(tmp_path), "--episodes", "2"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--out" in line and "folder" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- bounds
+def test_bounds_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    from capsule_env.bounds.__main__ import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--seed", "abc"])
+    assert exc.value.code == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--seed" in line and "'abc'" in line
