@@ -264,8 +264,9 @@ def test_a_dataset_of_another_env_is_one_line(tmp_path, capsys, monkeypatch):
                            infos={})  # fmt: skip
     with minari_store.datasets_root(tmp_path / "root"), warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        minari.create_dataset_from_buffers("other/cartpole-v0", [buffer],
-                                           env=gym.spec("CartPole-v1"), algorithm_name="zero")  # fmt: skip
+        minari.create_dataset_from_buffers(
+            "other/cartpole-v0", [buffer], env=gym.spec("CartPole-v1"), algorithm_name="zero"
+        )
     assert bc.main(["--dataset-root", str(tmp_path / "root"), *SHORT]) == 1
     assert "was not recorded in a capsule_env env ('CartPole-v1')" in _only_line(
         capsys.readouterr().err

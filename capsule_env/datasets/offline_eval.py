@@ -5,7 +5,8 @@ networks like every other row.
 names the dataset and how the trained networks are judged: each drives the dataset's env on
 the evaluation bank (``recover_environment(eval_env=True)``'s options with
 ``guideway_seed=2026``, whatever bank that env names; a dataset recorded on a bank held out
-from training, the evaluation, validation or selection bank, is refused), episodes ``eval_seed .. eval_seed + eval_episodes - 1`` of ``eval_episode_length_s`` (as
+from training, the evaluation, validation or selection bank, is refused), episodes
+``eval_seed .. eval_seed + eval_episodes - 1`` of ``eval_episode_length_s`` (as
 ``evaluate.py``: 1000..1009, 10 s), through :func:`~capsule_env.evaluation.episodes.run_episodes`;
 the row's figure is the Wk-weighted RMS car-body acceleration of
 :func:`~capsule_env.evaluation.episodes.episode_metrics`. The passive damper and the dataset's

@@ -6,8 +6,11 @@ and seeds, the episode length, the output folder), then runs the episodes
 :mod:`~capsule_env.datasets.oracle_replay`) and only then writes
 (:mod:`~capsule_env.datasets.minari_store`). Episode ``k`` is the task's env seeded
 ``seed + k`` on the env's own guideway bank (the training bank, ``guideway_seed=0``, unless
-the task names another), named in the dataset's env spec; the dataset's ``recover_environment(eval_env=True)`` gives the same
-env on the evaluation bank (:data:`~capsule_env.evaluation.episodes.EVALUATION_GUIDEWAY_SEED`).
+the task names another), named in the dataset's env spec; the dataset's
+``recover_environment(eval_env=True)`` gives the same env on the evaluation bank
+(:data:`~capsule_env.evaluation.episodes.EVALUATION_GUIDEWAY_SEED`). A recording that would
+hold more than 80 % of the memory available until the write (:func:`recording_bytes`) is
+refused before it runs.
 
 The recording env is the task's with the controller's own options over it (how it reads and
 acts: its observation set, action mode, inverse model, preview), as ``evaluate.py`` runs every
