@@ -1,5 +1,6 @@
 """An RL user's review of every registered task (session 16, helper 48): inputs the envs took
-silently, and options the batched envs refused under the wrong name."""
+silently, options refused under the wrong name or set to no effect, where the native vector
+envs differed from Gymnasium's SyncVectorEnv, and the half-car's unbounded observations."""
 
 from __future__ import annotations
 
