@@ -271,3 +271,23 @@ def test_a_dataset_of_another_env_is_one_line(tmp_path, capsys, monkeypatch):
     assert "was not recorded in a capsule_env env ('CartPole-v1')" in _only_line(
         capsys.readouterr().err
     )
+
+
+def test_an_out_that_links_to_an_empty_folder_receives_the_dataset(tmp_path, capsys):
+    """A datasets folder linked to a larger disk: the dataset lands in the folder linked to,
+    read back through the link; a link to nothing is refused before the run."""
+    from capsule_env.datasets.__main__ import main
+
+    (tmp_path / "disk").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "disk")
+    args = ["--task", TASK, "--controller", "passive", "--episodes", "1", "--episode-length",
+            str(LENGTH_S), "--out"]  # fmt: skip
+    assert main([*args, str(tmp_path / "link")]) == 0
+    assert (tmp_path / "link").is_symlink()
+    dataset = load_dataset(tmp_path / "link", f"capsule_env/{TASK}/passive-v0")
+    assert dataset.total_steps == 100
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    capsys.readouterr()
+    assert main([*args, str(tmp_path / "dangling")]) == 1
+    assert "is a symbolic link to nothing" in _only_line(capsys.readouterr().err)
+    assert not (tmp_path / "nowhere").exists()

@@ -58,11 +58,17 @@ def minari_module() -> Any:
 
 def check_out(root: str | Path) -> Path:
     """The root folder ``root`` checked: new (its nearest existing ancestor writable) or an
-    empty folder, where a folder can be made (a probe, removed again). ``ValueError`` naming
-    ``--out`` otherwise; leaves nothing."""
+    empty folder, where a folder can be made (a probe, removed again); a symbolic link to a
+    folder stands for that folder (returned resolved). ``ValueError`` naming ``--out``
+    otherwise; leaves nothing."""
     path = Path(root)
     if str(root) == "":
         raise ValueError("--out is empty: give a folder for the dataset")
+    if path.is_symlink():  # the dataset goes where it points (renamed onto that folder)
+        if not path.exists():
+            raise ValueError(f"--out {str(path)!r} is a symbolic link to nothing "
+                             f"({os.readlink(path)!r})")  # fmt: skip
+        path = path.resolve()
     if path.exists() and not path.is_dir():
         raise ValueError(f"--out {str(path)!r} is a file, not a folder")
     if path.is_dir() and any(path.iterdir()):
