@@ -164,3 +164,95 @@ def test_bounds_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str]) ->
     assert exc.value.code == 2
     line = _one_line(capsys.readouterr().err)
     assert "--seed" in line and "'abc'" in line
+
+
+# ----------------------------------------------------------------------------- docs tools
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def test_envelope_report_refuses_a_missing_page_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from capsule_env.envelope.report import main
+
+    assert main([str(tmp_path / "nope.md")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "nope.md" in line and "No such file" in line
+    assert main(["--help"]) == 0 and "usage" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_envelope_report_interrupted_save_keeps_the_page(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Ctrl-C while the page is saved leaves it as it was (it was rewritten in place)."""
+    import os
+
+    from capsule_env.envelope.report import BEGIN, END, main
+
+    (tmp_path / "figures").mkdir()
+    (tmp_path / "figures" / "envelope.json").write_bytes(
+        (DOCS / "figures/envelope.json").read_bytes()
+    )
+    page = tmp_path / "envelope.md"
+    old = f"# Envelope\n\n{BEGIN}\nstale\n{END}\n"
+    page.write_text(old)
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        main([str(page)])
+    assert page.read_text() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["envelope.md", "figures"]
+
+
+def test_published_checks_the_figure_path_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from capsule_env.envelope.published import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--figure", str(tmp_path)])
+    assert exc.value.code == 2
+    out, err = capsys.readouterr()
+    assert "--figure" in _one_line(err) and out == ""  # refused before the tables
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("content", ["not json", '{"settings": {}}', "[1]"])
+def test_half_car_figure_refuses_a_wrong_json_in_one_line(
+    content: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from capsule_env.evaluation.half_car_figure import main
+
+    result = tmp_path / "r.json"
+    result.write_text(content)
+    assert main([str(result), str(tmp_path / "out" / "f.png")]) == 2
+    assert "r.json" in _one_line(capsys.readouterr().err)
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+def test_task_cards_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from capsule_env.evaluation.task_cards import main
+
+    with pytest.raises(SystemExit) as exc:
+        main([str(tmp_path / "tasks.md")])
+    assert exc.value.code == 2
+    assert "tasks.md does not exist" in _one_line(capsys.readouterr().err)
+
+
+# ----------------------------------------------------------------------------- evaluate.py
+@pytest.mark.parametrize("option", ["--json", "--plots"])
+def test_evaluate_refuses_an_empty_output_path(
+    option: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--plots ''`` was the current folder: the run went ahead and wrote its figures there."""
+    from capsule_env.evaluation.evaluate import parse_args
+
+    with pytest.raises(SystemExit) as exc:
+        parse_args([option, ""])
+    assert exc.value.code == 2
+    line = _one_line(capsys.readouterr().err)
+    assert option in line and "empty path" in line

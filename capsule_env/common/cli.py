@@ -23,11 +23,13 @@ import inspect
 import json
 import textwrap
 import typing
+from pathlib import Path
 from typing import Any, NoReturn
 
 __all__ = [
     "ArgumentParser",
     "integer",
+    "nonempty_path",
     "field_docs",
     "add_dataclass_options",
     "dataclass_values",
@@ -59,6 +61,14 @@ def integer(text: str) -> int:
     if not value.is_integer():
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}")
     return int(value)
+
+
+def nonempty_path(text: str) -> Path:
+    """A file or folder option's value as a ``Path``; ``ArgumentTypeError`` for an empty one
+    (``Path("")`` is the current folder: ``--plots ''`` wrote the figures there)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"an empty path: give a file or folder name, got {text!r}")
+    return Path(text)
 
 
 # ----------------------------------------------------------------------------- dataclasses

@@ -39,13 +39,14 @@ stdout) and the figure. Pure numpy (matplotlib for the figure only).
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.safe_io import check_writable_file
 from capsule_env.common.units import kmh_to_m_s, m_s_to_kmh
 from capsule_env.common.validation import check_in_range
 from capsule_env.envelope.levitation import (
@@ -294,9 +295,15 @@ def figure(path: Path, lengths_m: Sequence[float] = (1.35, 2.7, 5.4)) -> Path:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Print the three tables (Markdown) and, with ``--figure``, draw the figure."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="python -m capsule_env.envelope.published",
+                            description=__doc__.splitlines()[0])  # fmt: skip
     parser.add_argument("--figure", type=Path, default=None, help="where to draw the PNG")
     args = parser.parse_args(argv)
+    if args.figure is not None:  # before the tables, not a traceback from savefig after them
+        try:
+            check_writable_file(args.figure, "--figure")
+        except ValueError as exc:
+            parser.error(str(exc))
     vehicle = VehicleParams()
     coil = eds_coil(vehicle)
     for lines in (dynamics_table(coil, vehicle), wk_table(coil, vehicle, (1.35, 2.7, 5.4)),

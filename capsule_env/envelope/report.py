@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from capsule_env.common.safe_io import atomic_write_text
 from capsule_env.common.units import kmh_to_m_s
 
 __all__ = ["tables", "figures", "sync_page", "BEGIN", "END"]
@@ -164,7 +165,7 @@ def sync_page(page: Path, results_json: Path) -> bool:
     _, _, tail = rest.partition(END)
     new = f"{head}{BEGIN}\n\n{tables(json.loads(Path(results_json).read_text()))}\n{END}{tail}"
     if new != text:
-        page.write_text(new)
+        atomic_write_text(page, new)  # a Ctrl-C or full disk: the page as it was
     return new != text
 
 
@@ -275,7 +276,26 @@ def _save(plt: Any, fig: Any, path: Path) -> Path:
     return path
 
 
-if __name__ == "__main__":  # python -m capsule_env.envelope.report docs/envelope.md
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/envelope.md")
-    source = target.parent / "figures" / "envelope.json"
-    print(("updated " if sync_page(target, source) else "unchanged ") + str(target))
+def main(argv: list[str] | None = None) -> int:
+    """``python -m capsule_env.envelope.report [docs/envelope.md]``: rewrite the page's block
+    from ``figures/envelope.json`` beside it; a missing or unreadable file: one line, status 2."""
+    args = sys.argv[1:] if argv is None else argv
+    usage = "usage: python -m capsule_env.envelope.report [PAGE.md]"
+    if args[:1] in (["-h"], ["--help"]):
+        print(usage)
+        return 0
+    if len(args) > 1 or (args and args[0].startswith("-")):
+        print(usage, file=sys.stderr)
+        return 2
+    target = Path(args[0]) if args else Path("docs/envelope.md")
+    try:
+        changed = sync_page(target, target.parent / "figures" / "envelope.json")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        print(f"python -m capsule_env.envelope.report: error: {target}: {exc}", file=sys.stderr)
+        return 2
+    print(("updated " if changed else "unchanged ") + str(target))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -47,7 +47,7 @@ import numpy as np
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.controllers.tuned import tuning_env_kwargs, tuning_task_kwargs
 from capsule_env.agents.learning.policy_files import shown_path
-from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser, nonempty_path
 from capsule_env.common.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.engine.config import EnvConfig
 from capsule_env.evaluation.condition import (
@@ -143,8 +143,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "bound on every controller's Wk on the same episodes) per setting: a 'floor' "
                    "block; the sim plant only, episodes of <= about 2.2 s; slow (minutes per "
                    "episode); --floor NODES also branches on the stroke rate's sign")  # fmt: skip
-    p.add_argument("--json", type=Path, help="write all results to this JSON file")
-    p.add_argument("--plots", type=Path, help="write figures (PNG) to this folder (with "
+    p.add_argument("--json", type=nonempty_path, help="write all results to this JSON file")
+    p.add_argument("--plots", type=nonempty_path, help="write figures (PNG) to this folder (with "
                    "--task or --env: to its sub-folder named after them)")  # fmt: skip
     args = p.parse_args(argv)
     if args.task in {t.env_id for t in DECLARED_TASKS}:  # its own evaluation (main)

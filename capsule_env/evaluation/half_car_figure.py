@@ -98,9 +98,38 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m capsule_env.evaluation.half_car_figure RESULT.json OUT.png",
               file=sys.stderr)  # fmt: skip
         return 2
-    result = json.loads(Path(args[0]).read_text())
-    half_car_figure(result, pitch_trace(), Path(args[1]))
+    problem = _input_problem(Path(args[0]), Path(args[1]))
+    if problem:  # before the seconds of the pitch trace, not a traceback after them
+        print(f"python -m capsule_env.evaluation.half_car_figure: error: {problem}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    half_car_figure(json.loads(Path(args[0]).read_text()), pitch_trace(), Path(args[1]))
     return 0
+
+
+def _input_problem(result_json: Path, out_png: Path) -> str | None:
+    """Why the figure cannot be drawn from ``result_json`` into ``out_png`` (one line), or
+    None: the JSON must be evaluate.py's layout with the per-bogie LQR's hils row; ``out_png``
+    is checked last (its folder is made when missing)."""
+    from capsule_env.common.safe_io import check_writable_file
+
+    try:
+        result = json.loads(result_json.read_text())
+    except (OSError, ValueError) as exc:
+        return f"cannot read {result_json} as JSON ({exc})"
+    try:
+        base = result["settings"]["hils"]["controllers"]["lqr-clipped-biexp-meas"]
+        missing = [k for k in ("wk_front_m_s2", "wk_centre_m_s2", "wk_rear_m_s2") if k not in base]
+    except (KeyError, TypeError):
+        return (f"{result_json} is not evaluate.py's JSON of the half-car task (it needs "
+                "settings.hils.controllers.lqr-clipped-biexp-meas)")  # fmt: skip
+    if missing:
+        return f"{result_json}: the per-bogie LQR's row has no {', '.join(missing)}"
+    try:
+        check_writable_file(out_png, "OUT.png")
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 if __name__ == "__main__":

@@ -163,9 +163,9 @@ def sync_readme(readme: Path, figures: Path) -> bool:
 def main(argv: list[str] | None = None) -> int:
     """``python -m capsule_env.evaluation.task_cards [docs/tasks.md [README.md]]``: rewrite the
     cards and the README's table; a missing file or folder: one line, exit status 2."""
-    import argparse
+    from capsule_env.common.cli import ArgumentParser  # errors: one line, exit status 2
 
-    p = argparse.ArgumentParser(prog="python -m capsule_env.evaluation.task_cards",
+    p = ArgumentParser(prog="python -m capsule_env.evaluation.task_cards",
                                 description="Rewrite docs/tasks.md's task cards and the "
                                 "README's table of the tasks from docs/figures/*.json.")  # fmt: skip
     p.add_argument("page", nargs="?", type=Path, default=Path("docs/tasks.md"))
