@@ -239,3 +239,16 @@ def test_half_car_observations_saturate_at_the_quarter_cars_bounds():
         assert space.contains(obs)
         saturated |= bool(np.any(np.abs(obs) == space.high))
     assert saturated
+
+
+@pytest.mark.parametrize("make", [lambda: CapsuleSuspensionSB3VecEnv(3, **RIDE),
+                                  lambda: DeclaredSB3VecEnv(3, **HALF)])  # fmt: skip
+def test_sb3_set_attr_refuses_some_vehicles_only(make):
+    # one object serves every index: set_attr(..., indices=[0]) used to set the attribute of
+    # every vehicle, and get_attr(..., indices=[2]) read the value meant for vehicle 0
+    venv = make()
+    with pytest.raises(ValueError, match="indices"):
+        venv.set_attr("difficulty", 2.0, indices=[0])
+    venv.set_attr("difficulty", 1.0, indices=[0, 1, 2])  # all of them: one value, fine
+    venv.set_attr("difficulty", 3.0, indices=range(3))
+    assert venv.get_attr("difficulty") == [3.0, 3.0, 3.0]

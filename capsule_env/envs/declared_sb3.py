@@ -100,7 +100,7 @@ class DeclaredSB3VecEnv(VecEnv):
         return [getattr(target, attr_name)] * len(list(self._indices(indices)))
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        check_settable(self.config, attr_name)  # an env option: ValueError, not ignored
+        check_settable(self.config, attr_name, indices, self.num_envs)  # options, some indices
         setattr(self, attr_name, value)
 
     def env_method(

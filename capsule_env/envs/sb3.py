@@ -52,10 +52,19 @@ def check_vec_options(options: Any, num_envs: int) -> None:
         _check_options(env_options)
 
 
-def check_settable(config: Any, attr_name: str) -> None:
-    """``VecEnv.set_attr(attr_name, ...)`` of a VecEnv whose ``get_attr`` reads its options
-    from ``config``: an option (frozen when the env is made) raises ``ValueError`` naming it,
-    rather than setting an attribute nothing reads while ``get_attr`` keeps the old value."""
+def check_settable(config: Any, attr_name: str, indices: Any, num_envs: int) -> None:
+    """``VecEnv.set_attr(attr_name, ..., indices)`` of a VecEnv that is one object for every
+    index and whose ``get_attr`` reads its options from ``config``: an option (frozen when the
+    env is made) raises ``ValueError`` naming it, rather than setting an attribute nothing
+    reads while ``get_attr`` keeps the old value; so do ``indices`` that are not all the
+    vehicles (the value would be every vehicle's)."""
+    if indices is not None:
+        chosen = [indices] if isinstance(indices, (int, np.integer)) else list(indices)
+        if sorted(chosen) != list(range(num_envs)):
+            raise ValueError(
+                f"set_attr sets {attr_name} of every vehicle (one object serves them all): "
+                f"indices must be None or all {num_envs} of them, got {indices!r}"
+            )
     if hasattr(config, attr_name):
         raise ValueError(
             f"{attr_name} is an option of the env, fixed when it is made: set_attr cannot "
@@ -163,9 +172,9 @@ class CapsuleSuspensionSB3VecEnv(VecEnv):
         return [getattr(target, attr_name)] * self._count(indices)
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        """Set an attribute of this one object (every index); an env option raises
-        ``ValueError`` (:func:`check_settable`)."""
-        check_settable(self.config, attr_name)
+        """Set an attribute of this one object (every index); an env option, or indices that
+        are not all the vehicles, raise ``ValueError`` (:func:`check_settable`)."""
+        check_settable(self.config, attr_name, indices, self.num_envs)
         setattr(self, attr_name, value)
 
     def env_method(
