@@ -256,3 +256,26 @@ def test_evaluate_refuses_an_empty_output_path(
     assert exc.value.code == 2
     line = _one_line(capsys.readouterr().err)
     assert option in line and "empty path" in line
+
+
+def test_task_cards_interrupted_save_keeps_the_readme(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Ctrl-C while the README's table is saved leaves the README as it was (it was
+    rewritten in place: a cut-off write truncated the README)."""
+    import os
+
+    from capsule_env.evaluation.task_cards import README_BEGIN, README_END, sync_readme
+
+    readme = tmp_path / "README.md"
+    old = f"# capsule-env\n\n{README_BEGIN}\nstale\n{README_END}\nthe rest of the README\n"
+    readme.write_text(old)
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        sync_readme(readme, DOCS / "figures")
+    assert readme.read_text() == old
+    assert [p.name for p in tmp_path.iterdir()] == ["README.md"]

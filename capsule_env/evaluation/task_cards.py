@@ -17,6 +17,7 @@ import json
 import sys
 from pathlib import Path
 
+from capsule_env.common.safe_io import atomic_write_text
 from capsule_env.tasks import DECLARED_TASKS, TASKS, Task, normalised_score
 
 #: Every carded task: the quarter-car's, then the declared vehicles' (``evaluate.py --task``
@@ -145,7 +146,7 @@ def _replace_block(page: Path, begin: str, end: str, block: str) -> bool:
     _, _, tail = rest.partition(end)
     new = f"{head}{begin}\n{block}\n{end}{tail}"
     if new != text:
-        page.write_text(new)
+        atomic_write_text(page, new)  # a Ctrl-C or full disk: the page as it was
     return new != text
 
 
@@ -166,8 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     from capsule_env.common.cli import ArgumentParser  # errors: one line, exit status 2
 
     p = ArgumentParser(prog="python -m capsule_env.evaluation.task_cards",
-                                description="Rewrite docs/tasks.md's task cards and the "
-                                "README's table of the tasks from docs/figures/*.json.")  # fmt: skip
+                       description="Rewrite docs/tasks.md's task cards and the README's "
+                       "table of the tasks from docs/figures/*.json.")  # fmt: skip
     p.add_argument("page", nargs="?", type=Path, default=Path("docs/tasks.md"))
     p.add_argument("readme", nargs="?", type=Path, default=None)
     args = p.parse_args(argv)
