@@ -291,3 +291,31 @@ def test_an_out_that_links_to_an_empty_folder_receives_the_dataset(tmp_path, cap
     assert main([*args, str(tmp_path / "dangling")]) == 1
     assert "is a symbolic link to nothing" in _only_line(capsys.readouterr().err)
     assert not (tmp_path / "nowhere").exists()
+
+
+@pytest.mark.rl
+def test_a_training_seed_fixes_the_network(tmp_path):
+    """The figures' reproducibility: the same seed gives the same weights, another seed others
+    (behaviour cloning and TD3+BC, a few steps each)."""
+    torch = pytest.importorskip("torch", reason=NO_SB3)
+    from capsule_env.datasets import bc
+    from capsule_env.datasets.offline_eval import transitions
+
+    _foreign(tmp_path / "root")
+    data = transitions(load_dataset(tmp_path / "root", "mine/ride-v0"))
+    trainers = [lambda seed: bc.train_bc(data, bc.Args(gradient_steps=20), seed)[0]]
+    try:
+        import torchrl  # noqa: F401
+
+        from capsule_env.datasets import td3bc
+
+        trainers.append(lambda seed: td3bc.train_td3bc(data, td3bc.Args(gradient_steps=20),
+                                                       seed)[0])  # fmt: skip
+    except ImportError:  # TorchRL is in the dev extra
+        pass
+    x = torch.as_tensor(data.observations)
+    for train in trainers:
+        nets = [train(seed) for seed in (3, 3, 4)]
+        with torch.no_grad():
+            first, again, other = (net(x) for net in nets)
+        assert torch.equal(first, again) and not torch.equal(first, other)
