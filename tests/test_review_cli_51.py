@@ -3,6 +3,7 @@ traceback, nothing on disk) and the paths they write."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -170,6 +171,15 @@ def test_bounds_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str]) ->
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
+def _interrupt_renames(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C at the rename that puts a saved file in place (``os.replace``)."""
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+
+
 def test_envelope_report_refuses_a_missing_page_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -186,8 +196,6 @@ def test_envelope_report_interrupted_save_keeps_the_page(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A Ctrl-C while the page is saved leaves it as it was (it was rewritten in place)."""
-    import os
-
     from capsule_env.envelope.report import BEGIN, END, main
 
     (tmp_path / "figures").mkdir()
@@ -198,10 +206,7 @@ def test_envelope_report_interrupted_save_keeps_the_page(
     old = f"# Envelope\n\n{BEGIN}\nstale\n{END}\n"
     page.write_text(old)
 
-    def interrupted(*args: object, **kwargs: object) -> None:
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(os, "replace", interrupted)
+    _interrupt_renames(monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         main([str(page)])
     assert page.read_text() == old
@@ -263,18 +268,13 @@ def test_task_cards_interrupted_save_keeps_the_readme(
 ) -> None:
     """A Ctrl-C while the README's table is saved leaves the README as it was (it was
     rewritten in place: a cut-off write truncated the README)."""
-    import os
-
     from capsule_env.evaluation.task_cards import README_BEGIN, README_END, sync_readme
 
     readme = tmp_path / "README.md"
     old = f"# capsule-env\n\n{README_BEGIN}\nstale\n{README_END}\nthe rest of the README\n"
     readme.write_text(old)
 
-    def interrupted(*args: object, **kwargs: object) -> None:
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(os, "replace", interrupted)
+    _interrupt_renames(monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         sync_readme(readme, DOCS / "figures")
     assert readme.read_text() == old
