@@ -111,6 +111,7 @@ def _not_reached(*args, **kwargs):
         (["--eval-seed", str(2**63 - 1)], "--eval-seed must be in 0.."),
         (["--first-seed", str(2**63)], "--first-seed must be in 0.."),
         (["--eval-episode-length-s", "0.001"], "--eval-episode-length-s"),
+        (["--eval-episodes", str(10**9)], "--eval-episodes / --eval-episode-length-s on the"),
     ],
 )
 def test_the_evaluation_options_are_checked_before_training(tmp_path, capsys, monkeypatch, args,

@@ -180,7 +180,8 @@ def evaluation_env_kwargs(dataset: Any, ident: str, ev: Evaluation) -> dict[str,
     (``recover_environment(eval_env=True)``) on the evaluation bank, whatever bank that env
     names (Minari's evaluation env is the recording env when the dataset names none).
     ``ValueError`` when the dataset is not of this package's env, was recorded on a bank held
-    out from training, or ``--eval-episode-length-s`` is refused there."""
+    out from training, or ``--eval-episode-length-s`` or ``--eval-episodes`` is refused there
+    (too short, more than the memory holds)."""
     from capsule_env.engine.config import EnvConfig
     from capsule_env.evaluation import episodes
 
@@ -199,9 +200,11 @@ def evaluation_env_kwargs(dataset: Any, ident: str, ev: Evaluation) -> dict[str,
     eval_env.close()
     kwargs["guideway_seed"] = episodes.EVALUATION_GUIDEWAY_SEED
     try:
-        EnvConfig.from_kwargs(**kwargs, episode_length_s=ev.eval_episode_length_s)
+        config = EnvConfig.from_kwargs(**kwargs, episode_length_s=ev.eval_episode_length_s)
+        config.check_memory(ev.eval_episodes)  # the evaluation's vector env
     except (ValueError, TypeError) as exc:
-        raise ValueError(f"--eval-episode-length-s / the dataset's env: {exc}") from None
+        raise ValueError(f"--eval-episodes / --eval-episode-length-s on the dataset's env: "
+                         f"{exc}") from None  # fmt: skip
     return kwargs
 
 
