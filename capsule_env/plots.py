@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from capsule_env.common.safe_io import StagedFiles
 from capsule_env.dampers import damper_force
 from capsule_env.identification.loops import Loop, check_loops, group_by_current
 from capsule_env.identification.predict import predict_force
@@ -143,8 +144,13 @@ def _force_velocity_figure(plt: Any, setting: str, runs: dict[str, Any]) -> Any:
 
 
 def _save(fig: Any, path: Path, plt: Any) -> Path:
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    """``fig`` into ``path`` atomically (a Ctrl-C or a full disk during the save leaves the
+    earlier figure, not a cut-off PNG), closed; the format is ``path``'s suffix."""
+    try:
+        with StagedFiles() as staged:
+            fig.savefig(staged.temp_for(path), dpi=110, format=Path(path).suffix[1:] or "png")
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -11,6 +11,7 @@ at that scale, and lie inside the figure (a legend that runs off the canvas is c
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -54,7 +55,9 @@ def drawn(monkeypatch):
     def savefig(self, fname, *args, **kwargs):
         texts.clear()
         original_save(self, fname, *args, **kwargs)
-        saved.append((Path(fname), list(texts)))
+        path = Path(fname)  # a staged save's temporary name (safe_io): the target's
+        staged = re.fullmatch(r"\.(.+)\.[0-9a-f]{8}\.tmp", path.name)
+        saved.append((path.with_name(staged.group(1)) if staged else path, list(texts)))
 
     monkeypatch.setattr(Text, "draw", draw)
     monkeypatch.setattr(Figure, "savefig", savefig)

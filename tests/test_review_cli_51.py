@@ -279,3 +279,25 @@ def test_task_cards_interrupted_save_keeps_the_readme(
         sync_readme(readme, DOCS / "figures")
     assert readme.read_text() == old
     assert [p.name for p in tmp_path.iterdir()] == ["README.md"]
+
+
+# ----------------------------------------------------------------------------- figures
+def test_an_interrupted_figure_save_keeps_the_earlier_figure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """evaluate.py --plots and identify --plots save through plots._save: a Ctrl-C during the
+    save used to leave a cut-off PNG under the figure's own name."""
+    from capsule_env.plots import _pyplot, _save
+
+    plt = _pyplot()
+    target = tmp_path / "figure.png"
+    target.write_bytes(b"the earlier figure")
+    fig = plt.figure()
+    _interrupt_renames(monkeypatch)
+    with pytest.raises(KeyboardInterrupt):
+        _save(fig, target, plt)
+    assert target.read_bytes() == b"the earlier figure"
+    assert [p.name for p in tmp_path.iterdir()] == ["figure.png"]
+    monkeypatch.undo()
+    _save(plt.figure(), target, plt)
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
