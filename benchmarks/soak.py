@@ -18,11 +18,14 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import math
 import sys
 import time
 
 import numpy as np
 
+from capsule_env.common.cli import ArgumentParser, integer, nonempty_path
+from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.envs import CapsuleSuspensionVectorEnv
 
 
@@ -70,14 +73,25 @@ def soak(kwargs: dict, seconds: float, num_envs: int, seed: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    parser = ArgumentParser(  # errors: one line, exit status 2
+        prog="soak.py", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
-    parser.add_argument("--minutes", type=float, default=10.0, help="total wall time")
-    parser.add_argument("--num-envs", type=int, default=256, help="vehicles per configuration")
+    parser.add_argument("--minutes", type=float, default=10.0, help="total wall time (> 0)")
+    parser.add_argument("--num-envs", type=integer, default=256,
+                        help="vehicles per configuration (>= 1)")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="a few seconds: a smoke test")
-    parser.add_argument("--json", help="also write the counts to this JSON file")
+    parser.add_argument("--json", type=nonempty_path,
+                        help="also write the counts to this JSON file")  # fmt: skip
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.minutes) and args.minutes > 0):
+        parser.error(f"--minutes must be a finite number > 0, got {args.minutes}")
+    if args.num_envs < 1:
+        parser.error(f"--num-envs must be >= 1, got {args.num_envs}")
+    if args.json is not None:  # before the minutes of the soak, not after them
+        try:
+            check_writable_file(args.json, "--json")
+        except ValueError as exc:
+            parser.error(str(exc))
     configs = grid(args.quick)
     seconds = 0.5 if args.quick else 60.0 * args.minutes / len(configs)
     total = {"vehicle_steps": 0, "bump_stop_episodes": 0, "non_finite": 0, "out_of_space": 0}
@@ -95,9 +109,9 @@ def main(argv: list[str] | None = None) -> int:
           f"{time.perf_counter() - t0:.0f} s; non-finite {total['non_finite']}, out of the "
           f"observation space {total['out_of_space']}, bump-stop episodes "
           f"{total['bump_stop_episodes']}")  # fmt: skip
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump({"total": total, "configurations": rows}, fh, indent=2, default=str)
+    if args.json is not None:  # atomic: a Ctrl-C here leaves no cut-off file
+        counts = {"total": total, "configurations": rows}
+        atomic_write_text(args.json, json.dumps(counts, indent=2, default=str))
     return 1 if total["non_finite"] or total["out_of_space"] else 0
 
 

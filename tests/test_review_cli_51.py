@@ -301,3 +301,52 @@ def test_an_interrupted_figure_save_keeps_the_earlier_figure(
     monkeypatch.undo()
     _save(plt.figure(), target, plt)
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# ----------------------------------------------------------------------------- benchmarks
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--num-envs", "-1"], "--num-envs"),
+        (["--minutes", "nan"], "--minutes"),
+        (["--minutes", "-1"], "--minutes"),
+        (["--json", "DIR"], "--json"),
+    ],  # fmt: skip
+)
+def test_soak_refuses_bad_input_before_soaking(
+    argv: list[str],
+    named: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """--num-envs -1 was a traceback, --minutes -1 a run of nothing reported as a pass, and
+    --json naming a folder a traceback after the whole soak (its counts lost)."""
+    from conftest import load_script
+
+    soak = load_script("benchmarks/soak.py")
+
+    def must_not_run(*args: object, **kwargs: object) -> None:
+        raise AssertionError("soaked before checking the arguments")
+
+    monkeypatch.setattr(soak, "soak", must_not_run)
+    with pytest.raises(SystemExit) as exc:
+        soak.main([a.replace("DIR", str(tmp_path)) for a in argv])
+    assert exc.value.code == 2
+    assert named in _one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_soak_interrupted_json_save_leaves_no_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The counts were written with open(..., "w"): a Ctrl-C there left a cut-off JSON."""
+    from conftest import load_script
+
+    soak = load_script("benchmarks/soak.py")
+    counts = {"vehicle_steps": 16, "bump_stop_episodes": 0, "non_finite": 0, "out_of_space": 0}
+    monkeypatch.setattr(soak, "soak", lambda *args, **kwargs: dict(counts))
+    _interrupt_renames(monkeypatch)
+    with pytest.raises(KeyboardInterrupt):
+        soak.main(["--quick", "--json", str(tmp_path / "soak.json")])
+    assert list(tmp_path.iterdir()) == []
