@@ -17,13 +17,15 @@ each and their relative difference.
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields
 
 import numpy as np
-from capsule_env.agents import make_controller
+from capsule_env.agents import classical_controllers, make_controller
 
 from capsule_env.dampers import BiExponentialDamper
-from capsule_env.evaluation.episodes import episode_metrics, run_episodes
+from capsule_env.engine.config import EnvConfig
+from capsule_env.evaluation.episodes import check_episode_length, episode_metrics, run_episodes
 from capsule_env.identification import identify_reference
 from capsule_env.identification.results import dataclass_default_lines
 
@@ -39,13 +41,29 @@ def refit_params() -> dict[str, float]:
     return params
 
 
-def main() -> None:
+def check_arguments(args: argparse.Namespace) -> None:
+    """``ValueError`` naming the option when ``args`` cannot run."""
+    if not (args.episodes >= 1 and 0 <= args.seed <= 2**63 - args.episodes):
+        raise ValueError(f"--episodes must be >= 1 and --seed in [0, 2**63 - episodes], got "
+                         f"{args.episodes} and {args.seed}")  # fmt: skip
+    check_episode_length(args.episode_length, EnvConfig().dt_s, "--episode-length")
+    unknown = [n for n in args.controllers.split(",") if n not in classical_controllers()]
+    if unknown:
+        raise ValueError(f"--controllers: unknown {unknown}; accepted: "
+                         f"{', '.join(classical_controllers())}")  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=8)
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--episode-length", type=float, default=10.0)
     parser.add_argument("--controllers", default="skyhook-biexp,skyhook-cont-biexp")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    try:  # before the refit and the episodes, not a traceback from the first episode
+        check_arguments(args)
+    except ValueError as exc:
+        sys.exit(f"biexp_defaults_refit.py: error: {exc}")
     refit = refit_params()
     shipped = BiExponentialDamper()
     print(f"{'parameter':<10}{'shipped':>12}{'refit':>12}{'rel. diff':>11}")

@@ -35,9 +35,11 @@ from capsule_env.agents.controllers.tuning import TuningSettings  # noqa: E402
 from capsule_env.agents.learning.search_space import SEARCH_SPACES  # noqa: E402
 
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file  # noqa: E402
+from capsule_env.engine.config import EnvConfig  # noqa: E402
 from capsule_env.evaluation.episodes import (  # noqa: E402
     EVALUATION_GUIDEWAY_SEED,
     Rollout,
+    check_episode_length,
     episode_metrics,
     run_episodes,
 )
@@ -139,6 +141,7 @@ def checked_inputs(args: argparse.Namespace) -> tuple[list[str], list[Any]]:
         raise ValueError(f"--laws: no search space for {unknown}")
     if args.points < 2 or args.episodes < 1 or args.seed < 0:
         raise ValueError("--points must be >= 2, --episodes >= 1, --seed >= 0")
+    check_episode_length(args.episode_length, EnvConfig().dt_s, "--episode-length")
     for path, option in ((args.out, "--out"), (args.json, "--json")):
         if path is not None:
             check_writable_file(path, option)

@@ -49,9 +49,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episode-length", type=float, default=10.0, help="seconds")
     p.add_argument("--max-wavelength", type=float, default=500.0, help="m (default 500)")
     args = p.parse_args(argv)
-    if args.episodes < 1 or args.episode_length < 2.0 or args.max_wavelength <= 2.0:
-        sys.exit("spectrum_peak.py: error: --episodes >= 1, --episode-length >= 2 s and "
-                 "--max-wavelength > 2 m (the shortest wavelength) are required")  # fmt: skip
+    seeds_fit = args.episodes >= 1 and 0 <= args.seed <= 2**63 - args.episodes
+    # "not (x >= bound)": a nan fails too (it passed "x < bound" and ran)
+    if not (seeds_fit and args.episode_length >= 2.0 and args.max_wavelength > 2.0):
+        sys.exit("spectrum_peak.py: error: --episodes >= 1, --seed in [0, 2**63 - episodes], "
+                 "--episode-length >= 2 s and --max-wavelength > 2 m (the shortest "
+                 f"wavelength) are required, got {args.episodes}, {args.seed}, "
+                 f"{args.episode_length}, {args.max_wavelength}")  # fmt: skip
     f, s = mean_spectra(args)
     c_s = VehicleParams().passive_damping_n_s_per_m
     h = np.abs(frequency_response(f[1:], secondary_damping_n_s_per_m=c_s))

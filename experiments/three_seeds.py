@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from capsule_env.common.safe_io import atomic_write_text
+
 SKYHOOKS = ("skyhook-biexp", "skyhook-csdc", "skyhook-tanh", "skyhook-cont-biexp")
 
 
@@ -33,6 +35,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--root", type=Path, default=Path("runs/three-seeds"))
     p.add_argument("--skip-training", action="store_true", help="evaluate existing runs only")
     args = p.parse_args(argv)
+    bad = [s for s in args.seeds if not 0 <= s < 2**32] or sorted(
+        {s for s in args.seeds if args.seeds.count(s) > 1})  # fmt: skip
+    if bad:  # before any folder or training, not a train.py failure and a traceback after
+        sys.exit(f"three_seeds.py: error: --seeds must be distinct integers in 0..{2**32 - 1} "
+                 f"(train.py's --seed), got {bad[0]}")  # fmt: skip
     args.root.mkdir(parents=True, exist_ok=True)
     runs = {}
     for seed in args.seeds:
@@ -41,15 +48,18 @@ def main(argv: list[str] | None = None) -> int:
             t0 = time.perf_counter()
             cmd = [sys.executable, "train.py", "--seed", str(seed), "--output-dir", str(out),
                    "--no-progress", *shlex.split(args.train_args)]  # fmt: skip
-            subprocess.run(cmd, check=True)
+            if subprocess.run(cmd).returncode != 0:  # train.py said why, in one line
+                sys.exit(f"three_seeds.py: error: train.py failed for seed {seed}")
             print(f"seed {seed}: trained in {time.perf_counter() - t0:.0f} s", flush=True)
         evaluation = out / "evaluation.json"
-        subprocess.run(
+        evaluated = subprocess.run(
             [sys.executable, "evaluate.py", "--setting", "hils", "--no-shipped-policy",
              "--controllers", ",".join(("passive", *SKYHOOKS)), "--policy",
              str(out / "best_model.zip"), "--json", str(evaluation)],
-            check=True, stdout=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
         )  # fmt: skip
+        if evaluated.returncode != 0:  # evaluate.py said why, in one line
+            sys.exit(f"three_seeds.py: error: evaluate.py failed for seed {seed}")
         runs[seed] = json.loads(evaluation.read_text())["settings"]["hils"]["controllers"]
     first = next(iter(runs.values()))
     best_sky = min(SKYHOOKS, key=lambda n: first[n]["wk_rms_body_acc_m_s2"])
@@ -76,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
                "skyhook_vre_body_mode1_pct": sky_vre, "policy_wk_m_s2": wk.tolist(),
                "policy_vre_body_mode1_pct": vre.tolist(), "bar_met": bar,
                "seeds": args.seeds, "train_args": args.train_args}  # fmt: skip
-    (args.root / "summary.json").write_text(json.dumps(summary, indent=2))
+    atomic_write_text(args.root / "summary.json", json.dumps(summary, indent=2))
     return 0
 
 

@@ -350,3 +350,79 @@ def test_soak_interrupted_json_save_leaves_no_file(
     with pytest.raises(KeyboardInterrupt):
         soak.main(["--quick", "--json", str(tmp_path / "soak.json")])
     assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- experiments
+def test_pareto_checks_the_episode_length_before_anything(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--episode-length -1 was a traceback from the first episode, after --out's folder was
+    made."""
+    from conftest import load_script
+
+    pareto = load_script("experiments/pareto.py")
+    out = tmp_path / "figures" / "pareto.png"
+    with pytest.raises(SystemExit) as exc:
+        pareto.main(["--episode-length", "-1", "--out", str(out), "--no-shipped-policy"])
+    message = str(exc.value.code)
+    assert message.startswith("pareto.py: error: --episode-length") and "\n" not in message
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("seeds", [["-1"], ["3", "3"], [str(2**32)]])
+def test_three_seeds_checks_the_seeds_before_training(seeds: list[str], tmp_path: Path) -> None:
+    """--seeds -1 made the root folder, ran train.py (refused) and ended in a
+    CalledProcessError traceback; a seed given twice trained one run folder twice."""
+    from conftest import load_script
+
+    three_seeds = load_script("experiments/three_seeds.py")
+    root = tmp_path / "root"
+    with pytest.raises(SystemExit) as exc:
+        three_seeds.main(["--seeds", *seeds, "--root", str(root)])
+    message = str(exc.value.code)
+    assert message.startswith("three_seeds.py: error: --seeds") and "\n" not in message
+    assert not root.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--seed", "-1"], ["--episode-length", "nan"], ["--max-wavelength", "nan"]],
+)
+def test_spectrum_peak_refuses_a_bad_seed_or_nan_in_one_line(argv: list[str]) -> None:
+    """--seed -1 was a traceback from the first episode; a nan length passed the check."""
+    from conftest import load_script
+
+    spectrum_peak = load_script("experiments/spectrum_peak.py")
+    with pytest.raises(SystemExit) as exc:
+        spectrum_peak.main(argv)
+    message = str(exc.value.code)
+    assert message.startswith("spectrum_peak.py: error:") and "\n" not in message
+    assert argv[0] in message
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--seed", "-1"], "--seed"),
+        (["--episodes", "0"], "--episodes"),
+        (["--episode-length", "-1"], "--episode-length"),
+        (["--controllers", "nope"], "nope"),
+    ],  # fmt: skip
+)
+def test_biexp_defaults_refit_checks_its_arguments_first(
+    argv: list[str], named: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each was a traceback after the refit, from the first episode."""
+    from conftest import load_script
+
+    refit = load_script("experiments/biexp_defaults_refit.py")
+
+    def must_not_run() -> None:
+        raise AssertionError("refitted before checking the arguments")
+
+    monkeypatch.setattr(refit, "refit_params", must_not_run)
+    with pytest.raises(SystemExit) as exc:
+        refit.main(argv)
+    message = str(exc.value.code)
+    assert message.startswith("biexp_defaults_refit.py: error:") and "\n" not in message
+    assert named in message
