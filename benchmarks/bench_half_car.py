@@ -95,6 +95,9 @@ def main() -> None:
         "--step-from", metavar="REV", help="a git revision whose env step to time beside"
     )
     args = p.parse_args()
+    if args.num_envs < 1 or args.repeats < 1:  # a traceback from the env, or no window timed
+        raise SystemExit(f"bench_half_car.py: error: --num-envs and --repeats must be >= 1, "
+                         f"got {args.num_envs} and {args.repeats}")  # fmt: skip
     if args.kernel_from and not os.path.isfile(args.kernel_from):
         raise SystemExit(f"bench_half_car.py: error: --kernel-from: no file {args.kernel_from}")
     step_files = _step_files(args.step_from) if args.step_from else None

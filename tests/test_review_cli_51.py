@@ -4,6 +4,7 @@ traceback, nothing on disk) and the paths they write."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -426,3 +427,24 @@ def test_biexp_defaults_refit_checks_its_arguments_first(
     message = str(exc.value.code)
     assert message.startswith("biexp_defaults_refit.py: error:") and "\n" not in message
     assert named in message
+
+
+@pytest.mark.parametrize("option", ["--num-envs", "--repeats"])
+def test_bench_half_car_refuses_a_count_below_one(
+    option: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--num-envs -1 was a traceback from gym.make_vec; --repeats -1 timed no window at all
+    after compiling (then failed on an empty median)."""
+    from conftest import load_script
+
+    bench = load_script("benchmarks/bench_half_car.py")
+
+    def must_not_run(*args: object, **kwargs: object) -> None:
+        raise AssertionError("made an env before checking the arguments")
+
+    monkeypatch.setattr(bench.gym, "make_vec", must_not_run)
+    monkeypatch.setattr(sys, "argv", ["bench_half_car.py", option, "-1"])
+    with pytest.raises(SystemExit) as exc:
+        bench.main()
+    message = str(exc.value.code)
+    assert message.startswith("bench_half_car.py: error:") and option in message
