@@ -448,3 +448,18 @@ def test_bench_half_car_refuses_a_count_below_one(
         bench.main()
     message = str(exc.value.code)
     assert message.startswith("bench_half_car.py: error:") and option in message
+
+
+# ----------------------------------------------------------------------------- messages
+def test_format_bytes_keeps_a_huge_request_short() -> None:
+    """``evaluate.py --episode-length 1e300`` printed a memory need of 290 digits."""
+    from capsule_env.common.validation import format_bytes
+
+    assert format_bytes(192.2 * 2**30) == "192.2 GiB"
+    assert format_bytes(3 * 2**20) == "3.0 MiB"
+    huge = format_bytes(1e300)
+    assert (
+        huge.endswith(" GiB")
+        and len(huge) < 16
+        and float(huge.split()[0]) == pytest.approx(1e300 / 2**30, rel=1e-2)
+    )

@@ -57,8 +57,8 @@ def available_memory_bytes() -> int:
 def format_bytes(n: float) -> str:
     """``n`` bytes as a short string (KiB, MiB, GiB)."""
     for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= size:
-            return f"{n / size:.1f} {unit}"
+        if n >= size:  # a huge request (--episode-length 1e300): 3 digits, not 290
+            return f"{n / size:.1f} {unit}" if n < 1e6 * size else f"{n / size:.3g} {unit}"
     return f"{n:.0f} B"
 
 
