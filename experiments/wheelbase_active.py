@@ -12,6 +12,7 @@ it (the mean over ``--windows`` 10 s windows of one random profile at 810 km/h).
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 from capsule_env.agents.controllers.wheelbase import _sampled, wheelbase_gains
@@ -38,10 +39,12 @@ def comfort(gains, a, b, e, c, d, rises_front, rises_rear) -> np.ndarray:
     return wk_weighted_rms(np.array(acc).T, 0.005)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--windows", type=int, default=5)
-    args = p.parse_args()
+    p.add_argument("--windows", type=int, default=5, help="10 s windows averaged (>= 1)")
+    args = p.parse_args(argv)
+    if args.windows < 1:  # was a traceback from random_profile (a profile of length 0)
+        sys.exit(f"wheelbase_active.py: error: --windows must be >= 1, got {args.windows}")
     model = model_named("half_car")
     dt, speed, steps = 0.005, 225.0, 2000
     a, b, e, c, d = _sampled(model, model.params(), dt)

@@ -463,3 +463,17 @@ def test_format_bytes_keeps_a_huge_request_short() -> None:
         and len(huge) < 16
         and float(huge.split()[0]) == pytest.approx(1e300 / 2**30, rel=1e-2)
     )
+
+
+def test_wheelbase_active_refuses_no_window_in_one_line() -> None:
+    """--windows 0 or -1 was a traceback from random_profile (length_m must be > 0)."""
+    from conftest import load_script
+
+    wheelbase = load_script("experiments/wheelbase_active.py")
+    for windows in ("0", "-1"):
+        with pytest.raises(SystemExit) as exc:
+            wheelbase.main(["--windows", windows])
+        assert (
+            str(exc.value.code)
+            == f"wheelbase_active.py: error: --windows must be >= 1, got {windows}"
+        )
