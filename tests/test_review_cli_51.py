@@ -477,3 +477,42 @@ def test_wheelbase_active_refuses_no_window_in_one_line() -> None:
             str(exc.value.code)
             == f"wheelbase_active.py: error: --windows must be >= 1, got {windows}"
         )
+
+
+# ----------------------------------------------------------------------------- Ctrl-C
+def _interrupt(*args: object, **kwargs: object) -> None:
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize(
+    ("module", "work", "argv"),
+    [
+        ("capsule_env.evaluation.evaluate", "evaluate", ["--controllers", "passive"]),
+        ("capsule_env.bounds.__main__", "certified_floor", ["--episodes", "1"]),
+        ("capsule_env.agents.controllers.tuning", "tune_all", ["--quick", "--out", "OUT/g.json"]),
+        ("capsule_env.identification.cli", "identify_reference", []),
+        ("capsule_env.export.artifacts", "export_policy", ["ppo-measured", "--out", "OUT"]),
+    ],
+)
+def test_a_ctrl_c_ends_a_command_in_one_line(
+    module: str,
+    work: str,
+    argv: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A Ctrl-C in the work was a KeyboardInterrupt traceback of 20 to 120 lines (probed with
+    SIGINT); now one line and exit status 130, as train.py and the sweep end."""
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module(module), work, _interrupt)
+    cli = {"capsule_env.export.artifacts": "capsule_env.export.__main__"}.get(module, module)
+    main = importlib.import_module(cli).main
+    try:
+        status = main([a.replace("OUT", str(tmp_path)) for a in argv])
+    except KeyboardInterrupt:
+        pytest.fail("the Ctrl-C escaped main as a KeyboardInterrupt (a traceback)")
+    assert status == 130
+    line = _one_line(capsys.readouterr().err)
+    assert line.endswith("interrupted; the files it wrote are complete, the rest were not written")

@@ -37,7 +37,7 @@ from capsule_env.agents.controllers.tuned import TUNED_GAINS_PATH
 from capsule_env.agents.learning.search_space import SEARCH_SPACES, SearchSpace
 
 from capsule_env import metrics
-from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser, exits_on_interrupt
 from capsule_env.common.safe_io import atomic_write_text, check_writable_file
 from capsule_env.evaluation.episodes import Rollout, run_episodes
 from capsule_env.tasks import task_named
@@ -230,6 +230,7 @@ def merge_previous(data: dict[str, Any], path: Path) -> dict[str, Any]:
     return merged
 
 
+@exits_on_interrupt("python -m capsule_env.agents.controllers.tuning")
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status."""
     p = ArgumentParser(prog="python -m capsule_env.agents.controllers.tuning", description=__doc__,

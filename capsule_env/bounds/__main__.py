@@ -10,9 +10,10 @@ import json
 import sys
 
 from capsule_env.bounds import DEFAULT_OPTIONS, MAX_FORCES, certified_floor
-from capsule_env.common.cli import ArgumentParser, integer
+from capsule_env.common.cli import ArgumentParser, exits_on_interrupt, integer
 
 
+@exits_on_interrupt("python -m capsule_env.bounds")
 def main(argv: list[str] | None = None) -> int:
     p = ArgumentParser(prog="python -m capsule_env.bounds", description=__doc__)
     p.add_argument("--setting", default="sim", help="env setting (sim; hils is refused)")

@@ -19,10 +19,13 @@ from __future__ import annotations
 import argparse
 import ast
 import dataclasses
+import functools
 import inspect
 import json
+import sys
 import textwrap
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -30,6 +33,7 @@ __all__ = [
     "ArgumentParser",
     "integer",
     "nonempty_path",
+    "exits_on_interrupt",
     "field_docs",
     "add_dataclass_options",
     "dataclass_values",
@@ -69,6 +73,26 @@ def nonempty_path(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"an empty path: give a file or folder name, got {text!r}")
     return Path(text)
+
+
+def exits_on_interrupt(prog: str) -> Callable[[Callable[..., int]], Callable[..., int]]:
+    """Decorate a command's ``main(argv)``: a Ctrl-C ends it with one line on stderr and exit
+    status 130 instead of a ``KeyboardInterrupt`` traceback of some 20 to 120 lines (its
+    saves are atomic: a file is complete or absent)."""
+
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def wrapped(*args: Any, **kwargs: Any) -> int:
+            try:
+                return main(*args, **kwargs)
+            except KeyboardInterrupt:
+                print(f"\n{prog}: interrupted; the files it wrote are complete, the rest "
+                      "were not written", file=sys.stderr)  # fmt: skip
+                return 130
+
+        return wrapped
+
+    return wrap
 
 
 # ----------------------------------------------------------------------------- dataclasses

@@ -47,7 +47,7 @@ import numpy as np
 from capsule_env.agents import classical_controllers
 from capsule_env.agents.controllers.tuned import tuning_env_kwargs, tuning_task_kwargs
 from capsule_env.agents.learning.policy_files import shown_path
-from capsule_env.common.cli import ArgumentParser, nonempty_path
+from capsule_env.common.cli import ArgumentParser, exits_on_interrupt, nonempty_path
 from capsule_env.common.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.engine.config import EnvConfig
 from capsule_env.evaluation.condition import (
@@ -568,6 +568,7 @@ def _declared_main(args: argparse.Namespace) -> int:
     return 0
 
 
+@exits_on_interrupt("evaluate.py")
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status. Bad arguments or files: ``SystemExit`` with one
     line (``evaluate.py: error: ...``) before anything runs. ``--task`` a declared vehicle's

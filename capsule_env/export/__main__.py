@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser, exits_on_interrupt
 
 __all__ = ["parse_args", "main"]
 
@@ -38,6 +38,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+@exits_on_interrupt("capsule-export")
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from capsule_env.export.artifacts import export_policy

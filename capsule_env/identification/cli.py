@@ -29,7 +29,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from capsule_env.common.cli import ArgumentParser
+from capsule_env.common.cli import ArgumentParser, exits_on_interrupt
 from capsule_env.common.safe_io import atomic_write_text, check_writable_dir, check_writable_file
 from capsule_env.identification import (
     D_RULES,
@@ -386,6 +386,7 @@ def _one_line_warnings(prog: str) -> Callable[..., None]:
     return show
 
 
+@exits_on_interrupt("python -m capsule_env.identification.cli")
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status."""
     parser = build_parser()
