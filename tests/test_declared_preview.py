@@ -159,4 +159,5 @@ def test_the_preview_evaluation_refuses_bad_input_in_one_line(argv, capsys, tmp_
 
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and err.count("\n") == 1
+    prog = "python -m capsule_env.evaluation.half_car_preview: error: "
+    assert err.startswith(prog) and err.count("\n") == 1
