@@ -570,9 +570,8 @@ def _declared_main(args: argparse.Namespace) -> int:
 
 @exits_on_interrupt("evaluate.py")
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status. Bad arguments or files: ``SystemExit`` with one
-    line (``evaluate.py: error: ...``) before anything runs. ``--task`` a declared vehicle's
-    task runs its own evaluation (:func:`_declared_main`)."""
+    """Entry point (the exit status): bad arguments or files exit with one line (``evaluate.py:
+    error: ...``) before anything runs; a declared vehicle's ``--task``: :func:`_declared_main`."""
     args = parse_args(argv)
     if args.condition is None:
         return _declared_main(args)
