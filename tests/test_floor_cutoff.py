@@ -65,7 +65,9 @@ def test_ranges_hold_every_run_below_the_cutoff(cutoff, window):
     ranges = [cutoff.rate_intervals(problem, ub) for ub in cuts]
     for ub, (lo, hi) in zip(cuts, ranges):
         assert np.all(lo <= hi)
-        for j, v in runs:  # every run below the cutoff lies inside: none is cut off
+        # every run below the cutoff lies inside (none is cut off); 1e-7 m/s: the ranges are
+        # Clarabel's optima (interior point, gaps ~1e-9), not exact, on any CPU
+        for j, v in runs:
             if ub is None or j <= ub:
                 assert np.all(lo <= v + 1e-7) and np.all(v <= hi + 1e-7)
     # a lower cutoff is a subset of trajectories: it never widens a range
